@@ -1,0 +1,158 @@
+#pragma once
+// The scene package: everything precompute produces and the server and
+// clients consume, in one HDF5 file. docs/package-format.md is the normative
+// description of every dataset; the names here follow it and the paper.
+
+#include "phasecast/core/eigen_types.h"
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace phasecast::core {
+
+inline constexpr int kFormatVersion = 1;
+inline constexpr int kShCoefficients = 16;     // SH order 4 (bands 0..3)
+inline constexpr int kTransferPerPoint = 48;   // 3 colour channels x 16 SH coefficients
+inline constexpr int kKinematicsColumns = 11;  // columns of /palette/kinematics
+inline constexpr int kSupportFloats = 12;      // 3x4 support transform
+
+// End-of-IRF rule of a palette entry (/palette/on_end): -1, -2, or a follow-up index.
+inline constexpr std::int32_t kEndRest = -1;
+inline constexpr std::int32_t kEndHold = -2;
+
+// Thrown for every invalid package: the message is one line naming the file,
+// the dataset and what was expected.
+class PackageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Root attributes.
+struct PackageAttributes {
+  int format_version = kFormatVersion;
+  std::string scene;
+  double dt = 0;                                // seconds per state-node time step
+  double beta = 1;                              // velocity weight of the distance metric (eq. 9)
+  double blend_lambda = 1;                      // IRF blend decay rate, 1/s (eq. 12)
+  double eps_u = 0;                             // displacement rank tolerance (§2.3.1)
+  double eps_a = 0;                             // appearance rank tolerance (§4.2)
+  std::optional<std::array<float, 10>> camera;  // eye(3) target(3) up(3) fov_y_deg
+};
+
+// Scene points: deformable and static, double-sided surfaces duplicated.
+struct SceneMesh {
+  MatrixXfR rest_positions;              // S x 3, metres, support frame
+  MatrixXuR triangles;                   // F x 3 point indices
+  MatrixXfR normals;                     // S x 3 unit rest normals
+  std::vector<std::uint8_t> deformable;  // S: 1 = moved by U_u
+  std::vector<std::uint8_t> attached;    // S: 1 = moves with the support transform
+
+  int points() const { return static_cast<int>(rest_positions.rows()); }
+  int triangle_count() const { return static_cast<int>(triangles.rows()); }
+};
+
+// Support motion while a palette entry is active. Entries with pulse_tau == 0
+// drive the scene's support coordinate s (angle or offset along `axis`) at
+// `rate`, clamped to [range_min, range_max]; entries with pulse_tau > 0 are
+// jolts: a transient displacement pulse that returns to rest.
+struct SupportKinematics {
+  std::array<float, 3> axis{0, 1, 0};
+  std::array<float, 3> pivot{0, 0, 0};
+  bool rotational = false;
+  float rate = 0;
+  float range_min = 0;
+  float range_max = 0;
+  float pulse_tau = 0;
+};
+
+// The D entries of the impulse palette (§3.3) with their transition rules.
+struct ImpulsePalette {
+  std::vector<std::string> names;             // D
+  MatrixXfR alpha_impulse;                    // D x k  (alpha^I)
+  MatrixXfR alpha_forcing;                    // D x k  (alpha^F)
+  MatrixXbR transitions;                      // (D+1) x D: row 0 from rest, row i+1 from entry i
+  std::vector<std::int32_t> on_end;           // D: kEndRest, kEndHold or follow-up index
+  std::vector<SupportKinematics> kinematics;  // D
+
+  int size() const { return static_cast<int>(names.size()); }
+  // Index of the entry called `name`, or -1.
+  int index_of(const std::string& name) const;
+  // Whether entry `to` may follow entry `from` (-1: from rest).
+  bool allowed(int from, int to) const;
+};
+
+// Displacement model reduction (§2.3.1, eqs. 3-7).
+struct Reduction {
+  VectorXf mean_shape;       // 3S: x-bar; static points keep their rest position
+  MatrixXfR U_u;             // 3S x r_u orthonormal displacement basis (rows of static points 0)
+  VectorXf singular_values;  // every computed sigma, decreasing
+  VectorXf rel_error;        // same length: relative l2 reconstruction error at rank i+1 (Fig. 12)
+
+  int rank() const { return static_cast<int>(U_u.cols()); }
+};
+
+// The reduced discrete phase portrait (§2.3.2) and the IRF reference cache (§5.2).
+struct PhasePortrait {
+  MatrixXfR q_u;                          // N x r_u reduced displacement coordinates (eq. 6)
+  MatrixXfR qdot_u;                       // N x r_u reduced velocities (eq. 8)
+  MatrixXfR q_a;                          // N x r_a reduced appearance coordinates (0 columns: none)
+  std::vector<std::int32_t> irf_start;    // n_irf: first state node of each IRF
+  std::vector<std::int32_t> irf_length;   // n_irf: number of state nodes
+  std::vector<std::int32_t> irf_palette;  // n_irf: palette entry that started it
+  MatrixXiR nearest_irf;                  // N x D: nearest IRF of each entry under eq. 9
+  MatrixXfR support;                      // N x 12 support transform as simulated (0 rows: absent)
+
+  int nodes() const { return static_cast<int>(q_u.rows()); }
+  int irf_count() const { return static_cast<int>(irf_start.size()); }
+};
+
+// Reduced radiance transfer (§4).
+struct Appearance {
+  VectorXf mean_transfer;                   // 48S: M-bar
+  MatrixXfR U_a;                            // 48S x r_a orthonormal transfer basis
+  VectorXf singular_values;                 // every computed sigma, decreasing
+  VectorXf rel_error;                       // relative l2 error at rank i+1 (Fig. 12, red)
+  std::vector<std::int32_t> cluster_nodes;  // N_a state nodes whose transfer was computed
+  MatrixXfR nrbf_centers;                   // N_a x r_u
+  MatrixXfR nrbf_weights;                   // N_a x r_a
+  VectorXf nrbf_widths;                     // N_a
+  float nrbf_regularization = 0;
+
+  int rank() const { return static_cast<int>(U_a.cols()); }
+  int clusters() const { return static_cast<int>(cluster_nodes.size()); }
+};
+
+struct ScenePackage {
+  PackageAttributes attributes;
+  SceneMesh mesh;
+  ImpulsePalette palette;
+  Reduction reduction;
+  PhasePortrait portrait;
+  std::optional<Appearance> appearance;
+
+  int rank_u() const { return reduction.rank(); }
+  int rank_a() const { return appearance ? appearance->rank() : 0; }
+};
+
+// Checks every invariant of docs/package-format.md on an in-memory package.
+// `source` names it in messages (usually the file path). Throws PackageError.
+void validate_package(const ScenePackage& package, const std::string& source);
+
+// Reads and validates a package. Throws PackageError with a one-line message
+// for anything that is not a valid version-1 package (missing or truncated
+// file, not HDF5, missing dataset, wrong shape or dtype, NaN/Inf, bad index).
+ScenePackage read_package(const std::filesystem::path& path);
+
+// Validates, then writes atomically: a temporary file next to `path` renamed
+// over it, so an interrupted write never leaves a partial package behind.
+void write_package(const ScenePackage& package, const std::filesystem::path& path);
+
+// Displacement relative error at `rank` (1-based) from the stored curve; NaN if unknown.
+double displacement_error_at_rank(const ScenePackage& package, int rank);
+
+}  // namespace phasecast::core

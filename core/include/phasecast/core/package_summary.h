@@ -1,0 +1,40 @@
+#pragma once
+// What phasecast-inspect reports about a package: counts, ranks, errors,
+// sizes, and what a thin client must download.
+
+#include "phasecast/core/package.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace phasecast::core {
+
+struct PackageSummary {
+  std::string file;
+  std::string scene;
+  std::uint64_t file_bytes = 0;
+  std::uint64_t content_hash = 0;
+  int points = 0, deformable_points = 0, triangles = 0;  // S, deformable part of S, F
+  int state_nodes = 0, irfs = 0, palette_entries = 0;    // N, n_irf, D
+  std::vector<std::string> palette;
+  std::vector<int> irfs_per_entry;            // D
+  double dt = 0, duration_s = 0;              // N * dt
+  int rank_u = 0, rank_a = 0, clusters = 0;   // r_u, r_a, N_a
+  int chosen_rank = 0;                        // rank the error is reported at
+  double error_u_at_rank = 0;                 // relative l2 (Fig. 12, blue)
+  double error_a_at_rank = 0;                 // at r_a (Fig. 12, red); NaN without appearance
+  std::uint64_t client_download_bytes = 0;    // sum of basis parts
+  std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
+  std::uint64_t full_vertex_frame_bytes = 0;  // streaming vertices instead
+};
+
+// `rank` <= 0 reports the error at the package's r_u.
+PackageSummary summarize(const ScenePackage& package, const std::filesystem::path& file, int rank = 0);
+
+std::string to_text(const PackageSummary& s);
+nlohmann::json to_json(const PackageSummary& s);
+
+}  // namespace phasecast::core

@@ -1,0 +1,360 @@
+#include "hdf5_file.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cstring>
+
+namespace phasecast::core::h5 {
+namespace {
+
+// HDF5 prints its error stack to stderr by default; the package reader reports
+// its own one-line messages instead.
+void silence_hdf5() {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+}
+
+hid_t check(hid_t id, const std::string& what) {
+  if (id < 0) throw Failure(what);
+  return id;
+}
+
+void check(herr_t status, const std::string& what) {
+  if (status < 0) throw Failure(what);
+}
+
+hid_t native_type(Dtype d) {
+  switch (d) {
+    case Dtype::f32:
+      return H5T_NATIVE_FLOAT;
+    case Dtype::f64:
+      return H5T_NATIVE_DOUBLE;
+    case Dtype::u8:
+      return H5T_NATIVE_UINT8;
+    case Dtype::u32:
+      return H5T_NATIVE_UINT32;
+    case Dtype::i32:
+      return H5T_NATIVE_INT32;
+    default:
+      throw Failure("internal: no native HDF5 type for this dtype");
+  }
+}
+
+// Little-endian file types, so packages written here read identically anywhere.
+hid_t file_type(Dtype d) {
+  switch (d) {
+    case Dtype::f32:
+      return H5T_IEEE_F32LE;
+    case Dtype::f64:
+      return H5T_IEEE_F64LE;
+    case Dtype::u8:
+      return H5T_STD_U8LE;
+    case Dtype::u32:
+      return H5T_STD_U32LE;
+    case Dtype::i32:
+      return H5T_STD_I32LE;
+    default:
+      throw Failure("internal: no HDF5 file type for this dtype");
+  }
+}
+
+Dtype classify(hid_t type) {
+  const H5T_class_t cls = H5Tget_class(type);
+  const size_t size = H5Tget_size(type);
+  if (cls == H5T_FLOAT) return size == 4 ? Dtype::f32 : size == 8 ? Dtype::f64 : Dtype::other;
+  if (cls == H5T_STRING) return Dtype::string;
+  if (cls == H5T_INTEGER) {
+    const bool is_signed = H5Tget_sign(type) == H5T_SGN_2;
+    if (!is_signed && size == 1) return Dtype::u8;
+    if (!is_signed && size == 4) return Dtype::u32;
+    if (is_signed && size == 4) return Dtype::i32;
+  }
+  return Dtype::other;
+}
+
+Handle string_type(bool variable) {
+  Handle t(check(H5Tcopy(H5T_C_S1), "cannot create string type"), H5Tclose);
+  check(H5Tset_size(t.get(), variable ? H5T_VARIABLE : 1), "cannot size string type");
+  check(H5Tset_cset(t.get(), H5T_CSET_UTF8), "cannot set string charset");
+  return t;
+}
+
+// Chunked layout with the Fletcher-32 filter: a flipped bit in bulk data makes
+// the read fail instead of returning wrong numbers. Chunks are whole rows,
+// about 1 MiB each. Empty datasets cannot be chunked and stay contiguous.
+Handle checksummed_layout(const std::vector<hsize_t>& dims, size_t element_bytes) {
+  Handle dcpl(check(H5Pcreate(H5P_DATASET_CREATE), "cannot create dataset properties"), H5Pclose);
+  hsize_t row_bytes = element_bytes;
+  for (size_t i = 0; i < dims.size(); ++i) {
+    if (dims[i] == 0) return dcpl;
+    if (i > 0) row_bytes *= dims[i];
+  }
+  if (dims.empty()) return dcpl;
+  std::vector<hsize_t> chunk = dims;
+  chunk[0] = std::clamp<hsize_t>((1u << 20) / row_bytes, 1, dims[0]);
+  check(H5Pset_chunk(dcpl.get(), static_cast<int>(chunk.size()), chunk.data()), "cannot set chunking");
+  check(H5Pset_fletcher32(dcpl.get()), "cannot set the Fletcher-32 filter");
+  return dcpl;
+}
+
+}  // namespace
+
+const char* dtype_name(Dtype d) {
+  switch (d) {
+    case Dtype::f32:
+      return "float32";
+    case Dtype::f64:
+      return "float64";
+    case Dtype::u8:
+      return "uint8";
+    case Dtype::u32:
+      return "uint32";
+    case Dtype::i32:
+      return "int32";
+    case Dtype::string:
+      return "string";
+    default:
+      return "an unsupported dtype";
+  }
+}
+
+Handle& Handle::operator=(Handle&& o) noexcept {
+  if (this != &o) {
+    if (id_ >= 0 && closer_) closer_(id_);
+    id_ = o.id_;
+    closer_ = o.closer_;
+    o.id_ = H5I_INVALID_HID;
+  }
+  return *this;
+}
+
+Handle::~Handle() {
+  if (id_ >= 0 && closer_) closer_(id_);
+}
+
+File File::create(const std::filesystem::path& path) {
+  silence_hdf5();
+  // Format 1.8+ object headers carry metadata checksums, so corruption of the
+  // file's structure is detected on read; h5py and HDF5 >= 1.8 read them.
+  Handle fapl(check(H5Pcreate(H5P_FILE_ACCESS), "cannot create file access list"), H5Pclose);
+  check(H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_LATEST), "cannot set format bounds");
+  return File(
+      Handle(check(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), "cannot create the file"),
+             H5Fclose));
+}
+
+File File::open_write(const std::filesystem::path& path) {
+  silence_hdf5();
+  return File(
+      Handle(check(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), "cannot open for writing"), H5Fclose));
+}
+
+void File::remove(const std::string& name) {
+  check(H5Ldelete(file_.get(), name.c_str(), H5P_DEFAULT), "cannot remove " + name);
+}
+
+File File::open_read(const std::filesystem::path& path) {
+  silence_hdf5();
+  if (H5Fis_hdf5(path.c_str()) <= 0) throw Failure("not an HDF5 file (or truncated)");
+  return File(Handle(check(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT),
+                           "cannot open as HDF5 (truncated or corrupt?)"),
+                     H5Fclose));
+}
+
+bool File::exists(const std::string& name) const {
+  // H5Lexists must be asked about every component from the root down.
+  std::string prefix;
+  size_t pos = 0;
+  while (pos != std::string::npos) {
+    pos = name.find('/', pos + 1);
+    prefix = name.substr(0, pos);
+    if (H5Lexists(file_.get(), prefix.c_str(), H5P_DEFAULT) <= 0) return false;
+  }
+  return true;
+}
+
+Handle File::open_dataset(const std::string& name) const {
+  if (!exists(name)) throw Failure("missing dataset");
+  return Handle(check(H5Dopen2(file_.get(), name.c_str(), H5P_DEFAULT), "cannot open dataset"), H5Dclose);
+}
+
+DatasetInfo File::info(const std::string& name) const {
+  Handle ds = open_dataset(name);
+  Handle space(check(H5Dget_space(ds.get()), "cannot read dataspace"), H5Sclose);
+  Handle type(check(H5Dget_type(ds.get()), "cannot read datatype"), H5Tclose);
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank < 0) throw Failure("cannot read dataspace rank");
+  std::vector<hsize_t> dims(static_cast<size_t>(rank));
+  if (rank > 0) check(H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr), "cannot read dims");
+  DatasetInfo info;
+  info.dims.assign(dims.begin(), dims.end());
+  info.dtype = classify(type.get());
+  return info;
+}
+
+void File::read_raw(const std::string& name, Dtype dtype, void* out) const {
+  Handle ds = open_dataset(name);
+  check(H5Dread(ds.get(), native_type(dtype), H5S_ALL, H5S_ALL, H5P_DEFAULT, out),
+        "cannot read data (truncated or corrupt file?)");
+}
+
+std::vector<std::string> File::read_strings(const std::string& name) const {
+  Handle ds = open_dataset(name);
+  Handle type(check(H5Dget_type(ds.get()), "cannot read datatype"), H5Tclose);
+  if (H5Tget_class(type.get()) != H5T_STRING) throw Failure("expected strings");
+  Handle space(check(H5Dget_space(ds.get()), "cannot read dataspace"), H5Sclose);
+  const hssize_t n = H5Sget_simple_extent_npoints(space.get());
+  if (n < 0) throw Failure("cannot read string count");
+  std::vector<std::string> result;
+  if (H5Tis_variable_str(type.get()) > 0) {
+    Handle mem = string_type(true);
+    std::vector<char*> raw(static_cast<size_t>(n), nullptr);
+    check(H5Dread(ds.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, raw.data()), "cannot read strings");
+    for (char* s : raw) result.emplace_back(s ? s : "");
+    H5Dvlen_reclaim(mem.get(), space.get(), H5P_DEFAULT, raw.data());
+  } else {
+    const size_t width = H5Tget_size(type.get());
+    std::vector<char> raw(static_cast<size_t>(n) * width);
+    check(H5Dread(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, raw.data()), "cannot read strings");
+    for (hssize_t i = 0; i < n; ++i) {
+      const char* s = raw.data() + static_cast<size_t>(i) * width;
+      result.emplace_back(s, strnlen(s, width));
+    }
+  }
+  return result;
+}
+
+void File::ensure_parent_groups(const std::string& name) {
+  size_t pos = 0;
+  while ((pos = name.find('/', pos + 1)) != std::string::npos) {
+    const std::string group = name.substr(0, pos);
+    if (H5Lexists(file_.get(), group.c_str(), H5P_DEFAULT) > 0) continue;
+    Handle g(check(H5Gcreate2(file_.get(), group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                   "cannot create group " + group),
+             H5Gclose);
+  }
+}
+
+void File::write_raw(const std::string& name, Dtype dtype, const void* data,
+                     const std::vector<std::uint64_t>& dims) {
+  ensure_parent_groups(name);
+  std::vector<hsize_t> hdims(dims.begin(), dims.end());
+  Handle space(check(H5Screate_simple(static_cast<int>(hdims.size()), hdims.data(), nullptr),
+                     "cannot create dataspace for " + name),
+               H5Sclose);
+  Handle dcpl = checksummed_layout(hdims, H5Tget_size(file_type(dtype)));
+  Handle ds(check(H5Dcreate2(file_.get(), name.c_str(), file_type(dtype), space.get(), H5P_DEFAULT,
+                             dcpl.get(), H5P_DEFAULT),
+                  "cannot create dataset " + name),
+            H5Dclose);
+  check(H5Dwrite(ds.get(), native_type(dtype), H5S_ALL, H5S_ALL, H5P_DEFAULT, data),
+        "cannot write dataset " + name);
+}
+
+void File::write_strings(const std::string& name, const std::vector<std::string>& values) {
+  ensure_parent_groups(name);
+  Handle type = string_type(true);
+  const hsize_t n = values.size();
+  Handle space(check(H5Screate_simple(1, &n, nullptr), "cannot create dataspace"), H5Sclose);
+  Handle ds(check(H5Dcreate2(file_.get(), name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                             H5P_DEFAULT),
+                  "cannot create dataset " + name),
+            H5Dclose);
+  std::vector<const char*> raw;
+  for (const auto& v : values) raw.push_back(v.c_str());
+  check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, raw.data()),
+        "cannot write dataset " + name);
+}
+
+void File::remove_attribute(const std::string& name) {
+  check(H5Adelete(file_.get(), name.c_str()), "cannot remove attribute " + name);
+}
+
+bool File::has_attribute(const std::string& name) const {
+  return H5Aexists(file_.get(), name.c_str()) > 0;
+}
+
+Dtype File::attribute_dtype(const std::string& name) const {
+  Handle attr(check(H5Aopen(file_.get(), name.c_str(), H5P_DEFAULT), "cannot open attribute"), H5Aclose);
+  Handle type(check(H5Aget_type(attr.get()), "cannot read attribute type"), H5Tclose);
+  return classify(type.get());
+}
+
+double File::read_attribute_number(const std::string& name) const {
+  Handle attr(check(H5Aopen(file_.get(), name.c_str(), H5P_DEFAULT), "cannot open attribute"), H5Aclose);
+  Handle space(check(H5Aget_space(attr.get()), "cannot read attribute space"), H5Sclose);
+  if (H5Sget_simple_extent_npoints(space.get()) != 1) throw Failure("expected a scalar");
+  double value = 0;
+  check(H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &value), "cannot read attribute");
+  return value;
+}
+
+std::vector<float> File::read_attribute_floats(const std::string& name) const {
+  Handle attr(check(H5Aopen(file_.get(), name.c_str(), H5P_DEFAULT), "cannot open attribute"), H5Aclose);
+  Handle space(check(H5Aget_space(attr.get()), "cannot read attribute space"), H5Sclose);
+  const hssize_t n = H5Sget_simple_extent_npoints(space.get());
+  if (n < 0) throw Failure("cannot read attribute size");
+  std::vector<float> values(static_cast<size_t>(n));
+  check(H5Aread(attr.get(), H5T_NATIVE_FLOAT, values.data()), "cannot read attribute");
+  return values;
+}
+
+std::string File::read_attribute_string(const std::string& name) const {
+  Handle attr(check(H5Aopen(file_.get(), name.c_str(), H5P_DEFAULT), "cannot open attribute"), H5Aclose);
+  Handle type(check(H5Aget_type(attr.get()), "cannot read attribute type"), H5Tclose);
+  if (H5Tget_class(type.get()) != H5T_STRING) throw Failure("expected a string");
+  if (H5Tis_variable_str(type.get()) > 0) {
+    Handle mem = string_type(true);
+    char* raw = nullptr;
+    check(H5Aread(attr.get(), mem.get(), &raw), "cannot read attribute");
+    std::string value = raw ? raw : "";
+    H5free_memory(raw);
+    return value;
+  }
+  std::vector<char> raw(H5Tget_size(type.get()) + 1, '\0');
+  check(H5Aread(attr.get(), type.get(), raw.data()), "cannot read attribute");
+  return std::string(raw.data());
+}
+
+namespace {
+void write_attr(hid_t object, const std::string& name, hid_t file_t, hid_t mem_t, const void* data, hsize_t n,
+                bool scalar) {
+  if (H5Aexists(object, name.c_str()) > 0) H5Adelete(object, name.c_str());
+  Handle space(check(scalar ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &n, nullptr),
+                     "cannot create attribute space"),
+               H5Sclose);
+  Handle attr(check(H5Acreate2(object, name.c_str(), file_t, space.get(), H5P_DEFAULT, H5P_DEFAULT),
+                    "cannot create attribute " + name),
+              H5Aclose);
+  check(H5Awrite(attr.get(), mem_t, data), "cannot write attribute " + name);
+}
+}  // namespace
+
+void File::write_attribute(const std::string& name, double value) {
+  write_attr(file_.get(), name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value, 1, true);
+}
+
+void File::write_attribute(const std::string& name, std::int32_t value) {
+  write_attr(file_.get(), name, H5T_STD_I32LE, H5T_NATIVE_INT32, &value, 1, true);
+}
+
+void File::write_attribute(const std::string& name, const std::vector<float>& values) {
+  write_attr(file_.get(), name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, values.data(), values.size(), false);
+}
+
+void File::write_attribute(const std::string& name, const std::string& value) {
+  write_attribute_on("/", name, value);
+}
+
+void File::write_attribute_on(const std::string& object, const std::string& name, const std::string& value) {
+  Handle obj(check(H5Oopen(file_.get(), object.c_str(), H5P_DEFAULT), "cannot open " + object), H5Oclose);
+  Handle type = string_type(true);
+  const char* raw = value.c_str();
+  write_attr(obj.get(), name, type.get(), type.get(), &raw, 1, true);
+}
+
+void File::flush() {
+  check(H5Fflush(file_.get(), H5F_SCOPE_GLOBAL), "cannot flush the file");
+}
+
+}  // namespace phasecast::core::h5

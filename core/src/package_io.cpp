@@ -1,0 +1,347 @@
+// HDF5 reading and writing of the scene package (docs/package-format.md).
+// Reading checks each dataset's presence, rank and exact dtype here; counts,
+// cross-dataset consistency, indices and finiteness are checked by
+// validate_package() so that the writer enforces the very same rules.
+
+#include "hdf5_file.h"
+#include "phasecast/core/package.h"
+
+#include <fmt/format.h>
+
+#include <unistd.h>
+#include <cmath>
+
+namespace phasecast::core {
+namespace {
+
+constexpr const char* kKinematicsColumnNames =
+    "axis_x,axis_y,axis_z,pivot_x,pivot_y,pivot_z,rotational,rate,range_min,range_max,pulse_tau";
+
+std::string describe_dims(const std::vector<std::uint64_t>& dims) {
+  if (dims.empty()) return "a scalar";
+  std::string s;
+  for (size_t i = 0; i < dims.size(); ++i) s += (i ? "x" : "") + std::to_string(dims[i]);
+  return s;
+}
+
+class Reader {
+ public:
+  Reader(const h5::File& file, std::string source) : file_(file), source_(std::move(source)) {}
+
+  [[noreturn]] void fail(const std::string& where, const std::string& message) const {
+    throw PackageError(fmt::format("{}: {}: {}", source_, where, message));
+  }
+
+  h5::DatasetInfo require(const std::string& name, h5::Dtype dtype, size_t ndim) const {
+    if (!file_.exists(name))
+      fail(name, fmt::format("missing dataset (expected {}-D {})", ndim, h5::dtype_name(dtype)));
+    h5::DatasetInfo info;
+    try {
+      info = file_.info(name);
+    } catch (const h5::Failure& e) {
+      fail(name, e.what());
+    }
+    if (info.dims.size() != ndim || info.dtype != dtype) {
+      fail(name, fmt::format("expected a {}-D {} dataset, got {} {}", ndim, h5::dtype_name(dtype),
+                             describe_dims(info.dims), h5::dtype_name(info.dtype)));
+    }
+    return info;
+  }
+
+  template <class T>
+  RowMatrix<T> matrix(const std::string& name) const {
+    const auto info = require(name, h5::dtype_of<T>(), 2);
+    RowMatrix<T> m(static_cast<Eigen::Index>(info.dims[0]), static_cast<Eigen::Index>(info.dims[1]));
+    read_into(name, m.data());
+    return m;
+  }
+
+  template <class T>
+  std::vector<T> vector(const std::string& name) const {
+    const auto info = require(name, h5::dtype_of<T>(), 1);
+    std::vector<T> v(info.dims[0]);
+    read_into(name, v.data());
+    return v;
+  }
+
+  VectorXf vectorf(const std::string& name) const {
+    const auto info = require(name, h5::Dtype::f32, 1);
+    VectorXf v(static_cast<Eigen::Index>(info.dims[0]));
+    read_into(name, v.data());
+    return v;
+  }
+
+  std::vector<std::string> strings(const std::string& name) const {
+    if (!file_.exists(name)) fail(name, "missing dataset (expected 1-D strings)");
+    try {
+      return file_.read_strings(name);
+    } catch (const h5::Failure& e) {
+      fail(name, e.what());
+    }
+  }
+
+  double number(const std::string& attr) const {
+    if (!file_.has_attribute(attr)) fail("/@" + attr, "missing root attribute (expected a number)");
+    try {
+      return file_.read_attribute_number(attr);
+    } catch (const h5::Failure& e) {
+      fail("/@" + attr, e.what());
+    }
+  }
+
+  std::string text(const std::string& attr) const {
+    if (!file_.has_attribute(attr)) fail("/@" + attr, "missing root attribute (expected a string)");
+    try {
+      return file_.read_attribute_string(attr);
+    } catch (const h5::Failure& e) {
+      fail("/@" + attr, e.what());
+    }
+  }
+
+  const h5::File& file() const { return file_; }
+
+ private:
+  template <class T>
+  void read_into(const std::string& name, T* out) const {
+    try {
+      file_.read(name, out);
+    } catch (const h5::Failure& e) {
+      fail(name, e.what());
+    }
+  }
+
+  const h5::File& file_;
+  std::string source_;
+};
+
+PackageAttributes read_attributes(const Reader& r) {
+  PackageAttributes a;
+  const double version = r.number("format_version");
+  if (version != kFormatVersion) {
+    r.fail("/@format_version",
+           fmt::format("unknown format_version {} (this build reads {})", version, kFormatVersion));
+  }
+  a.format_version = kFormatVersion;
+  a.scene = r.text("scene");
+  a.dt = r.number("dt");
+  a.beta = r.number("beta");
+  a.blend_lambda = r.number("blend_lambda");
+  a.eps_u = r.number("eps_u");
+  a.eps_a = r.number("eps_a");
+  if (r.file().has_attribute("camera")) {
+    const auto c = r.file().read_attribute_floats("camera");
+    if (c.size() != 10)
+      r.fail("/@camera", fmt::format("expected 10 floats (eye, target, up, fov_y_deg), got {}", c.size()));
+    std::array<float, 10> cam{};
+    std::copy(c.begin(), c.end(), cam.begin());
+    a.camera = cam;
+  }
+  return a;
+}
+
+ImpulsePalette read_palette(const Reader& r) {
+  ImpulsePalette p;
+  p.names = r.strings("/palette/names");
+  p.alpha_impulse = r.matrix<float>("/palette/alpha_impulse");
+  p.alpha_forcing = r.matrix<float>("/palette/alpha_forcing");
+  p.transitions = r.matrix<std::uint8_t>("/palette/transitions");
+  p.on_end = r.vector<std::int32_t>("/palette/on_end");
+  const MatrixXfR k = r.matrix<float>("/palette/kinematics");
+  if (k.cols() != kKinematicsColumns) {
+    r.fail("/palette/kinematics", fmt::format("expected D x {} ({}), got {}x{}", kKinematicsColumns,
+                                              kKinematicsColumnNames, k.rows(), k.cols()));
+  }
+  for (Eigen::Index i = 0; i < k.rows(); ++i) {
+    SupportKinematics s;
+    s.axis = {k(i, 0), k(i, 1), k(i, 2)};
+    s.pivot = {k(i, 3), k(i, 4), k(i, 5)};
+    s.rotational = k(i, 6) != 0.0f;
+    s.rate = k(i, 7);
+    s.range_min = k(i, 8);
+    s.range_max = k(i, 9);
+    s.pulse_tau = k(i, 10);
+    p.kinematics.push_back(s);
+  }
+  return p;
+}
+
+Appearance read_appearance(const Reader& r) {
+  Appearance a;
+  a.mean_transfer = r.vectorf("/appearance/mean_transfer");
+  a.U_a = r.matrix<float>("/appearance/U_a");
+  a.singular_values = r.vectorf("/appearance/singular_values");
+  a.rel_error = r.vectorf("/appearance/rel_error");
+  a.cluster_nodes = r.vector<std::int32_t>("/appearance/cluster_nodes");
+  a.nrbf_centers = r.matrix<float>("/appearance/nrbf_centers");
+  a.nrbf_weights = r.matrix<float>("/appearance/nrbf_weights");
+  a.nrbf_widths = r.vectorf("/appearance/nrbf_widths");
+  const VectorXf reg = r.vectorf("/appearance/nrbf_regularization");
+  if (reg.size() != 1)
+    r.fail("/appearance/nrbf_regularization", fmt::format("expected 1 value, got {}", reg.size()));
+  a.nrbf_regularization = reg[0];
+  return a;
+}
+
+ScenePackage read_from(const Reader& r) {
+  ScenePackage pkg;
+  pkg.attributes = read_attributes(r);
+
+  pkg.mesh.rest_positions = r.matrix<float>("/mesh/rest_positions");
+  pkg.mesh.triangles = r.matrix<std::uint32_t>("/mesh/triangles");
+  pkg.mesh.normals = r.matrix<float>("/mesh/normals");
+  pkg.mesh.deformable = r.vector<std::uint8_t>("/mesh/deformable");
+  pkg.mesh.attached = r.vector<std::uint8_t>("/mesh/attached");
+
+  pkg.palette = read_palette(r);
+
+  pkg.reduction.mean_shape = r.vectorf("/reduction/mean_shape");
+  pkg.reduction.U_u = r.matrix<float>("/reduction/U_u");
+  pkg.reduction.singular_values = r.vectorf("/reduction/singular_values");
+  pkg.reduction.rel_error = r.vectorf("/reduction/rel_error");
+
+  auto& pp = pkg.portrait;
+  pp.q_u = r.matrix<float>("/portrait/q_u");
+  pp.qdot_u = r.matrix<float>("/portrait/qdot_u");
+  pp.irf_start = r.vector<std::int32_t>("/portrait/irf_start");
+  pp.irf_length = r.vector<std::int32_t>("/portrait/irf_length");
+  pp.irf_palette = r.vector<std::int32_t>("/portrait/irf_palette");
+  pp.nearest_irf = r.matrix<std::int32_t>("/portrait/nearest_irf");
+  if (r.file().exists("/portrait/support")) pp.support = r.matrix<float>("/portrait/support");
+
+  if (r.file().exists("/appearance")) {
+    pkg.appearance = read_appearance(r);
+    pp.q_a = r.matrix<float>("/portrait/q_a");
+  } else {
+    pp.q_a.resize(pp.q_u.rows(), 0);
+  }
+  return pkg;
+}
+
+// ---- writing -------------------------------------------------------------------
+
+std::vector<std::uint64_t> dims_of(Eigen::Index rows, Eigen::Index cols) {
+  return {static_cast<std::uint64_t>(rows), static_cast<std::uint64_t>(cols)};
+}
+
+template <class T>
+void put(h5::File& f, const std::string& name, const RowMatrix<T>& m) {
+  f.write(name, m.data(), dims_of(m.rows(), m.cols()));
+}
+
+template <class T>
+void put(h5::File& f, const std::string& name, const std::vector<T>& v) {
+  f.write(name, v.data(), {v.size()});
+}
+
+void put(h5::File& f, const std::string& name, const VectorXf& v) {
+  f.write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
+}
+
+MatrixXfR kinematics_matrix(const ImpulsePalette& p) {
+  MatrixXfR k(p.size(), kKinematicsColumns);
+  for (int i = 0; i < p.size(); ++i) {
+    const auto& s = p.kinematics[static_cast<size_t>(i)];
+    k.row(i) << s.axis[0], s.axis[1], s.axis[2], s.pivot[0], s.pivot[1], s.pivot[2],
+        s.rotational ? 1.0f : 0.0f, s.rate, s.range_min, s.range_max, s.pulse_tau;
+  }
+  return k;
+}
+
+void write_to(h5::File& f, const ScenePackage& pkg) {
+  const auto& a = pkg.attributes;
+  f.write_attribute("format_version", static_cast<std::int32_t>(kFormatVersion));
+  f.write_attribute("scene", a.scene);
+  f.write_attribute("dt", a.dt);
+  f.write_attribute("beta", a.beta);
+  f.write_attribute("blend_lambda", a.blend_lambda);
+  f.write_attribute("eps_u", a.eps_u);
+  f.write_attribute("eps_a", a.eps_a);
+  if (a.camera) f.write_attribute("camera", std::vector<float>(a.camera->begin(), a.camera->end()));
+
+  put(f, "/mesh/rest_positions", pkg.mesh.rest_positions);
+  put(f, "/mesh/triangles", pkg.mesh.triangles);
+  put(f, "/mesh/normals", pkg.mesh.normals);
+  put(f, "/mesh/deformable", pkg.mesh.deformable);
+  put(f, "/mesh/attached", pkg.mesh.attached);
+
+  f.write_strings("/palette/names", pkg.palette.names);
+  put(f, "/palette/alpha_impulse", pkg.palette.alpha_impulse);
+  put(f, "/palette/alpha_forcing", pkg.palette.alpha_forcing);
+  put(f, "/palette/transitions", pkg.palette.transitions);
+  put(f, "/palette/on_end", pkg.palette.on_end);
+  put(f, "/palette/kinematics", kinematics_matrix(pkg.palette));
+  f.write_attribute_on("/palette/kinematics", "columns", kKinematicsColumnNames);
+
+  put(f, "/reduction/mean_shape", pkg.reduction.mean_shape);
+  put(f, "/reduction/U_u", pkg.reduction.U_u);
+  put(f, "/reduction/singular_values", pkg.reduction.singular_values);
+  put(f, "/reduction/rel_error", pkg.reduction.rel_error);
+
+  const auto& pp = pkg.portrait;
+  put(f, "/portrait/q_u", pp.q_u);
+  put(f, "/portrait/qdot_u", pp.qdot_u);
+  put(f, "/portrait/irf_start", pp.irf_start);
+  put(f, "/portrait/irf_length", pp.irf_length);
+  put(f, "/portrait/irf_palette", pp.irf_palette);
+  put(f, "/portrait/nearest_irf", pp.nearest_irf);
+  if (pp.support.rows() > 0) put(f, "/portrait/support", pp.support);
+
+  if (const auto& ap = pkg.appearance) {
+    put(f, "/portrait/q_a", pp.q_a);
+    put(f, "/appearance/mean_transfer", ap->mean_transfer);
+    put(f, "/appearance/U_a", ap->U_a);
+    put(f, "/appearance/singular_values", ap->singular_values);
+    put(f, "/appearance/rel_error", ap->rel_error);
+    put(f, "/appearance/cluster_nodes", ap->cluster_nodes);
+    put(f, "/appearance/nrbf_centers", ap->nrbf_centers);
+    put(f, "/appearance/nrbf_weights", ap->nrbf_weights);
+    put(f, "/appearance/nrbf_widths", ap->nrbf_widths);
+    put(f, "/appearance/nrbf_regularization", VectorXf::Constant(1, ap->nrbf_regularization));
+  }
+}
+
+}  // namespace
+
+ScenePackage read_package(const std::filesystem::path& path) {
+  const std::string source = path.string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    throw PackageError(fmt::format("{}: no such package file", source));
+  }
+  std::optional<h5::File> file;
+  try {
+    file.emplace(h5::File::open_read(path));
+  } catch (const h5::Failure& e) {
+    throw PackageError(fmt::format("{}: {}", source, e.what()));
+  }
+  ScenePackage pkg = read_from(Reader(*file, source));
+  validate_package(pkg, source);
+  return pkg;
+}
+
+void write_package(const ScenePackage& package, const std::filesystem::path& path) {
+  validate_package(package, path.string());
+  const std::filesystem::path tmp = path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid()));
+  try {
+    {
+      h5::File f = h5::File::create(tmp);
+      write_to(f, package);
+      f.flush();
+    }
+    std::filesystem::rename(tmp, path);
+  } catch (const h5::Failure& e) {
+    std::filesystem::remove(tmp);
+    throw PackageError(fmt::format("{}: cannot write package: {}", path.string(), e.what()));
+  } catch (const std::filesystem::filesystem_error& e) {
+    std::filesystem::remove(tmp);
+    throw PackageError(fmt::format("{}: cannot write package: {}", path.string(), e.code().message()));
+  }
+}
+
+double displacement_error_at_rank(const ScenePackage& package, int rank) {
+  const auto& e = package.reduction.rel_error;
+  if (rank < 1 || rank > e.size()) return std::nan("");
+  return e[rank - 1];
+}
+
+}  // namespace phasecast::core

@@ -1,0 +1,118 @@
+#include "phasecast/core/package_summary.h"
+
+#include "phasecast/core/basis.h"
+#include "phasecast/core/hash.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+
+namespace phasecast::core {
+namespace {
+
+std::string human_bytes(std::uint64_t b) {
+  if (b < 1024) return fmt::format("{} B", b);
+  if (b < 1024 * 1024) return fmt::format("{:.1f} KiB", static_cast<double>(b) / 1024);
+  return fmt::format("{:.2f} MiB", static_cast<double>(b) / (1024.0 * 1024.0));
+}
+
+// JSON has no NaN: unknown figures become null.
+nlohmann::json number_or_null(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
+}
+
+}  // namespace
+
+PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& file, int rank) {
+  PackageSummary s;
+  s.file = file.string();
+  s.scene = p.attributes.scene;
+  s.file_bytes = std::filesystem::file_size(file);
+  s.content_hash = file_content_hash(file);
+  s.points = p.mesh.points();
+  for (auto d : p.mesh.deformable) s.deformable_points += d;
+  s.triangles = p.mesh.triangle_count();
+  s.state_nodes = p.portrait.nodes();
+  s.irfs = p.portrait.irf_count();
+  s.palette_entries = p.palette.size();
+  s.palette = p.palette.names;
+  s.irfs_per_entry.assign(static_cast<size_t>(s.palette_entries), 0);
+  for (auto d : p.portrait.irf_palette) ++s.irfs_per_entry[static_cast<size_t>(d)];
+  s.dt = p.attributes.dt;
+  s.duration_s = s.dt * s.state_nodes;
+  s.rank_u = p.rank_u();
+  s.rank_a = p.rank_a();
+  s.clusters = p.appearance ? p.appearance->clusters() : 0;
+  s.chosen_rank = rank > 0 ? rank : s.rank_u;
+  s.error_u_at_rank = displacement_error_at_rank(p, s.chosen_rank);
+  s.error_a_at_rank = std::nan("");
+  if (p.appearance && s.rank_a > 0 && s.rank_a <= p.appearance->rel_error.size()) {
+    s.error_a_at_rank = p.appearance->rel_error[s.rank_a - 1];
+  }
+  for (const auto& part : basis_parts(p)) s.client_download_bytes += part.bytes.size();
+  s.frame_state_bytes = reduced_state_bytes(p);
+  s.full_vertex_frame_bytes = full_vertex_bytes(p);
+  return s;
+}
+
+std::string to_text(const PackageSummary& s) {
+  std::string out;
+  auto line = [&out]<class... Args>(fmt::format_string<Args...> f, Args&&... args) {
+    out += fmt::format(f, std::forward<Args>(args)...) + "\n";
+  };
+  line("package      {}", s.file);
+  line("scene        {}", s.scene);
+  line("file         {} ({}), content hash {:016x}", human_bytes(s.file_bytes), s.file_bytes, s.content_hash);
+  line("mesh         S = {} scene points ({} deformable), F = {} triangles", s.points, s.deformable_points,
+       s.triangles);
+  line("portrait     N = {} state nodes ({:.1f} s at dt = {:.4g} s), n_irf = {} IRFs", s.state_nodes,
+       s.duration_s, s.dt, s.irfs);
+  std::vector<std::string> entries;
+  for (size_t i = 0; i < s.palette.size(); ++i)
+    entries.push_back(fmt::format("{}: {} ({} IRFs)", i, s.palette[i], s.irfs_per_entry[i]));
+  line("palette      D = {}: {}", s.palette_entries, fmt::join(entries, ", "));
+  line("displacement r_u = {}, relative error at rank {} = {:.3g}%", s.rank_u, s.chosen_rank,
+       100 * s.error_u_at_rank);
+  if (s.rank_a > 0) {
+    line("appearance   r_a = {}, N_a = {} clusters, relative error at r_a = {:.3g}%", s.rank_a, s.clusters,
+         100 * s.error_a_at_rank);
+  } else {
+    line("appearance   none");
+  }
+  line("thin client  downloads {} once; then {} B per frame (full vertex streaming: {} B, {:.0f}x more)",
+       human_bytes(s.client_download_bytes), s.frame_state_bytes, s.full_vertex_frame_bytes,
+       static_cast<double>(s.full_vertex_frame_bytes) / static_cast<double>(s.frame_state_bytes));
+  return out;
+}
+
+nlohmann::json to_json(const PackageSummary& s) {
+  return {
+      {"file", s.file},
+      {"scene", s.scene},
+      {"file_bytes", s.file_bytes},
+      {"content_hash", fmt::format("{:016x}", s.content_hash)},
+      {"S", s.points},
+      {"deformable_points", s.deformable_points},
+      {"F", s.triangles},
+      {"N", s.state_nodes},
+      {"n_irf", s.irfs},
+      {"D", s.palette_entries},
+      {"palette", s.palette},
+      {"irfs_per_entry", s.irfs_per_entry},
+      {"dt", s.dt},
+      {"duration_s", s.duration_s},
+      {"r_u", s.rank_u},
+      {"r_a", s.rank_a},
+      {"N_a", s.clusters},
+      {"rank", s.chosen_rank},
+      {"rel_error_u", number_or_null(s.error_u_at_rank)},
+      {"rel_error_a", number_or_null(s.error_a_at_rank)},
+      {"client_download_bytes", s.client_download_bytes},
+      {"frame_state_bytes", s.frame_state_bytes},
+      {"full_vertex_frame_bytes", s.full_vertex_frame_bytes},
+  };
+}
+
+}  // namespace phasecast::core

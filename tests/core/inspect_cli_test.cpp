@@ -1,0 +1,113 @@
+// phasecast-inspect as a user runs it: exit codes, one-line errors, JSON.
+
+#include "phasecast/core/package.h"
+#include "run_tool.h"
+#include "synthetic_package.h"
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+
+namespace phasecast {
+namespace {
+
+using ::testing::HasSubstr;
+
+class InspectCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::scratch_dir(std::string("inspect_") +
+                                ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    package_ = testing::make_plate_package();
+    core::write_package(package_, dir_ / "plate.h5");
+  }
+  static int lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+  std::filesystem::path dir_;
+  core::ScenePackage package_;
+};
+
+TEST_F(InspectCli, ValidPackageText) {
+  const auto r = testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("scene        plate"));
+  EXPECT_THAT(r.out, HasSubstr(fmt::format("S = {} scene points", package_.mesh.points())));
+  EXPECT_THAT(r.out, HasSubstr(fmt::format("N = {} state nodes", package_.portrait.nodes())));
+  EXPECT_THAT(r.out, HasSubstr("n_irf = 6 IRFs"));
+  EXPECT_THAT(r.out, HasSubstr("D = 3: 0: close (2 IRFs), 1: stop (2 IRFs), 2: open (2 IRFs)"));
+  EXPECT_THAT(r.out, HasSubstr("r_u = 4"));
+  EXPECT_THAT(r.out, HasSubstr(fmt::format("r_a = {}", package_.rank_a())));
+}
+
+TEST_F(InspectCli, ValidPackageJson) {
+  const auto r =
+      testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string(), "--json", "--rank", "2"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["scene"], "plate");
+  EXPECT_EQ(j["N"], package_.portrait.nodes());
+  EXPECT_EQ(j["D"], 3);
+  EXPECT_EQ(j["r_u"], 4);
+  EXPECT_EQ(j["rank"], 2);
+  EXPECT_NEAR(j["rel_error_u"].get<double>(), package_.reduction.rel_error[1], 1e-7);
+  EXPECT_EQ(j["frame_state_bytes"], 4 * (4 + package_.rank_a() + 12));
+  EXPECT_EQ(j["file_bytes"], std::filesystem::file_size(dir_ / "plate.h5"));
+}
+
+TEST_F(InspectCli, TruncatedPackageFailsWithOneLine) {
+  std::filesystem::resize_file(dir_ / "plate.h5", 4000);
+  const auto r = testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("phasecast-inspect: "));
+  EXPECT_THAT(r.err, HasSubstr("plate.h5"));
+  EXPECT_EQ(r.out, "");
+}
+
+TEST_F(InspectCli, CorruptedPackageFailsWithOneLine) {
+  // Overwrite a block in the middle of the file (metadata and data alike are checksummed).
+  const auto size = std::filesystem::file_size(dir_ / "plate.h5");
+  std::fstream f(dir_ / "plate.h5", std::ios::in | std::ios::out | std::ios::binary);
+  f.seekp(static_cast<std::streamoff>(size / 2));
+  const std::string junk(256, '\x5a');
+  f.write(junk.data(), static_cast<std::streamsize>(junk.size()));
+  f.close();
+  const auto r = testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("plate.h5"));
+}
+
+TEST_F(InspectCli, WrongShapedPackageFailsWithOneLine) {
+  // Reshape a dataset with h5py, as a buggy third-party writer would.
+  const std::string script = fmt::format(
+      "import h5py, numpy as np\nf = h5py.File('{}', 'r+')\nq = f['/portrait/qdot_u'][:, :2]\n"
+      "del f['/portrait/qdot_u']\nf['/portrait/qdot_u'] = q\nf.close()\n",
+      (dir_ / "plate.h5").string());
+  std::ofstream(dir_ / "reshape.py") << script;
+  ASSERT_EQ(std::system(fmt::format("/usr/bin/python3 {}", (dir_ / "reshape.py").string()).c_str()), 0);
+  const auto r = testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("/portrait/qdot_u: expected shape N x r_u"));
+}
+
+TEST_F(InspectCli, NonHdf5FileFailsWithOneLine) {
+  std::ofstream(dir_ / "notes.h5") << "hello";
+  const auto r = testing::run_tool("phasecast-inspect", {(dir_ / "notes.h5").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, fmt::format("phasecast-inspect: {}: not an HDF5 file (or truncated)\n",
+                               (dir_ / "notes.h5").string()));
+}
+
+TEST_F(InspectCli, HelpDescribesTheTool) {
+  const auto r = testing::run_tool("phasecast-inspect", {"--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_THAT(r.out, HasSubstr("--json"));
+}
+
+}  // namespace
+}  // namespace phasecast

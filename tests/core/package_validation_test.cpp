@@ -1,0 +1,239 @@
+// Every rejection path of the package reader, each with its one-line message.
+
+#include "hdf5_file.h"
+#include "phasecast/core/package.h"
+#include "run_tool.h"
+#include "synthetic_package.h"
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+namespace phasecast {
+namespace {
+
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+// The reader's message for `path`, or "" if it was accepted.
+std::string rejection(const std::filesystem::path& path) {
+  try {
+    core::read_package(path);
+  } catch (const core::PackageError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+class PackageFileRejection : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::scratch_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    path_ = dir_ / "plate.h5";
+    core::write_package(testing::make_plate_package(), path_);
+  }
+
+  // Replaces dataset `name` with `values` of shape `dims`, bypassing validation.
+  template <class T>
+  void replace(const std::string& name, const std::vector<T>& values,
+               const std::vector<std::uint64_t>& dims) {
+    auto f = core::h5::File::open_write(path_);
+    f.remove(name);
+    f.write(name, values.data(), dims);
+  }
+
+  void remove(const std::string& name) { core::h5::File::open_write(path_).remove(name); }
+
+  std::filesystem::path dir_, path_;
+};
+
+TEST_F(PackageFileRejection, ValidFileIsAccepted) {
+  EXPECT_EQ(rejection(path_), "");
+}
+
+TEST_F(PackageFileRejection, MissingFile) {
+  EXPECT_THAT(rejection(dir_ / "nope.h5"), AllOf(HasSubstr("nope.h5"), HasSubstr("no such package file")));
+}
+
+TEST_F(PackageFileRejection, NotHdf5) {
+  std::ofstream(dir_ / "text.h5") << "this is not a package\n";
+  EXPECT_THAT(rejection(dir_ / "text.h5"), AllOf(HasSubstr("text.h5"), HasSubstr("not an HDF5 file")));
+}
+
+TEST_F(PackageFileRejection, Truncated) {
+  std::filesystem::resize_file(path_, std::filesystem::file_size(path_) / 2);
+  EXPECT_THAT(rejection(path_), AllOf(HasSubstr("plate.h5"), HasSubstr("truncated")));
+}
+
+TEST_F(PackageFileRejection, CorruptedBulkDataFailsItsChecksum) {
+  // Flip bytes inside U_u's raw data: the Fletcher-32 filter must catch it.
+  const auto p = testing::make_plate_package();
+  const float probe = p.reduction.U_u(3 * 5 + 2, 0);  // a non-zero entry
+  std::fstream f(path_, std::ios::in | std::ios::out | std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(f)), {});
+  const std::string needle(reinterpret_cast<const char*>(&probe), sizeof probe);
+  const auto at = bytes.find(needle);
+  ASSERT_NE(at, std::string::npos);
+  f.seekp(static_cast<std::streamoff>(at));
+  f.write("\x7f\x7f\x7f\x7f", 4);
+  f.close();
+  EXPECT_THAT(rejection(path_),
+              AllOf(HasSubstr("plate.h5"), HasSubstr("/reduction/U_u"), HasSubstr("corrupt")));
+}
+
+TEST_F(PackageFileRejection, MissingDataset) {
+  remove("/portrait/q_u");
+  EXPECT_THAT(rejection(path_),
+              AllOf(HasSubstr("plate.h5: /portrait/q_u: missing dataset"), HasSubstr("2-D float32")));
+}
+
+TEST_F(PackageFileRejection, WrongDtype) {
+  replace<std::int32_t>("/mesh/triangles", std::vector<std::int32_t>(6, 0), {2, 3});
+  EXPECT_THAT(rejection(path_), HasSubstr("/mesh/triangles: expected a 2-D uint32 dataset, got 2x3 int32"));
+}
+
+TEST_F(PackageFileRejection, WrongRank) {
+  replace<float>("/portrait/qdot_u", std::vector<float>(10, 0.0f), {10});
+  EXPECT_THAT(rejection(path_),
+              HasSubstr("/portrait/qdot_u: expected a 2-D float32 dataset, got 10 float32"));
+}
+
+TEST_F(PackageFileRejection, InconsistentRank) {
+  const auto p = testing::make_plate_package();
+  const auto N = static_cast<std::uint64_t>(p.portrait.nodes());
+  replace<float>("/portrait/qdot_u", std::vector<float>(N * 3, 0.0f), {N, 3});
+  EXPECT_THAT(rejection(path_),
+              HasSubstr(fmt::format("/portrait/qdot_u: expected shape N x r_u = {}x4, got {}x3", N, N)));
+}
+
+TEST_F(PackageFileRejection, NotANumber) {
+  const auto p = testing::make_plate_package();
+  std::vector<float> q(p.portrait.q_u.data(), p.portrait.q_u.data() + p.portrait.q_u.size());
+  q[17] = std::nanf("");
+  replace<float>("/portrait/q_u", q, {static_cast<std::uint64_t>(p.portrait.q_u.rows()), 4});
+  EXPECT_THAT(rejection(path_), HasSubstr("/portrait/q_u: expected finite values, got nan at flat index 17"));
+}
+
+TEST_F(PackageFileRejection, TriangleIndexOutOfRange) {
+  replace<std::uint32_t>("/mesh/triangles", {0, 1, 9999}, {1, 3});
+  EXPECT_THAT(rejection(path_),
+              HasSubstr("/mesh/triangles: expected point indices in [0, 85), got 9999 at flat index 2"));
+}
+
+TEST_F(PackageFileRejection, UnknownFormatVersion) {
+  core::h5::File::open_write(path_).write_attribute("format_version", std::int32_t{2});
+  EXPECT_THAT(rejection(path_), HasSubstr("/@format_version: unknown format_version 2 (this build reads 1)"));
+}
+
+TEST_F(PackageFileRejection, MissingAttribute) {
+  core::h5::File::open_write(path_).remove_attribute("dt");
+  EXPECT_THAT(rejection(path_), HasSubstr("/@dt: missing root attribute"));
+}
+
+TEST_F(PackageFileRejection, KinematicsColumns) {
+  replace<float>("/palette/kinematics", std::vector<float>(9, 0.0f), {3, 3});
+  EXPECT_THAT(rejection(path_), HasSubstr("/palette/kinematics: expected D x 11"));
+}
+
+TEST_F(PackageFileRejection, AppearanceBasisRows) {
+  const auto r_a = static_cast<std::uint64_t>(testing::make_plate_package().rank_a());
+  replace<float>("/appearance/U_a", std::vector<float>(4 * r_a, 0.0f), {4, r_a});
+  EXPECT_THAT(rejection(path_), HasSubstr("/appearance/U_a: expected shape 48S x r_a"));
+}
+
+// ---- in-memory rules, shared by reader and writer ---------------------------------
+
+std::string invalid(const core::ScenePackage& p) {
+  try {
+    core::validate_package(p, "pkg");
+  } catch (const core::PackageError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+class PackageRule : public ::testing::Test {
+ protected:
+  core::ScenePackage p = testing::make_plate_package();
+};
+
+TEST_F(PackageRule, NearestIrfMustHaveTheRightPaletteEntry) {
+  p.portrait.nearest_irf(3, 0) = p.portrait.irf_count() - 1;  // an IRF of entry 2
+  EXPECT_THAT(invalid(p),
+              HasSubstr("pkg: /portrait/nearest_irf: expected at [3, 0] -1 or an IRF of palette entry 0"));
+}
+
+TEST_F(PackageRule, IrfMustLieInsideThePortrait) {
+  p.portrait.irf_length.back() += 1;
+  EXPECT_THAT(invalid(p), HasSubstr("/portrait/irf_length: expected IRF 5"));
+}
+
+TEST_F(PackageRule, IrfPaletteIndexInRange) {
+  p.portrait.irf_palette[1] = 3;
+  EXPECT_THAT(invalid(p), HasSubstr("/portrait/irf_palette: expected palette indices in [0, 3), got 3"));
+}
+
+TEST_F(PackageRule, OnEndIsRestHoldOrAnEntry) {
+  p.palette.on_end[0] = 5;
+  EXPECT_THAT(
+      invalid(p),
+      HasSubstr("/palette/on_end: expected -2 (hold), -1 (rest) or an entry index in [-2, 3), got 5"));
+}
+
+TEST_F(PackageRule, PaletteNamesUnique) {
+  p.palette.names[2] = "close";
+  EXPECT_THAT(invalid(p), HasSubstr("/palette/names: expected unique names, got 'close' twice"));
+}
+
+TEST_F(PackageRule, TransitionsShape) {
+  p.palette.transitions.conservativeResize(3, 3);
+  EXPECT_THAT(invalid(p), HasSubstr("/palette/transitions: expected shape (D+1) x D = 4x3, got 3x3"));
+}
+
+TEST_F(PackageRule, StaticPointsHaveZeroBasisRows) {
+  const int board = p.mesh.points() - 1;  // a door-board corner
+  p.reduction.U_u(3 * board, 0) = 0.5f;
+  EXPECT_THAT(invalid(p), HasSubstr("/reduction/U_u: expected zero rows for static points"));
+}
+
+TEST_F(PackageRule, UnitKinematicsAxis) {
+  p.palette.kinematics[1].axis = {0, 2, 0};
+  EXPECT_THAT(invalid(p), HasSubstr("/palette/kinematics[1]: expected a unit axis, got length 2"));
+}
+
+TEST_F(PackageRule, PositiveTimeStep) {
+  p.attributes.dt = 0;
+  EXPECT_THAT(invalid(p), HasSubstr("/@dt: expected a positive time step"));
+}
+
+TEST_F(PackageRule, PositiveBlendRate) {
+  p.attributes.blend_lambda = -1;
+  EXPECT_THAT(invalid(p), HasSubstr("/@blend_lambda: expected lambda > 0"));
+}
+
+TEST_F(PackageRule, ClusterNodesInRange) {
+  p.appearance->cluster_nodes[0] = p.portrait.nodes();
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/cluster_nodes: expected state nodes"));
+}
+
+TEST_F(PackageRule, NrbfWidthsPositive) {
+  p.appearance->nrbf_widths[2] = 0;
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/nrbf_widths: expected positive finite widths, got 0 at 2"));
+}
+
+TEST_F(PackageRule, AppearanceCoordinatesMatchRank) {
+  p.portrait.q_a.conservativeResize(Eigen::NoChange, p.portrait.q_a.cols() + 1);
+  EXPECT_THAT(invalid(p), HasSubstr("/portrait/q_a: expected shape N x r_a"));
+}
+
+TEST_F(PackageRule, MessagesAreOneLine) {
+  p.palette.on_end[0] = 5;
+  EXPECT_THAT(invalid(p), Not(HasSubstr("\n")));
+}
+
+}  // namespace
+}  // namespace phasecast
