@@ -5,6 +5,7 @@
 #include <zmq_addon.hpp>
 
 #include <chrono>
+#include <cstdio>
 #include <iterator>
 #include <stdexcept>
 
@@ -81,6 +82,10 @@ struct Server::Impl {
       pub.send(zmq::buffer(f.topic), zmq::send_flags::sndmore | zmq::send_flags::dontwait);
       pub.send(zmq::buffer(f.payload), zmq::send_flags::dontwait);
     }
+    if (service.recording_error() != reported_recording_error) {
+      reported_recording_error = service.recording_error();
+      fmt::print(stderr, "phasecast-server: recording stopped: {}\n", reported_recording_error);
+    }
     const double took = std::chrono::duration<double>(Clock::now() - start).count();
     service.stats().max_tick_seconds = std::max(service.stats().max_tick_seconds, took);
   }
@@ -112,6 +117,7 @@ struct Server::Impl {
   zmq::socket_t pub;
   std::string cmd_endpoint, pub_endpoint;
   std::chrono::duration<double> period{};
+  std::string reported_recording_error;
 };
 
 Server::Server(const ServerOptions& options) : impl_(std::make_unique<Impl>(options)) {}

@@ -164,6 +164,7 @@ void SynthesisService::answer(const v1::Request& r, v1::Reply& reply) {
       s.set_impulses_refused(stats_.impulses_refused);
       s.set_recording(recorder_ != nullptr);
       s.set_max_tick_seconds(stats_.max_tick_seconds);
+      s.set_recording_error(recording_error_);
       for (const auto& [id, inst] : engine_.instances()) instance_info(id, *s.add_instances());
       return;
     }
@@ -331,6 +332,18 @@ v1::RecordStatus SynthesisService::stop_recording() {
 }
 
 const std::vector<PublishedFrame>& SynthesisService::tick(std::chrono::steady_clock::time_point now) {
+  try {
+    return tick_and_record(now);
+  } catch (const RecordingError& e) {
+    // A full disk must not stop the stream: the recording ends, serving goes on.
+    recording_error_ = e.what();
+    recorder_.reset();
+    return published_;
+  }
+}
+
+const std::vector<PublishedFrame>& SynthesisService::tick_and_record(
+    std::chrono::steady_clock::time_point now) {
   const TickResult r = engine_.tick();
   ++stats_.ticks;
   stats_.impulses_applied += r.applied.size();

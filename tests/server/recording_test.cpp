@@ -10,7 +10,9 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
 #include <cmath>
+#include <csignal>
 #include <fstream>
 #include <functional>
 #include <iterator>
@@ -205,6 +207,31 @@ TEST(Recording, CannotRecordTwiceOrToAnUnwritablePath) {
   EXPECT_EQ(error_of([&] { s.start_recording(f.dir / "no" / "such" / "dir.phcrec"); }),
             "record: cannot create '" + (f.dir / "no" / "such" / "dir.phcrec").string() +
                 "': No such file or directory");
+}
+
+TEST(Recording, WriteFailureEndsTheRecordingButNotTheStream) {
+  const Fixture f("write_failure");
+  SynthesisService s(60);
+  s.load_scene(f.pkg);
+  s.engine().create_instance("plate");
+  const auto path = f.dir / "full.phcrec";
+  s.start_recording(path);
+  // A file size limit makes write(2) fail with EFBIG, as a full disk would.
+  rlimit old{};
+  getrlimit(RLIMIT_FSIZE, &old);
+  std::signal(SIGXFSZ, SIG_IGN);
+  rlimit small = old;
+  small.rlim_cur = 4096;
+  setrlimit(RLIMIT_FSIZE, &small);
+  std::size_t published = 0;
+  for (int i = 0; i < 200; ++i) published += s.tick(Clock::now()).size();
+  setrlimit(RLIMIT_FSIZE, &old);
+  EXPECT_EQ(published, 200u);
+  EXPECT_FALSE(s.recording());
+  EXPECT_EQ(s.recording_error(), "record: writing '" + path.string() + "' failed: File too large");
+  v1::Request stats;
+  stats.mutable_stats();
+  EXPECT_EQ(s.handle(stats).stats().recording_error(), s.recording_error());
 }
 
 }  // namespace

@@ -68,6 +68,8 @@ class SynthesisService {
   void start_recording(const std::filesystem::path& path);
   v1::RecordStatus stop_recording();
   bool recording() const { return recorder_ != nullptr; }
+  // Why the last recording ended on its own (a write failed); empty if none did.
+  const std::string& recording_error() const { return recording_error_; }
 
  private:
   void answer(const v1::Request& request, v1::Reply& reply);
@@ -76,6 +78,7 @@ class SynthesisService {
   void basis(const v1::BasisRequest& request, v1::BasisChunk& out) const;
   void instance_info(std::uint32_t id, v1::InstanceInfo& out) const;
   void record_created(std::uint32_t id);
+  const std::vector<PublishedFrame>& tick_and_record(std::chrono::steady_clock::time_point now);
 
   double rate_hz_;
   SynthesisEngine engine_;
@@ -83,6 +86,7 @@ class SynthesisService {
   std::string pub_endpoint_;
   std::filesystem::path record_dir_ = ".";
   std::unique_ptr<RecordingWriter> recorder_;
+  std::string recording_error_;
   std::vector<PublishedFrame> published_;
   v1::Frame frame_;  // reused across ticks
 };
