@@ -40,6 +40,7 @@ struct Server::Impl {
       for (int i = 0; i < o.instances_per_scene; ++i) service.engine().create_instance(s.name);
     }
     service.set_record_dir(o.record_dir);
+    service.set_max_instances(o.max_instances);
     period = std::chrono::duration<double>(1.0 / o.rate_hz);
 
     router.set(zmq::sockopt::maxmsgsize, std::int64_t{kMaxRequestBytes});

@@ -248,16 +248,16 @@ void SynthesisEngine::restore_instance(std::uint32_t id, const std::string& scen
   }
   const auto& pp = pkg.portrait;
   const bool playing = state.mode == Mode::playing;
-  const bool bad = (playing && (state.irf < 0 || state.irf >= pp.irf_count() ||
-                                static_cast<int>(state.irf_t) >= pp.irf_length[at(state.irf)] ||
-                                state.palette_index < 0 || state.palette_index >= pkg.palette.size())) ||
-                   (!playing && state.mode != Mode::rest) || state.hold_node < 0 ||
-                   state.hold_node >= pp.nodes() || state.offset_q_u.size() != pkg.rank_u() ||
-                   state.offset_qdot_u.size() != pkg.rank_u() || state.offset_q_a.size() != pkg.rank_a() ||
-                   state.kinematics_entry < 0 || state.kinematics_entry >= pkg.palette.size() ||
-                   state.jolt_entry < -1 || state.jolt_entry >= pkg.palette.size() ||
-                   !std::isfinite(state.support_s) || !state.offset_q_u.allFinite() ||
-                   !state.offset_qdot_u.allFinite() || !state.offset_q_a.allFinite();
+  const bool bad =
+      (playing && (state.irf < 0 || state.irf >= pp.irf_count() ||
+                   static_cast<int>(state.irf_t) >= pp.irf_length[at(state.irf)] || state.palette_index < 0 ||
+                   state.palette_index >= pkg.palette.size())) ||
+      (!playing && (state.mode != Mode::rest || state.palette_index != -1 || state.irf != -1)) ||
+      state.hold_node < 0 || state.hold_node >= pp.nodes() || state.offset_q_u.size() != pkg.rank_u() ||
+      state.offset_qdot_u.size() != pkg.rank_u() || state.offset_q_a.size() != pkg.rank_a() ||
+      state.kinematics_entry < 0 || state.kinematics_entry >= pkg.palette.size() || state.jolt_entry < -1 ||
+      state.jolt_entry >= pkg.palette.size() || !std::isfinite(state.support_s) ||
+      !state.offset_q_u.allFinite() || !state.offset_qdot_u.allFinite() || !state.offset_q_a.allFinite();
   if (bad) {
     throw EngineError(
         fmt::format("instance {} ({}): inconsistent state (expected IRF, node and entry indices and offset "

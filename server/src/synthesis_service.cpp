@@ -118,6 +118,10 @@ void SynthesisService::answer(const v1::Request& r, v1::Reply& reply) {
         instance_info(id, *reply.mutable_instances()->add_instances());
       return;
     case v1::Request::kCreateInstance: {
+      if (engine_.instances().size() >= max_instances_) {
+        throw RequestError(fmt::format("{} instances exist (expected at most {}; see --max-instances)",
+                                       engine_.instances().size(), max_instances_));
+      }
       const auto id = engine_.create_instance(r.create_instance().scene());
       record_created(id);
       instance_info(id, *reply.mutable_created());

@@ -108,6 +108,9 @@ int main(int argc, char** argv) {
   app.add_option("--hwm", o.pub_high_water_mark, "frames queued per subscriber before it loses frames")
       ->check(CLI::Range(1, 10000000))
       ->capture_default_str();
+  app.add_option("--max-instances", o.max_instances, "create_instance requests beyond this many are refused")
+      ->check(CLI::Range(1, 10000000))
+      ->capture_default_str();
   app.add_option("--replay-check", replay, "verify that this recording replays bit for bit, then exit")
       ->check(CLI::ExistingFile);
   CLI11_PARSE(app, argc, argv);

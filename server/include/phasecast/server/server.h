@@ -22,10 +22,11 @@ struct ServerOptions {
   std::string pub_endpoint = "tcp://*:5556";
   double rate_hz = 60;
   int instances_per_scene = 1;
-  std::optional<std::filesystem::path> record;  // record from the start
-  std::filesystem::path record_dir = ".";       // where record_start requests write
-  std::optional<double> blend_lambda;           // overrides every package's lambda
-  int pub_high_water_mark = 1000;               // frames queued per subscriber before drops
+  std::optional<std::filesystem::path> record;       // record from the start
+  std::filesystem::path record_dir = ".";            // where record_start requests write
+  std::optional<double> blend_lambda;                // overrides every package's lambda
+  int pub_high_water_mark = 1000;                    // frames queued per subscriber before drops
+  std::size_t max_instances = kDefaultMaxInstances;  // create_instance refuses beyond this
 };
 
 // Limits that keep one client from disturbing the others.

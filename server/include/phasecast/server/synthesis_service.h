@@ -21,6 +21,7 @@ namespace phasecast::server {
 
 inline constexpr std::uint32_t kDefaultChunkBytes = 1u << 20;  // basis chunk without max_bytes
 inline constexpr std::uint32_t kMaxChunkBytes = 4u << 20;      // cap on max_bytes
+inline constexpr std::size_t kDefaultMaxInstances = 100000;    // bounds what create_instance floods can cost
 
 struct PublishedFrame {
   std::string topic;    // "inst/<id>/"
@@ -51,6 +52,8 @@ class SynthesisService {
   const ServiceStats& stats() const { return stats_; }
   ServiceStats& stats() { return stats_; }
   void set_pub_endpoint(std::string endpoint) { pub_endpoint_ = std::move(endpoint); }
+  // create_instance requests beyond this many instances are refused.
+  void set_max_instances(std::size_t n) { max_instances_ = n; }
   // Where record_start requests (plain file names) write.
   void set_record_dir(std::filesystem::path dir) { record_dir_ = std::move(dir); }
 
@@ -87,6 +90,7 @@ class SynthesisService {
   std::filesystem::path record_dir_ = ".";
   std::unique_ptr<RecordingWriter> recorder_;
   std::string recording_error_;
+  std::size_t max_instances_ = kDefaultMaxInstances;
   std::vector<PublishedFrame> published_;
   v1::Frame frame_;  // reused across ticks
 };
