@@ -11,7 +11,6 @@
 
 #include <fstream>
 #include <iterator>
-#include <regex>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -27,6 +26,24 @@ bool read_some(int fd, std::string& into, int ms) {
   const ssize_t n = ::read(fd, buf, sizeof buf);
   if (n <= 0) return false;
   into.append(buf, static_cast<size_t>(n));
+  return true;
+}
+
+// Finds the complete line "... listening cmd=<cmd> pub=<pub>" in `out`.
+bool parse_listening(const std::string& out, std::string& cmd, std::string& pub) {
+  const auto at = out.find("listening cmd=");
+  if (at == std::string::npos) return false;
+  const auto end = out.find('\n', at);
+  if (end == std::string::npos) return false;
+  std::istringstream line(out.substr(at, end - at));
+  std::string word, c, p;
+  while (line >> word) {
+    if (word.rfind("cmd=", 0) == 0) c = word.substr(4);
+    if (word.rfind("pub=", 0) == 0) p = word.substr(4);
+  }
+  if (c.empty() || p.empty()) return false;
+  cmd = c;
+  pub = p;
   return true;
 }
 
@@ -56,10 +73,8 @@ ServerProcess::ServerProcess(const std::vector<std::string>& args) {
   }
   ::close(fds[1]);
   out_fd_ = fds[0];
-  const std::regex listening(R"(listening cmd=(\S+) pub=(\S+))");
-  std::smatch m;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (!std::regex_search(out_, m, listening)) {
+  while (!parse_listening(out_, cmd_, pub_)) {
     if (std::chrono::steady_clock::now() > deadline || !read_some(out_fd_, out_, 1000)) {
       if (std::chrono::steady_clock::now() > deadline || ::waitpid(pid_, nullptr, WNOHANG) != 0) {
         const int code = stop(SIGKILL);
@@ -68,8 +83,6 @@ ServerProcess::ServerProcess(const std::vector<std::string>& args) {
       }
     }
   }
-  cmd_ = m[1];
-  pub_ = m[2];
 }
 
 ServerProcess::~ServerProcess() {
