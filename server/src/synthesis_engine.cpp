@@ -1,0 +1,434 @@
+#include "phasecast/server/synthesis_engine.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace phasecast::server {
+namespace {
+
+constexpr std::size_t kMaxPendingPerInstance = 1024;  // bounds what a flood of impulses can queue
+constexpr double kJoltEndTaus = 20;                   // a jolt is over after 20 time constants
+
+// Full state x = (q_u, qdot_u, q_a) of an instance at some frame (eq. 12's x').
+struct PhaseState {
+  VectorXf q_u, qdot_u, q_a;
+};
+
+std::size_t at(int i) {
+  return static_cast<std::size_t>(i);
+}
+
+std::string describe(const SceneModel& s, std::uint32_t id) {
+  return fmt::format("instance {} ({})", id, s.name);
+}
+
+std::string entry_name(const core::ImpulsePalette& p, int i) {
+  return i < 0 ? "rest" : p.names[at(i)];
+}
+
+std::string allowed_after(const core::ImpulsePalette& p, int from) {
+  std::string list;
+  for (int d = 0; d < p.size(); ++d) {
+    if (p.allowed(from, d)) list += (list.empty() ? "" : ", ") + p.names[at(d)];
+  }
+  return list.empty() ? "none" : list;
+}
+
+std::string transition_error(const core::ImpulsePalette& p, int from, int to) {
+  return fmt::format("'{}' is not allowed {} '{}' (allowed: {})", p.names[at(to)],
+                     from < 0 ? "from" : "after", entry_name(p, from), allowed_after(p, from));
+}
+
+// Eq. 12 weight e^(-lambda t) after `age` steps.
+float blend_weight(const SceneModel& s, std::uint64_t age) {
+  return static_cast<float>(std::exp(-s.blend_lambda * static_cast<double>(age) * s.data->attributes.dt));
+}
+
+// The state node the instance is at (the row of /portrait/nearest_irf to use, §5.2).
+int current_node(const SceneModel& s, const InstanceState& st) {
+  if (st.mode == Mode::rest) return st.hold_node;
+  const auto& pp = s.data->portrait;
+  const int len = pp.irf_length[at(st.irf)];
+  return pp.irf_start[at(st.irf)] + std::min(static_cast<int>(st.irf_t), len - 1);
+}
+
+// x' at the instance's current position: the node's state plus the decayed
+// offset (eq. 12). At rest the held node has zero velocity. Past the end of
+// an IRF the last node is extrapolated by one step of its velocity.
+PhaseState state_now(const SceneModel& s, const InstanceState& st) {
+  const auto& pp = s.data->portrait;
+  const int node = current_node(s, st);
+  const float w = blend_weight(s, st.blend_age);
+  PhaseState x;
+  x.q_u = pp.q_u.row(node).transpose() + w * st.offset_q_u;
+  x.q_a = pp.q_a.row(node).transpose() + w * st.offset_q_a;
+  x.qdot_u = w * st.offset_qdot_u;
+  if (st.mode == Mode::playing) {
+    x.qdot_u += pp.qdot_u.row(node).transpose();
+    if (static_cast<int>(st.irf_t) >= pp.irf_length[at(st.irf)]) {
+      x.q_u += static_cast<float>(s.data->attributes.dt) * pp.qdot_u.row(node).transpose();
+    }
+  }
+  return x;
+}
+
+// Starts IRF `irf` of entry `entry` from state x' (eq. 12: offset x' - x_start, decaying from t = 0).
+void start_irf(const SceneModel& s, InstanceState& st, int entry, int irf, const PhaseState& x) {
+  const auto& pp = s.data->portrait;
+  const int start = pp.irf_start[at(irf)];
+  st.mode = Mode::playing;
+  st.palette_index = entry;
+  st.irf = irf;
+  st.irf_t = 0;
+  st.offset_q_u = x.q_u - pp.q_u.row(start).transpose();
+  st.offset_qdot_u = x.qdot_u - pp.qdot_u.row(start).transpose();
+  st.offset_q_a = x.q_a - pp.q_a.row(start).transpose();
+  st.blend_age = 0;
+  const auto& k = s.data->palette.kinematics[at(entry)];
+  if (k.pulse_tau > 0) {
+    st.jolt_entry = entry;
+    st.jolt_age = 0;
+  } else {
+    st.kinematics_entry = entry;
+  }
+}
+
+// Comes to rest holding the last node played; the pending offset keeps decaying.
+void come_to_rest(const SceneModel& s, InstanceState& st) {
+  st.hold_node = current_node(s, st);
+  st.mode = Mode::rest;
+  st.palette_index = -1;
+  st.irf = -1;
+  st.irf_t = 0;
+}
+
+// End of the IRF of entry d (/palette/on_end): rest, or continue blended on
+// the nearest IRF of the same entry (hold: the forcing persists) or of the
+// follow-up entry.
+void end_of_irf(const SceneModel& s, InstanceState& st) {
+  const int d = st.palette_index;
+  const std::int32_t rule = s.data->palette.on_end[at(d)];
+  const int next = rule == core::kEndHold ? d : rule;
+  const int irf = next >= 0 ? s.data->portrait.nearest_irf(current_node(s, st), next) : -1;
+  if (irf < 0) {
+    come_to_rest(s, st);
+    return;
+  }
+  start_irf(s, st, next, irf, state_now(s, st));
+}
+
+// Whether the support coordinate has reached the end of its range in the
+// direction the active entry drives it (the door stops at its 90 degrees).
+bool range_reached(const core::SupportKinematics& k, double s) {
+  if (k.pulse_tau > 0 || k.rate == 0) return false;
+  return k.rate > 0 ? s >= k.range_max : s <= k.range_min;
+}
+
+// Displacement pulse of a jolt (pulse_tau > 0): rate * tau e^(-tau / pulse_tau),
+// leaving rest at `rate` and returning to rest, peak rate * pulse_tau / e.
+double jolt_pulse(const core::SupportKinematics& k, double time) {
+  return k.rate * time * std::exp(-time / k.pulse_tau);
+}
+
+using Transform = std::array<float, core::kSupportFloats>;
+
+// a ∘ b for 3x4 row-major [R | t] transforms.
+Transform compose(const Transform& a, const Transform& b) {
+  Transform c{};
+  for (int r = 0; r < 3; ++r) {
+    for (int col = 0; col < 4; ++col) {
+      float v = col == 3 ? a[at(4 * r + 3)] : 0.0f;
+      for (int k = 0; k < 3; ++k) v += a[at(4 * r + k)] * b[at(4 * k + col)];
+      c[at(4 * r + col)] = v;
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+Transform support_transform(const core::SupportKinematics& k, double s) {
+  Transform m{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+  const double ax = k.axis[0], ay = k.axis[1], az = k.axis[2];
+  if (!k.rotational) {
+    m[3] = static_cast<float>(ax * s);
+    m[7] = static_cast<float>(ay * s);
+    m[11] = static_cast<float>(az * s);
+    return m;
+  }
+  // Rodrigues' formula; t = p - R p keeps the pivot fixed.
+  const double c = std::cos(s), si = std::sin(s), C = 1 - c;
+  const double R[3][3] = {{c + ax * ax * C, ax * ay * C - az * si, ax * az * C + ay * si},
+                          {ay * ax * C + az * si, c + ay * ay * C, ay * az * C - ax * si},
+                          {az * ax * C - ay * si, az * ay * C + ax * si, c + az * az * C}};
+  for (int r = 0; r < 3; ++r) {
+    double t = k.pivot[at(r)];
+    for (int col = 0; col < 3; ++col) {
+      m[at(4 * r + col)] = static_cast<float>(R[r][col]);
+      t -= R[r][col] * k.pivot[at(col)];
+    }
+    m[at(4 * r + 3)] = static_cast<float>(t);
+  }
+  return m;
+}
+
+int SynthesisEngine::add_scene(std::shared_ptr<const core::ScenePackage> data,
+                               const std::string& package_name, std::uint64_t content_hash,
+                               std::optional<double> blend_lambda) {
+  const std::string& name = data->attributes.scene;
+  for (const auto& s : scenes_) {
+    if (s.name == name) {
+      throw EngineError(
+          fmt::format("scene '{}' of {} is already loaded from {} (expected unique scene names)", name,
+                      package_name, s.package));
+    }
+  }
+  const double lambda = blend_lambda.value_or(data->attributes.blend_lambda);
+  if (!std::isfinite(lambda) || lambda < 0) {
+    throw EngineError(
+        fmt::format("blend lambda {} for scene '{}' (expected a finite value >= 0)", lambda, name));
+  }
+  SceneModel s;
+  s.name = name;
+  s.package = package_name;
+  s.content_hash = content_hash;
+  s.blend_lambda = lambda;
+  // The undeformed rest shape in reduced coordinates: U_u^T (x_rest - x-bar), U_u orthonormal.
+  const auto& m = data->mesh;
+  const Eigen::Map<const VectorXf> rest(m.rest_positions.data(), 3 * m.rest_positions.rows());
+  const VectorXf q_rest = data->reduction.U_u.transpose() * (rest - data->reduction.mean_shape);
+  const auto& pp = data->portrait;
+  double best = std::numeric_limits<double>::infinity();
+  for (int n = 0; n < pp.nodes(); ++n) {
+    const double d = (pp.q_u.row(n).transpose() - q_rest).squaredNorm() +
+                     data->attributes.beta * pp.qdot_u.row(n).squaredNorm();  // eq. 9
+    if (d < best) {
+      best = d;
+      s.rest_node = n;
+    }
+  }
+  s.data = std::move(data);
+  scenes_.push_back(std::move(s));
+  return static_cast<int>(scenes_.size()) - 1;
+}
+
+int SynthesisEngine::scene_index(const std::string& name) const {
+  std::string known;
+  for (std::size_t i = 0; i < scenes_.size(); ++i) {
+    if (scenes_[i].name == name) return static_cast<int>(i);
+    known += (known.empty() ? "" : ", ") + scenes_[i].name;
+  }
+  throw EngineError(fmt::format("unknown scene '{}' (expected one of {})", name, known));
+}
+
+std::uint32_t SynthesisEngine::create_instance(const std::string& scene) {
+  const int si = scene_index(scene);
+  const SceneModel& s = scenes_[at(si)];
+  InstanceState st;
+  st.hold_node = s.rest_node;
+  st.offset_q_u = VectorXf::Zero(s.data->rank_u());
+  st.offset_qdot_u = VectorXf::Zero(s.data->rank_u());
+  st.offset_q_a = VectorXf::Zero(s.data->rank_a());
+  const auto& k0 = s.data->palette.kinematics[0];
+  st.support_s = std::clamp(0.0, static_cast<double>(k0.range_min), static_cast<double>(k0.range_max));
+  const std::uint32_t id = next_id_;
+  restore_instance(id, scene, 0, st);
+  return id;
+}
+
+void SynthesisEngine::restore_instance(std::uint32_t id, const std::string& scene, std::uint64_t frame,
+                                       const InstanceState& state) {
+  const int si = scene_index(scene);
+  const auto& pkg = *scenes_[at(si)].data;
+  if (id == 0 || instances_.count(id)) {
+    throw EngineError(fmt::format("instance {}: id already in use or 0 (expected a new id)", id));
+  }
+  const auto& pp = pkg.portrait;
+  const bool playing = state.mode == Mode::playing;
+  const bool bad =
+      (playing && (state.irf < 0 || state.irf >= pp.irf_count() ||
+                   static_cast<int>(state.irf_t) >= pp.irf_length[at(state.irf)] || state.palette_index < 0 ||
+                   state.palette_index >= pkg.palette.size())) ||
+      (!playing && (state.mode != Mode::rest || state.palette_index != -1 || state.irf != -1)) ||
+      state.hold_node < 0 || state.hold_node >= pp.nodes() || state.offset_q_u.size() != pkg.rank_u() ||
+      state.offset_qdot_u.size() != pkg.rank_u() || state.offset_q_a.size() != pkg.rank_a() ||
+      state.kinematics_entry < 0 || state.kinematics_entry >= pkg.palette.size() || state.jolt_entry < -1 ||
+      state.jolt_entry >= pkg.palette.size() || !std::isfinite(state.support_s) ||
+      !state.offset_q_u.allFinite() || !state.offset_qdot_u.allFinite() || !state.offset_q_a.allFinite();
+  if (bad) {
+    throw EngineError(
+        fmt::format("instance {} ({}): inconsistent state (expected IRF, node and entry indices and offset "
+                    "sizes r_u = {}, r_a = {} of this scene)",
+                    id, scene, pkg.rank_u(), pkg.rank_a()));
+  }
+  Instance inst;
+  inst.id = id;
+  inst.scene = si;
+  inst.frame = frame;
+  inst.state = state;
+  inst.last.instance = id;
+  inst.last.q_u.resize(pkg.rank_u());
+  inst.last.q_a.resize(pkg.rank_a());
+  instances_.emplace(id, std::move(inst));
+  next_id_ = std::max(next_id_, id + 1);
+}
+
+void SynthesisEngine::destroy_instance(std::uint32_t id) {
+  (void)instance(id);
+  instances_.erase(id);
+  pending_.erase(id);
+}
+
+const Instance& SynthesisEngine::instance(std::uint32_t id) const {
+  const auto it = instances_.find(id);
+  if (it == instances_.end()) {
+    throw EngineError(fmt::format("unknown instance {} (expected one of the {} existing instances)", id,
+                                  instances_.size()));
+  }
+  return it->second;
+}
+
+int SynthesisEngine::palette_index(std::uint32_t id, const std::string& name) const {
+  const Instance& inst = instance(id);
+  const auto& s = scenes_[at(inst.scene)];
+  const auto& names = s.data->palette.names;
+  const int d = s.data->palette.index_of(name);
+  if (d < 0) {
+    std::string list;
+    for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw EngineError(
+        fmt::format("{}: unknown palette entry '{}' (expected one of {})", describe(s, id), name, list));
+  }
+  return d;
+}
+
+std::uint64_t SynthesisEngine::schedule_impulse(std::uint32_t id, int d,
+                                                std::optional<std::uint64_t> at_frame) {
+  const Instance& inst = instance(id);
+  const SceneModel& s = scenes_[at(inst.scene)];
+  const auto& pal = s.data->palette;
+  if (d < 0 || d >= pal.size()) {
+    throw EngineError(fmt::format("{}: palette index {} out of range (expected 0..{})", describe(s, id), d,
+                                  pal.size() - 1));
+  }
+  const std::uint64_t frame = at_frame.value_or(inst.frame);
+  if (frame < inst.frame) {
+    throw EngineError(fmt::format("{}: frame {} is in the past (expected at least the next frame {})",
+                                  describe(s, id), frame, inst.frame));
+  }
+  auto& queue = pending_[id];
+  if (queue.size() >= kMaxPendingPerInstance) {
+    throw EngineError(fmt::format("{}: {} impulses already pending (expected at most {} queued)",
+                                  describe(s, id), queue.size(), kMaxPendingPerInstance));
+  }
+  // The entry the instance will have by then, as far as already known.
+  int from = inst.state.palette_index;
+  for (const auto& p : queue) {
+    if (p.frame <= frame) from = p.palette_index;
+  }
+  const auto& irf_palette = s.data->portrait.irf_palette;
+  if (std::find(irf_palette.begin(), irf_palette.end(), d) == irf_palette.end()) {
+    throw EngineError(fmt::format("{}: palette entry '{}' has no sampled IRF (expected an entry with IRFs)",
+                                  describe(s, id), pal.names[at(d)]));
+  }
+  if (!pal.allowed(from, d))
+    throw EngineError(fmt::format("{}: {}", describe(s, id), transition_error(pal, from, d)));
+  const Pending p{frame, next_order_++, d};
+  const auto pos = std::upper_bound(queue.begin(), queue.end(), p, [](const Pending& a, const Pending& b) {
+    return a.frame != b.frame ? a.frame < b.frame : a.order < b.order;
+  });
+  queue.insert(pos, p);
+  return frame;
+}
+
+void SynthesisEngine::apply_impulse(Instance& inst, int d) {
+  const SceneModel& s = scenes_[at(inst.scene)];
+  const int irf = s.data->portrait.nearest_irf(current_node(s, inst.state), d);  // §5.2 cache
+  start_irf(s, inst.state, d, irf, state_now(s, inst.state));
+}
+
+void SynthesisEngine::synthesize(Instance& inst) const {
+  const SceneModel& s = scenes_[at(inst.scene)];
+  const auto& pkg = *s.data;
+  const InstanceState& st = inst.state;
+  const int node = current_node(s, st);
+  const float w = blend_weight(s, st.blend_age);
+  SynthesizedFrame& f = inst.last;
+  f.frame = inst.frame;
+  f.q_u.noalias() = pkg.portrait.q_u.row(node).transpose() + w * st.offset_q_u;  // eq. 12
+  f.q_a.noalias() = pkg.portrait.q_a.row(node).transpose() + w * st.offset_q_a;  // §5.1, appearance
+  f.palette_index = st.palette_index;
+  f.irf = st.irf;
+  f.irf_t = st.irf_t;
+  const auto& kin = pkg.palette.kinematics;
+  f.support = support_transform(kin[at(st.kinematics_entry)], st.support_s);
+  if (st.jolt_entry >= 0) {
+    const auto& k = kin[at(st.jolt_entry)];
+    const double p = jolt_pulse(k, static_cast<double>(st.jolt_age) * pkg.attributes.dt);
+    f.support =
+        compose(support_transform(k, std::clamp(p, double{k.range_min}, double{k.range_max})), f.support);
+  }
+}
+
+void SynthesisEngine::advance(Instance& inst) const {
+  const SceneModel& s = scenes_[at(inst.scene)];
+  const auto& pkg = *s.data;
+  InstanceState& st = inst.state;
+  const double dt = pkg.attributes.dt;
+  ++inst.frame;
+  ++st.blend_age;
+  if (st.jolt_entry >= 0 && static_cast<double>(++st.jolt_age) * dt >
+                                kJoltEndTaus * pkg.palette.kinematics[at(st.jolt_entry)].pulse_tau) {
+    st.jolt_entry = -1;
+    st.jolt_age = 0;
+  }
+  if (st.mode != Mode::playing) return;
+  const auto& k = pkg.palette.kinematics[at(st.palette_index)];
+  if (k.pulse_tau == 0 && st.kinematics_entry == st.palette_index) {
+    st.support_s = std::clamp(st.support_s + k.rate * dt, double{k.range_min}, double{k.range_max});
+  }
+  ++st.irf_t;
+  const bool ended = static_cast<int>(st.irf_t) >= pkg.portrait.irf_length[at(st.irf)];
+  const bool stopped = range_reached(k, st.support_s) && pkg.palette.on_end[at(st.palette_index)] >= 0;
+  if (ended || stopped) end_of_irf(s, st);
+}
+
+TickResult SynthesisEngine::tick() {
+  TickResult result;
+  for (auto& [id, inst] : instances_) {
+    const auto q = pending_.find(id);
+    if (q != pending_.end()) {
+      auto& queue = q->second;
+      std::size_t used = 0;
+      for (; used < queue.size() && queue[used].frame == inst.frame; ++used) {
+        const int d = queue[used].palette_index;
+        const SceneModel& s = scenes_[at(inst.scene)];
+        const int from = inst.state.palette_index;
+        if (!s.data->palette.allowed(from, d)) {
+          result.refused.push_back({id, d, inst.frame, transition_error(s.data->palette, from, d)});
+          continue;
+        }
+        const int node = current_node(s, inst.state);
+        if (s.data->portrait.nearest_irf(node, d) < 0) {
+          result.refused.push_back(
+              {id, d, inst.frame,
+               fmt::format("no IRF of '{}' is cached at state node {} (/portrait/nearest_irf)",
+                           s.data->palette.names[at(d)], node)});
+          continue;
+        }
+        apply_impulse(inst, d);
+        result.applied.push_back({id, d, inst.frame});
+      }
+      queue.erase(queue.begin(), queue.begin() + static_cast<std::ptrdiff_t>(used));
+      if (queue.empty()) pending_.erase(q);
+    }
+    synthesize(inst);
+    advance(inst);
+  }
+  return result;
+}
+
+}  // namespace phasecast::server

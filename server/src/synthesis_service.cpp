@@ -1,0 +1,383 @@
+#include "phasecast/server/synthesis_service.h"
+
+#include "phasecast/core/basis.h"
+#include "phasecast/core/hash.h"
+#include "phasecast/server/wire.h"
+
+#include <fmt/chrono.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <ctime>
+
+namespace phasecast::server {
+namespace {
+
+// A refused request: the reply's error line, prefixed with the request kind.
+class RequestError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+const char* kind_of(const v1::Request& r) {
+  switch (r.body_case()) {
+    case v1::Request::kImpulse:
+      return "impulse";
+    case v1::Request::kListScenes:
+      return "list_scenes";
+    case v1::Request::kListInstances:
+      return "list_instances";
+    case v1::Request::kCreateInstance:
+      return "create_instance";
+    case v1::Request::kDestroyInstance:
+      return "destroy_instance";
+    case v1::Request::kBasis:
+      return "basis";
+    case v1::Request::kRecordStart:
+      return "record_start";
+    case v1::Request::kRecordStop:
+      return "record_stop";
+    case v1::Request::kStats:
+      return "stats";
+    case v1::Request::BODY_NOT_SET:
+      break;
+  }
+  return "request";
+}
+
+std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  return fmt::format("{:%Y-%m-%dT%H:%M:%SZ}", tm);
+}
+
+// Client-named recordings are plain file names inside the server's record
+// directory: a network client must not choose where the server writes.
+void check_record_name(const std::string& name) {
+  const bool plain = !name.empty() && name != "." && name != ".." && name.find('/') == std::string::npos &&
+                     name.find('\0') == std::string::npos;
+  if (!plain) {
+    throw RequestError(fmt::format(
+        "path '{}' (expected a plain file name; recordings go to the server's --record-dir)", name));
+  }
+}
+
+}  // namespace
+
+SynthesisService::SynthesisService(double rate_hz) : rate_hz_(rate_hz) {}
+
+SynthesisService::~SynthesisService() = default;
+
+void SynthesisService::load_scene(const std::filesystem::path& package, std::optional<double> blend_lambda) {
+  auto data = std::make_shared<const core::ScenePackage>(core::read_package(package));
+  engine_.add_scene(std::move(data), package.filename().string(), core::file_content_hash(package),
+                    blend_lambda);
+}
+
+v1::Reply SynthesisService::handle(std::string_view bytes) {
+  v1::Request request;
+  if (!request.ParseFromArray(bytes.data(), static_cast<int>(bytes.size()))) {
+    ++stats_.requests;
+    ++stats_.bad_requests;
+    v1::Reply reply;
+    reply.set_ok(false);
+    reply.set_error(fmt::format("request: {} bytes do not parse as a phasecast.v1.Request", bytes.size()));
+    return reply;
+  }
+  return handle(request);
+}
+
+v1::Reply SynthesisService::handle(const v1::Request& request) {
+  ++stats_.requests;
+  v1::Reply reply;
+  reply.set_id(request.id());
+  try {
+    answer(request, reply);
+    reply.set_ok(true);
+  } catch (const std::exception& e) {  // EngineError, RequestError, RecordingError
+    ++stats_.bad_requests;
+    reply.Clear();
+    reply.set_id(request.id());
+    reply.set_ok(false);
+    reply.set_error(fmt::format("{}: {}", kind_of(request), e.what()));
+  }
+  return reply;
+}
+
+void SynthesisService::answer(const v1::Request& r, v1::Reply& reply) {
+  switch (r.body_case()) {
+    case v1::Request::kImpulse:
+      impulse(r.impulse(), *reply.mutable_impulse());
+      return;
+    case v1::Request::kListScenes:
+      list_scenes(*reply.mutable_scenes());
+      return;
+    case v1::Request::kListInstances:
+      for (const auto& [id, inst] : engine_.instances())
+        instance_info(id, *reply.mutable_instances()->add_instances());
+      return;
+    case v1::Request::kCreateInstance: {
+      if (engine_.instances().size() >= max_instances_) {
+        throw RequestError(fmt::format("{} instances exist (expected at most {}; see --max-instances)",
+                                       engine_.instances().size(), max_instances_));
+      }
+      const auto id = engine_.create_instance(r.create_instance().scene());
+      record_created(id);
+      instance_info(id, *reply.mutable_created());
+      return;
+    }
+    case v1::Request::kDestroyInstance: {
+      const auto id = r.destroy_instance().instance();
+      (void)engine_.instance(id);
+      instance_info(id, *reply.mutable_destroyed());
+      engine_.destroy_instance(id);
+      if (recorder_) {
+        v1::RecordEntry e;
+        e.mutable_destroyed()->set_instance(id);
+        e.mutable_destroyed()->set_scene(reply.destroyed().scene());
+        e.mutable_destroyed()->set_frame(reply.destroyed().frame());
+        recorder_->append(e);
+      }
+      return;
+    }
+    case v1::Request::kBasis:
+      basis(r.basis(), *reply.mutable_basis());
+      return;
+    case v1::Request::kRecordStart: {
+      check_record_name(r.record_start().path());
+      start_recording(record_dir_ / r.record_start().path());
+      auto& s = *reply.mutable_record();
+      s.set_recording(true);
+      s.set_path(recorder_->path().string());
+      return;
+    }
+    case v1::Request::kRecordStop:
+      if (!recorder_) throw RequestError("not recording (expected a record_start first)");
+      *reply.mutable_record() = stop_recording();
+      return;
+    case v1::Request::kStats: {
+      auto& s = *reply.mutable_stats();
+      s.set_ticks(stats_.ticks);
+      s.set_frames_published(stats_.frames_published);
+      s.set_late_ticks(stats_.late_ticks);
+      s.set_rate_hz(rate_hz_);
+      s.set_requests(stats_.requests);
+      s.set_bad_requests(stats_.bad_requests);
+      s.set_impulses_applied(stats_.impulses_applied);
+      s.set_impulses_refused(stats_.impulses_refused);
+      s.set_recording(recorder_ != nullptr);
+      s.set_max_tick_seconds(stats_.max_tick_seconds);
+      s.set_recording_error(recording_error_);
+      for (const auto& [id, inst] : engine_.instances()) instance_info(id, *s.add_instances());
+      return;
+    }
+    case v1::Request::BODY_NOT_SET:
+      break;
+  }
+  throw RequestError(fmt::format(
+      "request {} has no body this server knows (expected one of impulse, list_scenes, list_instances, "
+      "create_instance, destroy_instance, basis, record_start, record_stop, stats)",
+      r.id()));
+}
+
+void SynthesisService::impulse(const v1::Impulse& r, v1::ImpulseAccepted& out) {
+  const auto& inst = engine_.instance(r.instance());
+  int d = 0;
+  switch (r.entry_case()) {
+    case v1::Impulse::kName:
+      d = engine_.palette_index(r.instance(), r.name());
+      break;
+    case v1::Impulse::kIndex:
+      d = static_cast<int>(std::min<std::uint32_t>(r.index(), 1u << 30));
+      break;
+    case v1::Impulse::ENTRY_NOT_SET:
+      throw RequestError(fmt::format("instance {} ({}): no palette entry given (expected name or index)",
+                                     r.instance(),
+                                     engine_.scenes()[static_cast<std::size_t>(inst.scene)].name));
+  }
+  const std::optional<std::uint64_t> at = r.has_at_frame() ? std::optional(r.at_frame()) : std::nullopt;
+  out.set_instance(r.instance());
+  out.set_palette_index(static_cast<std::uint32_t>(d));
+  out.set_at_frame(engine_.schedule_impulse(r.instance(), d, at));
+}
+
+void SynthesisService::list_scenes(v1::SceneList& out) const {
+  out.set_pub_endpoint(pub_endpoint_);
+  for (const auto& s : engine_.scenes()) {
+    const auto& p = *s.data;
+    auto& info = *out.add_scenes();
+    info.set_name(s.name);
+    info.set_package(s.package);
+    info.set_content_hash(s.content_hash);
+    info.set_points(static_cast<std::uint32_t>(p.mesh.points()));
+    info.set_triangles(static_cast<std::uint32_t>(p.mesh.triangle_count()));
+    info.set_rank_u(static_cast<std::uint32_t>(p.rank_u()));
+    info.set_rank_a(static_cast<std::uint32_t>(p.rank_a()));
+    info.set_state_nodes(static_cast<std::uint32_t>(p.portrait.nodes()));
+    info.set_dt(p.attributes.dt);
+    if (p.attributes.camera)
+      info.mutable_camera()->Assign(p.attributes.camera->begin(), p.attributes.camera->end());
+    const auto& pal = p.palette;
+    for (int d = 0; d < pal.size(); ++d) {
+      const auto i = static_cast<std::size_t>(d);
+      auto& e = *info.add_palette();
+      e.set_name(pal.names[i]);
+      e.set_index(static_cast<std::uint32_t>(d));
+      e.mutable_alpha_impulse()->Assign(pal.alpha_impulse.row(d).data(),
+                                        pal.alpha_impulse.row(d).data() + pal.alpha_impulse.cols());
+      e.mutable_alpha_forcing()->Assign(pal.alpha_forcing.row(d).data(),
+                                        pal.alpha_forcing.row(d).data() + pal.alpha_forcing.cols());
+      e.set_on_end(pal.on_end[i]);
+      const auto& k = pal.kinematics[i];
+      auto& km = *e.mutable_kinematics();
+      km.mutable_axis()->Assign(k.axis.begin(), k.axis.end());
+      km.mutable_pivot()->Assign(k.pivot.begin(), k.pivot.end());
+      km.set_rotational(k.rotational);
+      km.set_rate(k.rate);
+      km.set_range_min(k.range_min);
+      km.set_range_max(k.range_max);
+      km.set_pulse_tau(k.pulse_tau);
+      if (pal.allowed(-1, d)) info.add_allowed_from_rest(static_cast<std::uint32_t>(d));
+    }
+    for (const auto& part : core::basis_parts(p)) {
+      auto& bi = *info.add_parts();
+      bi.set_part(static_cast<v1::BasisPart>(part.id));
+      bi.set_dtype(part.dtype);
+      for (const auto n : part.shape) bi.add_shape(n);
+      bi.set_total_bytes(part.bytes.size());
+    }
+  }
+}
+
+void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) const {
+  const auto& s = engine_.scenes()[static_cast<std::size_t>(engine_.scene_index(r.scene()))];
+  const auto parts = core::basis_parts(*s.data);
+  const auto it = std::find_if(parts.begin(), parts.end(), [&](const core::BasisPartView& v) {
+    return static_cast<int>(v.id) == r.part();
+  });
+  if (it == parts.end()) {
+    std::string names;
+    for (const auto& v : parts)
+      names += (names.empty() ? "" : ", ") + v1::BasisPart_Name(static_cast<int>(v.id));
+    throw RequestError(fmt::format("scene '{}' has no basis part {} (expected one of {})", s.name,
+                                   static_cast<int>(r.part()), names));
+  }
+  const std::uint64_t total = it->bytes.size();
+  if (r.offset() > total) {
+    throw RequestError(fmt::format("offset {} is beyond the {} bytes of {} of scene '{}' (expected 0..{})",
+                                   r.offset(), total, v1::BasisPart_Name(r.part()), s.name, total));
+  }
+  const std::uint64_t cap = r.max_bytes() == 0 ? kDefaultChunkBytes : std::min(r.max_bytes(), kMaxChunkBytes);
+  const std::uint64_t n = std::min(cap, total - r.offset());
+  out.set_scene(s.name);
+  out.set_part(r.part());
+  out.set_offset(r.offset());
+  out.set_total_bytes(total);
+  out.set_data(reinterpret_cast<const char*>(it->bytes.data()) + r.offset(), n);
+  out.set_content_hash(s.content_hash);
+  auto& info = *out.mutable_info();
+  info.set_part(r.part());
+  info.set_dtype(it->dtype);
+  for (const auto d : it->shape) info.add_shape(d);
+  info.set_total_bytes(total);
+}
+
+void SynthesisService::instance_info(std::uint32_t id, v1::InstanceInfo& out) const {
+  const auto& inst = engine_.instance(id);
+  out.set_instance(id);
+  out.set_scene(engine_.scenes()[static_cast<std::size_t>(inst.scene)].name);
+  out.set_frame(inst.frame);
+  out.set_palette_index(inst.state.palette_index);
+  out.set_irf(inst.state.irf);
+  out.set_irf_t(inst.state.irf_t);
+  out.set_topic(instance_topic(id));
+}
+
+void SynthesisService::record_created(std::uint32_t id) {
+  if (!recorder_) return;
+  const auto& inst = engine_.instance(id);
+  v1::RecordEntry e;
+  auto& c = *e.mutable_created();
+  c.set_instance(id);
+  c.set_scene(engine_.scenes()[static_cast<std::size_t>(inst.scene)].name);
+  c.set_frame(inst.frame);
+  to_snapshot(inst.state, *c.mutable_state());
+  recorder_->append(e);
+}
+
+void SynthesisService::start_recording(const std::filesystem::path& path) {
+  if (recorder_) {
+    throw RecordingError(
+        fmt::format("already recording to '{}' (expected record_stop first)", recorder_->path().string()));
+  }
+  v1::RecordingHeader h;
+  h.set_format_version(kRecordingFormatVersion);
+  h.set_rate_hz(rate_hz_);
+  h.set_created_utc(utc_now());
+  for (const auto& s : engine_.scenes()) {
+    auto& rs = *h.add_scenes();
+    rs.set_scene(s.name);
+    rs.set_package(s.package);
+    rs.set_content_hash(s.content_hash);
+  }
+  recorder_ = std::make_unique<RecordingWriter>(path, h);
+  for (const auto& [id, inst] : engine_.instances()) record_created(id);
+}
+
+v1::RecordStatus SynthesisService::stop_recording() {
+  v1::RecordStatus s;
+  if (!recorder_) return s;
+  s.set_path(recorder_->path().string());
+  s.set_frames_written(recorder_->frames_written());
+  auto recorder = std::move(recorder_);
+  recorder->close();
+  return s;
+}
+
+const std::vector<PublishedFrame>& SynthesisService::tick(std::chrono::steady_clock::time_point now) {
+  try {
+    return tick_and_record(now);
+  } catch (const RecordingError& e) {
+    // A full disk must not stop the stream: the recording ends, serving goes on.
+    recording_error_ = e.what();
+    recorder_.reset();
+    return published_;
+  }
+}
+
+const std::vector<PublishedFrame>& SynthesisService::tick_and_record(
+    std::chrono::steady_clock::time_point now) {
+  const TickResult r = engine_.tick();
+  ++stats_.ticks;
+  stats_.impulses_applied += r.applied.size();
+  stats_.impulses_refused += r.refused.size();
+  if (recorder_) {
+    for (const auto& a : r.applied) {
+      v1::RecordEntry e;
+      auto& imp = *e.mutable_impulse();
+      imp.set_instance(a.instance);
+      imp.set_index(static_cast<std::uint32_t>(a.palette_index));
+      imp.set_at_frame(a.frame);
+      recorder_->append(e);
+    }
+  }
+  published_.resize(engine_.instances().size());
+  std::size_t i = 0;
+  v1::RecordEntry entry;
+  for (const auto& [id, inst] : engine_.instances()) {
+    to_frame_message(engine_.scenes()[static_cast<std::size_t>(inst.scene)], inst.last, frame_);
+    auto& out = published_[i++];
+    out.topic = instance_topic(id);
+    frame_.SerializeToString(&out.payload);
+    if (recorder_) {
+      *entry.mutable_frame() = frame_;
+      recorder_->append(entry);
+    }
+  }
+  stats_.frames_published += published_.size();
+  if (recorder_) recorder_->end_tick(now);
+  return published_;
+}
+
+}  // namespace phasecast::server

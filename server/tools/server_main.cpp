@@ -1,0 +1,126 @@
+// phasecast-server: loads scene packages and streams synthesized (q_u, q_a)
+// frames over ZeroMQ (paper §5, docs/protocol.md). With --replay-check it
+// instead verifies that a recording replays bit for bit.
+
+#include "phasecast/server/recording.h"
+#include "phasecast/server/server.h"
+
+#include <fmt/format.h>
+#include <CLI/CLI.hpp>
+
+#include <csignal>
+#include <cstdio>
+#include <exception>
+#include <thread>
+
+namespace {
+
+using phasecast::server::Server;
+using phasecast::server::ServerOptions;
+
+int replay_check(const ServerOptions& o, const std::string& recording) {
+  phasecast::server::SynthesisService service(o.rate_hz);
+  for (const auto& p : o.packages) service.load_scene(p, o.blend_lambda);
+  const auto entries = phasecast::server::read_recording(recording);
+  const auto r = phasecast::server::replay_check(service.engine(), entries);
+  fmt::print(
+      "phasecast-server: replay-check {}: {} frames of {} instances with {} impulses reproduced bit for "
+      "bit\n",
+      recording, r.frames, r.instances, r.impulses);
+  return 0;
+}
+
+void announce(Server& server) {
+  for (const auto& s : server.service().engine().scenes()) {
+    const auto& p = *s.data;
+    fmt::print(
+        "phasecast-server: scene {} from {} (hash {:016x}): {} points, r_u = {}, r_a = {}, {} state nodes, "
+        "{} "
+        "IRFs, palette of {}\n",
+        s.name, s.package, s.content_hash, p.mesh.points(), p.rank_u(), p.rank_a(), p.portrait.nodes(),
+        p.portrait.irf_count(), p.palette.size());
+  }
+  for (const auto& [id, inst] : server.service().engine().instances()) {
+    fmt::print("phasecast-server: instance {} of {} on topic inst/{}/\n", id,
+               server.service().engine().scenes()[static_cast<std::size_t>(inst.scene)].name, id);
+  }
+  fmt::print("phasecast-server: listening cmd={} pub={}\n", server.cmd_endpoint(), server.pub_endpoint());
+  std::fflush(stdout);
+}
+
+// Runs the tick thread; the main thread waits for SIGINT/SIGTERM (blocked in
+// every thread, so none is interrupted mid-tick) or for the tick thread to fail.
+int serve(const ServerOptions& o) {
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  Server server(o);
+  announce(server);
+  std::atomic<bool> stop{false}, done{false};
+  std::exception_ptr failure;
+  std::thread ticker([&] {
+    try {
+      server.run(stop);
+    } catch (...) {
+      failure = std::current_exception();
+    }
+    done = true;
+  });
+  const timespec poll_every{0, 100'000'000};
+  while (!done && sigtimedwait(&signals, nullptr, &poll_every) < 0) {
+  }
+  stop = true;
+  ticker.join();
+  if (failure) std::rethrow_exception(failure);
+  const auto& st = server.service().stats();
+  fmt::print(
+      "phasecast-server: stopped after {} ticks, {} frames published, {} late ticks, {} requests ({} bad)\n",
+      st.ticks, st.frames_published, st.late_ticks, st.requests, st.bad_requests);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Stream synthesized frames of precomputed deformable scenes over ZeroMQ (paper §5)."};
+  ServerOptions o;
+  std::vector<std::string> packages;
+  std::string record, replay;
+  double lambda = -1;
+  app.add_option("packages", packages, "scene packages (.h5), one scene each")
+      ->required()
+      ->check(CLI::ExistingFile);
+  app.add_option("--cmd", o.cmd_endpoint, "ROUTER command endpoint to bind")->capture_default_str();
+  app.add_option("--pub", o.pub_endpoint, "PUB frame endpoint to bind")->capture_default_str();
+  app.add_option("--rate", o.rate_hz, "tick rate, Hz")->check(CLI::Range(1e-3, 1e4))->capture_default_str();
+  app.add_option("--instances", o.instances_per_scene, "instances created per scene at start")
+      ->check(CLI::Range(0, 1000000))
+      ->capture_default_str();
+  app.add_option("--record", record, "record the published stream to this file from the start");
+  app.add_option("--record-dir", o.record_dir, "directory for recordings started by record_start requests")
+      ->check(CLI::ExistingDirectory)
+      ->capture_default_str();
+  app.add_option("--blend-lambda", lambda, "override the packages' eq. 12 blend rate lambda, 1/s")
+      ->check(CLI::Range(0.0, 1e9));
+  app.add_option("--hwm", o.pub_high_water_mark, "frames queued per subscriber before it loses frames")
+      ->check(CLI::Range(1, 10000000))
+      ->capture_default_str();
+  app.add_option("--max-instances", o.max_instances, "create_instance requests beyond this many are refused")
+      ->check(CLI::Range(1, 10000000))
+      ->capture_default_str();
+  app.add_option("--replay-check", replay, "verify that this recording replays bit for bit, then exit")
+      ->check(CLI::ExistingFile);
+  CLI11_PARSE(app, argc, argv);
+  for (const auto& p : packages) o.packages.emplace_back(p);
+  if (!record.empty()) o.record = record;
+  if (lambda >= 0) o.blend_lambda = lambda;
+  try {
+    return replay.empty() ? serve(o) : replay_check(o, replay);
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "phasecast-server: {}\n", e.what());
+    return 1;
+  }
+}

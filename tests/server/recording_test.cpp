@@ -1,0 +1,238 @@
+// Recordings through the service (no sockets): the format, replay bit for bit
+// (also for sessions recorded mid-way), and the reader's rejection paths.
+
+#include "phasecast/server/recording.h"
+#include "phasecast/core/hash.h"
+#include "phasecast/server/synthesis_service.h"
+#include "run_tool.h"
+#include "synthetic_package.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <sys/resource.h>
+#include <cmath>
+#include <csignal>
+#include <fstream>
+#include <functional>
+#include <iterator>
+
+namespace phasecast::server {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct Fixture {
+  std::filesystem::path dir, pkg;
+  explicit Fixture(const std::string& name)
+      : dir(testing::scratch_dir("server_rec_" + name)), pkg(dir / "plate.h5") {
+    core::write_package(testing::make_plate_package(), pkg);
+  }
+};
+
+v1::Request impulse(std::uint32_t instance, const std::string& name) {
+  v1::Request r;
+  r.mutable_impulse()->set_instance(instance);
+  r.mutable_impulse()->set_name(name);
+  return r;
+}
+
+// A session: two instances, impulses, an instance created and one destroyed
+// while recording; recording starts after `lead` ticks.
+std::filesystem::path record_session(const Fixture& f, int lead) {
+  SynthesisService s(60);
+  s.load_scene(f.pkg);
+  s.engine().create_instance("plate");
+  s.engine().create_instance("plate");
+  EXPECT_TRUE(s.handle(impulse(1, "open")).ok());
+  for (int i = 0; i < lead; ++i) s.tick(Clock::now());
+  const auto path = f.dir / "session.phcrec";
+  s.start_recording(path);
+  EXPECT_TRUE(s.handle(impulse(2, "open")).ok());
+  for (int i = 0; i < 30; ++i) s.tick(Clock::now());
+  v1::Request create;
+  create.mutable_create_instance()->set_scene("plate");
+  EXPECT_TRUE(s.handle(create).ok());
+  EXPECT_TRUE(s.handle(impulse(3, "open")).ok());
+  auto later = impulse(2, "stop");
+  later.mutable_impulse()->set_at_frame(lead + 50);
+  EXPECT_TRUE(s.handle(later).ok());
+  for (int i = 0; i < 40; ++i) s.tick(Clock::now());
+  v1::Request destroy;
+  destroy.mutable_destroy_instance()->set_instance(1);
+  EXPECT_TRUE(s.handle(destroy).ok());
+  for (int i = 0; i < 10; ++i) s.tick(Clock::now());
+  EXPECT_EQ(s.stop_recording().frames_written(), 30u * 2 + 40u * 3 + 10u * 2);
+  return path;
+}
+
+ReplayReport replay(const Fixture& f, const std::filesystem::path& rec) {
+  SynthesisService s(60);
+  s.load_scene(f.pkg);
+  return replay_check(s.engine(), read_recording(rec));
+}
+
+std::string error_of(const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const RecordingError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(Recording, FileStartsWithMagicAndHeaderNamingThePackage) {
+  const Fixture f("header");
+  const auto rec = record_session(f, 0);
+  std::ifstream in(rec, std::ios::binary);
+  std::string magic(8, '\0');
+  in.read(magic.data(), 8);
+  EXPECT_EQ(magic, "PHCREC1\n");
+  const auto entries = read_recording(rec);
+  const auto& h = entries.front().header();
+  EXPECT_EQ(h.format_version(), 1u);
+  ASSERT_EQ(h.scenes_size(), 1);
+  EXPECT_EQ(h.scenes(0).package(), "plate.h5");
+  EXPECT_EQ(h.scenes(0).content_hash(), core::file_content_hash(f.pkg));
+  EXPECT_DOUBLE_EQ(h.rate_hz(), 60);
+  // Applied impulses are written before the frame they land in.
+  for (std::size_t i = 0; i + 1 < entries.size(); ++i) {
+    if (!entries[i].has_impulse()) continue;
+    const auto& imp = entries[i].impulse();
+    for (std::size_t j = i + 1; j < entries.size(); ++j) {
+      if (entries[j].has_frame() && entries[j].frame().instance() == imp.instance()) {
+        EXPECT_EQ(entries[j].frame().frame(), imp.at_frame());
+        EXPECT_EQ(entries[j].frame().palette_index(), static_cast<int>(imp.index()));
+        break;
+      }
+    }
+  }
+}
+
+TEST(Recording, SessionReplaysBitForBit) {
+  const Fixture f("replay");
+  const auto r = replay(f, record_session(f, 0));
+  EXPECT_EQ(r.frames, 200u);
+  EXPECT_EQ(r.instances, 3u);
+  EXPECT_EQ(r.impulses, 4u);  // the open queued before recording lands inside it
+}
+
+TEST(Recording, RecordingStartedMidSessionReplaysFromTheSnapshots) {
+  const Fixture f("midway");
+  const auto r = replay(f, record_session(f, 17));  // instance 1 is mid-IRF when recording starts
+  EXPECT_EQ(r.frames, 200u);
+}
+
+TEST(Recording, ReplayReportsTheFirstDifferingFrame) {
+  const Fixture f("tamper");
+  const auto rec = record_session(f, 0);
+  auto entries = read_recording(rec);
+  for (auto& e : entries) {
+    if (e.has_frame() && e.frame().frame() == 12 && e.frame().instance() == 2) {
+      e.mutable_frame()->set_q_u(1, std::nextafter(e.frame().q_u(1), 1.0f));
+    }
+  }
+  SynthesisService s(60);
+  s.load_scene(f.pkg);
+  EXPECT_EQ(error_of([&] {
+              replay_check(s.engine(), entries);
+            }).rfind("replay-check: frame 12 of instance 2 differs: q_u[1] = ", 0),
+            0u);
+}
+
+TEST(Recording, TruncatedFinalRecordEndsTheListCleanly) {
+  const Fixture f("truncated");
+  const auto rec = record_session(f, 0);
+  const auto full = read_recording(rec).size();
+  std::filesystem::resize_file(rec, std::filesystem::file_size(rec) - 5);
+  const auto cut = read_recording(rec);
+  EXPECT_EQ(cut.size(), full - 1);
+  SynthesisService s(60);
+  s.load_scene(f.pkg);
+  EXPECT_NO_THROW(replay_check(s.engine(), cut));
+}
+
+TEST(Recording, ReaderRejectsWhatIsNotARecording) {
+  const Fixture f("reject");
+  const auto missing = f.dir / "missing.phcrec";
+  EXPECT_EQ(error_of([&] {
+              read_recording(missing);
+            }).rfind("recording '" + missing.string() + "': cannot open", 0),
+            0u);
+  const auto junk = f.dir / "junk.phcrec";
+  std::ofstream(junk) << "PHCREC0\nxxxx";
+  EXPECT_EQ(error_of([&] { read_recording(junk); }),
+            "recording '" + junk.string() + "': not a recording (expected the magic \"PHCREC1\\n\")");
+  const auto no_header = f.dir / "noheader.phcrec";
+  {
+    std::ofstream out(no_header, std::ios::binary);
+    v1::RecordEntry e;
+    e.mutable_frame()->set_instance(1);
+    const std::string body = e.SerializeAsString();
+    out << "PHCREC1\n" << static_cast<char>(body.size()) << body;
+  }
+  EXPECT_EQ(error_of([&] { read_recording(no_header); }),
+            "recording '" + no_header.string() + "': expected a RecordingHeader as the first record");
+  const auto corrupt = f.dir / "corrupt.phcrec";
+  {
+    std::ofstream out(corrupt, std::ios::binary);
+    out << "PHCREC1\n" << '\x03' << "\xff\xff\xff";
+  }
+  EXPECT_EQ(error_of([&] { read_recording(corrupt); }),
+            "recording '" + corrupt.string() + "': record 0 does not parse as a RecordEntry");
+}
+
+TEST(Recording, ReplayRefusesAPackageOfAnotherHash) {
+  const Fixture f("hash");
+  const auto rec = record_session(f, 0);
+  auto entries = read_recording(rec);
+  entries.front().mutable_header()->mutable_scenes(0)->set_content_hash(1);
+  SynthesisService s(60);
+  s.load_scene(f.pkg);
+  EXPECT_EQ(
+      error_of([&] { replay_check(s.engine(), entries); }),
+      fmt::format("replay-check: scene 'plate' was recorded from plate.h5 with hash 0000000000000001, but "
+                  "plate.h5 has hash {:016x} (expected the same package)",
+                  core::file_content_hash(f.pkg)));
+}
+
+TEST(Recording, CannotRecordTwiceOrToAnUnwritablePath) {
+  const Fixture f("twice");
+  SynthesisService s(60);
+  s.load_scene(f.pkg);
+  s.start_recording(f.dir / "a.phcrec");
+  EXPECT_EQ(error_of([&] { s.start_recording(f.dir / "b.phcrec"); }),
+            "already recording to '" + (f.dir / "a.phcrec").string() + "' (expected record_stop first)");
+  s.stop_recording();
+  EXPECT_EQ(error_of([&] { s.start_recording(f.dir / "no" / "such" / "dir.phcrec"); }),
+            "record: cannot create '" + (f.dir / "no" / "such" / "dir.phcrec").string() +
+                "': No such file or directory");
+}
+
+TEST(Recording, WriteFailureEndsTheRecordingButNotTheStream) {
+  const Fixture f("write_failure");
+  SynthesisService s(60);
+  s.load_scene(f.pkg);
+  s.engine().create_instance("plate");
+  const auto path = f.dir / "full.phcrec";
+  s.start_recording(path);
+  // A file size limit makes write(2) fail with EFBIG, as a full disk would.
+  rlimit old{};
+  getrlimit(RLIMIT_FSIZE, &old);
+  std::signal(SIGXFSZ, SIG_IGN);
+  rlimit small = old;
+  small.rlim_cur = 4096;
+  setrlimit(RLIMIT_FSIZE, &small);
+  std::size_t published = 0;
+  for (int i = 0; i < 200; ++i) published += s.tick(Clock::now()).size();
+  setrlimit(RLIMIT_FSIZE, &old);
+  EXPECT_EQ(published, 200u);
+  EXPECT_FALSE(s.recording());
+  EXPECT_EQ(s.recording_error(), "record: writing '" + path.string() + "' failed: File too large");
+  v1::Request stats;
+  stats.mutable_stats();
+  EXPECT_EQ(s.handle(stats).stats().recording_error(), s.recording_error());
+}
+
+}  // namespace
+}  // namespace phasecast::server

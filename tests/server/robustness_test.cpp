@@ -1,0 +1,195 @@
+// Bad inputs against the real server: each gets a one-line error reply or is
+// dropped per ZeroMQ limits, and the server keeps serving everyone else.
+
+#include "run_tool.h"
+#include "server_process.h"
+#include "synthetic_package.h"
+
+#include <gtest/gtest.h>
+
+#include <thread>
+
+namespace phasecast::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+class ServerRobustness : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto dir = scratch_dir(std::string("server_robust_") +
+                                 ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    pkg_ = (dir / "plate.h5").string();
+    core::write_package(make_plate_package(), pkg_);
+  }
+
+  // The server still answers and still ticks.
+  void expect_still_serving(ServerProcess& server) {
+    CommandClient fresh(ctx_, server.cmd());
+    const auto a = fresh.call(stats_request());
+    ASSERT_TRUE(a.ok()) << a.error();
+    std::this_thread::sleep_for(50ms);
+    const auto b = fresh.call(stats_request());
+    EXPECT_GT(b.stats().ticks(), a.stats().ticks());
+    Subscriber sub(ctx_, server.pub());
+    EXPECT_TRUE(sub.next());
+  }
+
+  std::string pkg_;
+  zmq::context_t ctx_;
+};
+
+v1::Reply raw_call(CommandClient& c, const std::vector<std::string>& parts) {
+  c.send_raw(parts);
+  auto r = c.receive(10s);
+  if (!r) throw std::runtime_error("no reply");
+  return *r;
+}
+
+TEST_F(ServerRobustness, MalformedBytesGetAnErrorReplyWithIdZero) {
+  ServerProcess server({pkg_});
+  CommandClient c(ctx_, server.cmd());
+  const auto r = raw_call(c, {"", std::string("\xff\xff\xff\xff garbage", 12)});
+  EXPECT_EQ(r.id(), 0u);
+  EXPECT_FALSE(r.ok());
+  EXPECT_EQ(r.error(), "request: 12 bytes do not parse as a phasecast.v1.Request");
+  expect_still_serving(server);
+}
+
+TEST_F(ServerRobustness, UnknownRequestTypeGetsAnErrorReply) {
+  ServerProcess server({pkg_});
+  CommandClient c(ctx_, server.cmd());
+  // Field 99 (a request type from a newer protocol) parses as an unknown field.
+  const std::string future = std::string("\x08\x07", 2) + std::string("\x9a\x06\x00", 3);
+  const auto r = raw_call(c, {"", future});
+  EXPECT_EQ(r.id(), 7u);
+  EXPECT_FALSE(r.ok());
+  EXPECT_EQ(r.error(),
+            "request: request 7 has no body this server knows (expected one of impulse, list_scenes, "
+            "list_instances, "
+            "create_instance, destroy_instance, basis, record_start, record_stop, stats)");
+}
+
+TEST_F(ServerRobustness, UnknownNamesAndForbiddenTransitionsAreRefused) {
+  ServerProcess server({pkg_});
+  CommandClient c(ctx_, server.cmd());
+  auto err = [&](const v1::Request& r) {
+    const auto reply = c.call(r);
+    EXPECT_FALSE(reply.ok());
+    return reply.error();
+  };
+  EXPECT_EQ(err(impulse_request(9, "open")),
+            "impulse: unknown instance 9 (expected one of the 1 existing instances)");
+  EXPECT_EQ(err(impulse_request(1, "opn")),
+            "impulse: instance 1 (plate): unknown palette entry 'opn' (expected one of close, stop, open)");
+  EXPECT_EQ(err(impulse_request(1, "stop")),
+            "impulse: instance 1 (plate): 'stop' is not allowed from 'rest' (allowed: close, open)");
+  v1::Request no_entry;
+  no_entry.mutable_impulse()->set_instance(1);
+  EXPECT_EQ(err(no_entry), "impulse: instance 1 (plate): no palette entry given (expected name or index)");
+  v1::Request index;
+  index.mutable_impulse()->set_instance(1);
+  index.mutable_impulse()->set_index(17);
+  EXPECT_EQ(err(index), "impulse: instance 1 (plate): palette index 17 out of range (expected 0..2)");
+  v1::Request past = impulse_request(1, "open");
+  past.mutable_impulse()->set_at_frame(0);
+  std::this_thread::sleep_for(100ms);
+  EXPECT_NE(
+      err(past).find("impulse: instance 1 (plate): frame 0 is in the past (expected at least the next frame"),
+      std::string::npos);
+  v1::Request create;
+  create.mutable_create_instance()->set_scene("pot");
+  EXPECT_EQ(err(create), "create_instance: unknown scene 'pot' (expected one of plate)");
+  v1::Request basis;
+  basis.mutable_basis()->set_scene("plate");
+  basis.mutable_basis()->set_part(v1::U_U);
+  basis.mutable_basis()->set_offset(1ull << 40);
+  EXPECT_NE(err(basis).find("basis: offset 1099511627776 is beyond the"), std::string::npos);
+  basis.mutable_basis()->set_offset(0);
+  basis.mutable_basis()->set_part(static_cast<v1::BasisPart>(42));
+  EXPECT_EQ(err(basis),
+            "basis: scene 'plate' has no basis part 42 (expected one of MEAN_SHAPE, TRIANGLES, NORMALS, "
+            "DEFORMABLE, "
+            "ATTACHED, U_U, MEAN_TRANSFER, U_A)");
+  const auto stats = c.call(stats_request()).stats();
+  EXPECT_EQ(stats.bad_requests(), 9u);
+  expect_still_serving(server);
+}
+
+TEST_F(ServerRobustness, MessageWithoutDelimiterIsDroppedAndOthersAreServed) {
+  ServerProcess server({pkg_});
+  CommandClient c(ctx_, server.cmd());
+  c.send_raw({stats_request().SerializeAsString()});  // no empty delimiter frame
+  EXPECT_FALSE(c.receive(300ms));
+  const auto r = c.call(stats_request());
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r.stats().bad_requests(), 1u);
+}
+
+TEST_F(ServerRobustness, OversizedMessageDropsOnlyThatPeer) {
+  ServerProcess server({pkg_});
+  CommandClient big(ctx_, server.cmd());
+  ASSERT_TRUE(big.call(stats_request()).ok());
+  big.send_raw({"", std::string(200 * 1024, 'x')});
+  EXPECT_FALSE(big.receive(500ms)) << "a message over 64 KiB gets no reply";
+  expect_still_serving(server);
+}
+
+TEST_F(ServerRobustness, FloodOfRequestsDoesNotStopTheTick) {
+  ServerProcess server({pkg_, "--rate", "100"});
+  CommandClient flood(ctx_, server.cmd());
+  flood.socket().set(zmq::sockopt::sndhwm, 100000);
+  const std::string bytes = stats_request().SerializeAsString();
+  for (int i = 0; i < 20000; ++i) flood.send_raw({"", bytes});
+  Subscriber sub(ctx_, server.pub(), "inst/1/");
+  auto first = sub.next();
+  ASSERT_TRUE(first);
+  // Frames keep coming, consecutively, while the flood is being served.
+  for (int i = 0; i < 20; ++i) {
+    const auto f = sub.next();
+    ASSERT_TRUE(f);
+    EXPECT_EQ(f->seq(), first->seq() + 1);
+    first = f;
+  }
+  expect_still_serving(server);
+  int replies = 0;
+  while (flood.receive(2s)) ++replies;
+  EXPECT_GT(replies, 0);
+}
+
+TEST_F(ServerRobustness, SubscriberThatNeverReadsDoesNotStallOthers) {
+  ServerProcess server({pkg_, "--rate", "1000", "--instances", "20", "--hwm", "50"});
+  zmq::socket_t sleeper(ctx_, zmq::socket_type::sub);
+  sleeper.set(zmq::sockopt::rcvhwm, 10);
+  sleeper.set(zmq::sockopt::rcvbuf, 4096);
+  sleeper.set(zmq::sockopt::subscribe, "");
+  sleeper.set(zmq::sockopt::linger, 0);
+  sleeper.connect(server.pub());
+  Subscriber reader(ctx_, server.pub(), "inst/3/");
+  ASSERT_TRUE(reader.next());
+  std::this_thread::sleep_for(500ms);  // the sleeper's queues fill up
+  // The reading subscriber still gets frames of the current frame numbers.
+  CommandClient c(ctx_, server.cmd());
+  const auto now = c.call(stats_request()).stats().instances(2).frame();
+  bool caught_up = false;
+  for (int i = 0; i < 5000 && !caught_up; ++i) {
+    const auto f = reader.next();
+    ASSERT_TRUE(f);
+    caught_up = f->frame() >= now;
+  }
+  EXPECT_TRUE(caught_up);
+  expect_still_serving(server);
+}
+
+TEST_F(ServerRobustness, SigtermFlushesTheRecording) {
+  const auto rec = std::filesystem::path(pkg_).parent_path() / "sig.phcrec";
+  ServerProcess server({pkg_, "--rate", "500", "--record", rec.string()});
+  Subscriber sub(ctx_, server.pub());
+  for (int i = 0; i < 30; ++i) ASSERT_TRUE(sub.next());
+  EXPECT_EQ(server.stop(SIGTERM), 0);
+  const auto check = run_tool("phasecast-server", {pkg_, "--replay-check", rec.string()});
+  EXPECT_EQ(check.exit_code, 0) << check.err;
+}
+
+}  // namespace
+}  // namespace phasecast::testing
