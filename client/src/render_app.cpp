@@ -269,6 +269,7 @@ void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log
       fmt::print(log, "phasecast-render: reconnected; bases unchanged (hash {:016x})\n", basis.content_hash);
     }
     subscriber = std::make_unique<FrameSubscriber>(sub.pub_endpoint, sub.instance);
+    sequence.last.reset();  // a new subscription: numbering may start anywhere
   }
   target->output->finish();
   RenderStats total = target->output->stats();
