@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <ostream>
 #include <thread>
@@ -39,6 +40,14 @@ void check_source(const RenderOptions& o) {
     throw std::invalid_argument("--instance and --create need --connect tcp://host:5555");
   }
   if (o.instance && !o.create.empty()) throw std::invalid_argument("give --instance or --create, not both");
+  for (const auto& [name, value] :
+       {std::pair{"--frame-timeout", o.frame_timeout_s}, std::pair{"--request-timeout", o.request_timeout_s},
+        std::pair{"--give-up-after", o.give_up_after_s}}) {
+    if (!(value > 0) || !std::isfinite(value)) {
+      throw std::invalid_argument(
+          fmt::format("{} {} is invalid (expected a positive number of seconds)", name, value));
+    }
+  }
   if (!(o.exposure > 0) || !std::isfinite(o.exposure)) {
     throw std::invalid_argument(
         fmt::format("--exposure {} is invalid (expected a positive number)", o.exposure));
@@ -88,6 +97,17 @@ void report(std::ostream& log, const RenderStats& s, int width, int height) {
       s.frames, width, height, s.render_fps(), s.end_to_end_fps());
 }
 
+// A line every two seconds on long runs: frames done (of how many) and the rate.
+void report_progress(std::ostream& log, const RenderStats& s, std::uint64_t frame, std::uint64_t total) {
+  static thread_local double next_report = 2;
+  if (s.frames == 1) next_report = 2;
+  if (s.wall_seconds < next_report) return;
+  next_report = s.wall_seconds + 2;
+  fmt::print(log, "phasecast-render: frame {}: {} rendered{} ({:.1f} frames/s)\n", frame, s.frames,
+             total ? fmt::format(" of {}", total) : std::string(), s.end_to_end_fps());
+  log.flush();
+}
+
 void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log) {
   const core::ScenePackage package = core::read_package(*o.package);
   const ClientBasis basis = basis_from_package(package, core::file_content_hash(*o.package));
@@ -128,6 +148,7 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log) 
   for (const auto& f : frames) {
     if (g_interrupted || !target.backend->open()) break;
     target.output->render(f);
+    report_progress(log, target.output->stats(), f.frame, frames.size());
   }
   target.output->finish();
   report(log, target.output->stats(), o.width, o.height);
@@ -159,12 +180,19 @@ Subscription resolve(CommandClient& cmd, const RenderOptions& o, std::optional<s
   if (wanted) {
     const auto it = std::find_if(instances.instances().begin(), instances.instances().end(),
                                  [&](const v1::InstanceInfo& i) { return i.instance() == *wanted; });
-    if (it == instances.instances().end()) {
+    const bool recreate = it == instances.instances().end() && !o.create.empty();
+    if (it == instances.instances().end() && !recreate) {
       throw NetworkError(fmt::format("--instance {}: the server at {} has no such instance (it has {})",
                                      *wanted, cmd.endpoint(), instances.instances_size()));
     }
-    sub.instance = it->instance();
-    scene_name = it->scene();
+    if (recreate) {  // the server restarted and lost the instance this client created
+      const auto info = cmd.create_instance(o.create);
+      sub.instance = info.instance();
+      scene_name = info.scene();
+    } else {
+      sub.instance = it->instance();
+      scene_name = it->scene();
+    }
   } else if (!o.create.empty()) {
     const auto info = cmd.create_instance(o.create);
     sub.instance = info.instance();
@@ -220,14 +248,22 @@ void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log
   auto subscriber = std::make_unique<FrameSubscriber>(sub.pub_endpoint, sub.instance);
   SequenceTracker sequence;
   RenderStats done;  // stats of renderers replaced after a basis change
-  std::uint64_t reconnects = 0, rendered = 0;
+  std::uint64_t reconnects = 0, rendered = 0, rejected = 0;
   const auto frame_timeout = duration_cast<milliseconds>(duration<double>(o.frame_timeout_s));
   while (!g_interrupted && target->backend->open() && (o.max_frames == 0 || rendered < o.max_frames)) {
     if (auto frame = subscriber->receive(frame_timeout)) {
       sequence.observe(frame->seq());
       const FrameState state = frame_state(*frame);
-      validate_frame(state, basis, fmt::format("instance {}", sub.instance));
+      try {
+        validate_frame(state, basis, fmt::format("instance {}", sub.instance));
+      } catch (const std::invalid_argument& e) {
+        // One bad frame must not end the session: report it, keep the last good one.
+        ++rejected;
+        fmt::print(log, "phasecast-render: skipped {}\n", e.what());
+        continue;
+      }
       target->output->render(state);
+      report_progress(log, target->output->stats(), state.frame, o.max_frames);
       ++rendered;
       continue;
     }
@@ -242,6 +278,7 @@ void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log
       try {
         cmd = std::make_unique<CommandClient>(o.connect, request_timeout, 1);
         sub = resolve(*cmd, o, created);
+        if (!o.create.empty()) created = sub.instance;
         break;
       } catch (const NetworkError& e) {
         if (steady_clock::now() + backoff > give_up) {
@@ -279,8 +316,9 @@ void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log
   report(log, total, o.width, o.height);
   fmt::print(log,
              "phasecast-render: sequence gaps {} ({} frames missed), stream restarts {}, reconnects {}, "
-             "malformed messages {}\n",
-             sequence.gaps, sequence.missed, sequence.restarts, reconnects, subscriber->malformed());
+             "malformed messages {}, rejected frames {}\n",
+             sequence.gaps, sequence.missed, sequence.restarts, reconnects, subscriber->malformed(),
+             rejected);
 }
 
 }  // namespace

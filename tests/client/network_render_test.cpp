@@ -146,6 +146,23 @@ TEST_F(NetworkRender, SequenceGapsAreCountedAndReported) {
   }
 }
 
+TEST_F(NetworkRender, MalformedFramesAreSkippedAndReported) {
+  testing::PeerOptions options;
+  for (std::uint64_t s = 3; s < 5000; s += 10) options.corrupt_seq.insert(s);
+  testing::TestPeer peer(package_, options);
+  const auto r = testing::run_tool("phasecast-render", {"--connect", peer.cmd_endpoint(), "--frames", "25",
+                                                        "--size", "32x32", "--out", path("bad")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      r.out, m, std::regex(R"(skipped instance 1: frame (\d+): q_u has 5 values \(expected r_u = 4\))")))
+      << r.out;
+  EXPECT_EQ(std::stoull(m[1]) % 10, 3u);
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "bad" / frame_file_name(std::stoull(m[1]))));
+  ASSERT_TRUE(std::regex_search(r.out, m, std::regex(R"(rejected frames (\d+))")));
+  EXPECT_GE(std::stoi(m[1]), 2);
+}
+
 std::size_t files_in(const std::filesystem::path& dir) {
   std::error_code ec;
   if (!std::filesystem::exists(dir, ec)) return 0;

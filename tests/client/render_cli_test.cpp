@@ -141,6 +141,16 @@ TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
             "phasecast-render: --dump-vertices 500: no such frame (expected 0..89)\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--eye", "1,2"}),
             "phasecast-render: --eye '1,2' is invalid (expected three finite numbers x,y,z)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--frame-timeout", "0"}),
+            "phasecast-render: --frame-timeout 0 is invalid (expected a positive number of seconds)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--exposure", "-1"}),
+            "phasecast-render: --exposure -1 is invalid (expected a positive number)\n");
+  EXPECT_EQ(
+      one_line_error({"--package", path("plate.h5"), "--connect", "tcp://127.0.0.1:9"}),
+      "phasecast-render: choose one frame source (expected --connect tcp://host:5555, --replay stream.rec "
+      "--package p.h5, or --package p.h5 [--play-irf I])\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--create", "plate"}),
+            "phasecast-render: --instance and --create need --connect tcp://host:5555\n");
   EXPECT_EQ(one_line_error({"--replay", path("s.rec")}),
             "phasecast-render: --replay needs --package p.h5: a recording holds frames, not the bases\n");
   EXPECT_EQ(

@@ -210,7 +210,9 @@ void TestPeer::serve() {
       if (!options_.skip_seq.count(seq)) {
         const auto topic = fmt::format("inst/{}/", options_.instance);
         sockets_->pub.send(zmq::buffer(topic), zmq::send_flags::sndmore);
-        sockets_->pub.send(zmq::buffer(frame_at(seq).SerializeAsString()), zmq::send_flags::none);
+        v1::Frame frame = frame_at(seq);
+        if (options_.corrupt_seq.count(seq)) frame.add_q_u(0.5f);
+        sockets_->pub.send(zmq::buffer(frame.SerializeAsString()), zmq::send_flags::none);
         ++published_;
       }
       ++seq;

@@ -23,9 +23,10 @@ namespace phasecast::testing {
 struct PeerOptions {
   std::uint64_t content_hash = 0x1234;
   std::uint32_t instance = 1;
-  int irf = 0;                       // IRF published, looped
-  int period_ms = 5;                 // between frames
-  std::set<std::uint64_t> skip_seq;  // sequence numbers never published (gap tests)
+  int irf = 0;                          // IRF published, looped
+  int period_ms = 5;                    // between frames
+  std::set<std::uint64_t> skip_seq;     // sequence numbers never published (gap tests)
+  std::set<std::uint64_t> corrupt_seq;  // published with one q_u value too many
   std::string cmd_endpoint = "tcp://127.0.0.1:*";
   std::string pub_endpoint = "tcp://127.0.0.1:*";
   bool wildcard_pub_host = true;   // announce pub_endpoint as tcp://0.0.0.0:PORT
