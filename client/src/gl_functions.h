@@ -67,7 +67,8 @@ namespace phasecast::client::detail {
   X(PFNGLDRAWELEMENTSPROC, glDrawElements)                           \
   X(PFNGLDRAWARRAYSPROC, glDrawArrays)                               \
   X(PFNGLBEGINTRANSFORMFEEDBACKPROC, glBeginTransformFeedback)       \
-  X(PFNGLENDTRANSFORMFEEDBACKPROC, glEndTransformFeedback)
+  X(PFNGLENDTRANSFORMFEEDBACKPROC, glEndTransformFeedback)           \
+  X(PFNGLMEMORYBARRIERPROC, glMemoryBarrier)
 
 // One pointer per entry point, named as in GL.
 struct GlFunctions {

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <optional>
 
 namespace phasecast::client {
 
@@ -24,7 +25,9 @@ enum Binding : GLuint {
   kPointFlags = 4,
   kRestNormals = 5,
   kReduced = 6,
-  kBindingCount = 7
+  kMeanDotted = 7,
+  kBasisDotted = 8,
+  kBindingCount = 9
 };
 
 GLuint compile(const GlFunctions& gl, GLenum stage, std::string_view source, const char* name) {
@@ -46,19 +49,22 @@ GLuint compile(const GlFunctions& gl, GLenum stage, std::string_view source, con
   return shader;
 }
 
-GLuint link(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture) {
+// `capture`: record world_position and radiance by transform feedback.
+// `fragment`: attach radiance.frag (the light-dot pass only writes buffers).
+GLuint link(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture,
+            bool fragment = true) {
   const GLuint vs = compile(gl, GL_VERTEX_SHADER, vertex, vertex_name);
-  const GLuint fs = compile(gl, GL_FRAGMENT_SHADER, shaders::radiance_frag, "radiance.frag");
+  const GLuint fs = fragment ? compile(gl, GL_FRAGMENT_SHADER, shaders::radiance_frag, "radiance.frag") : 0;
   const GLuint program = gl.glCreateProgram();
   gl.glAttachShader(program, vs);
-  gl.glAttachShader(program, fs);
+  if (fragment) gl.glAttachShader(program, fs);
   if (capture) {
     const char* varyings[] = {"world_position", "radiance"};
     gl.glTransformFeedbackVaryings(program, 2, varyings, GL_INTERLEAVED_ATTRIBS);
   }
   gl.glLinkProgram(program);
   gl.glDeleteShader(vs);
-  gl.glDeleteShader(fs);
+  if (fragment) gl.glDeleteShader(fs);
   GLint ok = GL_FALSE;
   gl.glGetProgramiv(program, GL_LINK_STATUS, &ok);
   if (!ok) {
@@ -70,6 +76,17 @@ GLuint link(const GlFunctions& gl, std::string_view vertex, const char* vertex_n
                                   first_line.substr(0, first_line.find('\n'))));
   }
   return program;
+}
+
+// Row-major rows x cols -> rows x (4 ceil(cols / 4)), zero-padded, so the
+// shader reads each row in vec4 blocks.
+std::vector<float> pad_columns(const std::vector<float>& m, int cols) {
+  const auto c = static_cast<std::size_t>(cols), padded = 4 * ((c + 3) / 4);
+  if (c == 0 || c == padded) return m;
+  const std::size_t rows = m.size() / c;
+  std::vector<float> out(rows * padded, 0.0f);
+  for (std::size_t r = 0; r < rows; ++r) std::copy_n(&m[r * c], c, &out[r * padded]);
+  return out;
 }
 
 template <class T>
@@ -85,8 +102,11 @@ struct LowRankRenderer::Impl {
   ClientBasis basis;  // sizes and flags; the bulk data lives on the GPU
   int width, height;
   float radius;
-  GLuint program = 0, static_program = 0;
-  GLuint vao = 0, static_vao = 0;
+  GLuint program = 0, static_program = 0, dot_program = 0;
+  std::optional<std::array<float, 96>> dotted_lights;  // lights the dotted form was made with
+  std::uint64_t light_dot_passes = 0;
+  GLuint vao = 0, static_vao = 0, evaluated_vao = 0;
+  Evaluation evaluation = Evaluation::per_point_pass;
   std::array<GLuint, kBindingCount> storage{};
   GLuint index_buffer = 0, feedback_buffer = 0, static_buffer = 0;
   GLuint framebuffer = 0, colour_buffer = 0, depth_buffer = 0;
@@ -95,6 +115,7 @@ struct LowRankRenderer::Impl {
   ShLight light;
   bool has_static = false;
   bool has_transfer = false;
+  int r_u4 = 0, r_a4 = 0;  // ranks in vec4 blocks (shaders/low_rank.vert)
 
   Impl(RenderBackend& b, const ClientBasis& bases, int w, int h)
       : backend(b), gl(detail::load_gl_functions(b)), basis(bases), width(w), height(h) {
@@ -104,6 +125,7 @@ struct LowRankRenderer::Impl {
     light = light_probe("grace");
     program = link(gl, shaders::low_rank_vert, "low_rank.vert", true);
     static_program = link(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
+    dot_program = link(gl, shaders::light_dot_vert, "light_dot.vert", false, false);
     upload_bases();
     create_framebuffer();
     check("setting up the renderer");
@@ -112,11 +134,12 @@ struct LowRankRenderer::Impl {
   ~Impl() {
     gl.glDeleteProgram(program);
     gl.glDeleteProgram(static_program);
+    gl.glDeleteProgram(dot_program);
     gl.glDeleteBuffers(static_cast<GLsizei>(storage.size()), storage.data());
     const GLuint buffers[] = {index_buffer, feedback_buffer, static_buffer};
     gl.glDeleteBuffers(3, buffers);
-    const GLuint vaos[] = {vao, static_vao};
-    gl.glDeleteVertexArrays(2, vaos);
+    const GLuint vaos[] = {vao, static_vao, evaluated_vao};
+    gl.glDeleteVertexArrays(3, vaos);
     gl.glDeleteFramebuffers(1, &framebuffer);
     const GLuint renderbuffers[] = {colour_buffer, depth_buffer};
     gl.glDeleteRenderbuffers(2, renderbuffers);
@@ -156,14 +179,19 @@ struct LowRankRenderer::Impl {
     for (std::size_t v = 0; v < flags.size(); ++v) {
       flags[v] = (basis.deformable[v] ? 1u : 0u) | (basis.attached[v] ? 2u : 0u);
     }
+    r_u4 = (basis.rank_u + 3) / 4;
+    r_a4 = (basis.rank_a + 3) / 4;
     upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
-    upload_storage(kDisplacementBasis, basis.U_u, "U_u");
+    upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
     upload_storage(kMeanTransfer, basis.mean_transfer, "mean_transfer");
-    upload_storage(kTransferBasis, basis.U_a, "U_a");
+    upload_storage(kTransferBasis, pad_columns(basis.U_a, basis.rank_a), "U_a");
     upload_storage(kPointFlags, flags, "flags");
     upload_storage(kRestNormals, basis.normals, "normals");
-    upload_storage(kReduced, std::vector<float>(static_cast<std::size_t>(basis.rank_u + basis.rank_a) + 1),
-                   "q");
+    upload_storage(kReduced, std::vector<float>(static_cast<std::size_t>(4 * (r_u4 + r_a4)) + 4), "q");
+    // Written by light_dot.vert: M_bar.L (a vec4 per point), U_a.L ([S][3][r_a4] vec4s).
+    upload_storage(kMeanDotted, std::vector<float>(4 * static_cast<std::size_t>(basis.points)), "M_bar.L");
+    upload_storage(kBasisDotted, std::vector<float>(12 * static_cast<std::size_t>(basis.points) * r_a4),
+                   "U_a.L");
     // The client keeps only sizes and flags on the CPU once the GPU has the bases.
     has_transfer = basis.has_transfer();
     basis.U_u = {};
@@ -181,7 +209,24 @@ struct LowRankRenderer::Impl {
     gl.glGenBuffers(1, &feedback_buffer);
     gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer);
     gl.glBufferData(GL_TRANSFORM_FEEDBACK_BUFFER, static_cast<GLsizeiptr>(6 * sizeof(float)) * basis.points,
-                    nullptr, GL_DYNAMIC_READ);
+                    nullptr, GL_DYNAMIC_COPY);
+    gl.glGenVertexArrays(1, &evaluated_vao);
+    describe_vertices(evaluated_vao, feedback_buffer);
+  }
+
+  // Interleaved position, radiance (6 floats per point) as attributes 0, 1
+  // of static_mesh.vert, indexed by the triangles.
+  void describe_vertices(GLuint vertex_array, GLuint buffer) {
+    gl.glBindVertexArray(vertex_array);
+    gl.glBindBuffer(GL_ARRAY_BUFFER, buffer);
+    const auto stride = static_cast<GLsizei>(6 * sizeof(float));
+    gl.glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, nullptr);
+    gl.glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride,
+                             reinterpret_cast<const void*>(3 * sizeof(float)));
+    gl.glEnableVertexAttribArray(0);
+    gl.glEnableVertexAttribArray(1);
+    gl.glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
+    gl.glBindVertexArray(0);
   }
 
   void create_framebuffer() {
@@ -207,8 +252,8 @@ struct LowRankRenderer::Impl {
     gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "view_projection"), 1, GL_FALSE, vp.data());
     gl.glUniform1f(gl.glGetUniformLocation(p, "exposure"), exposure);
     if (p != program) return;
-    gl.glUniform1i(gl.glGetUniformLocation(p, "r_u"), basis.rank_u);
-    gl.glUniform1i(gl.glGetUniformLocation(p, "r_a"), basis.rank_a);
+    gl.glUniform1i(gl.glGetUniformLocation(p, "r_u4"), r_u4);
+    gl.glUniform1i(gl.glGetUniformLocation(p, "r_a4"), r_a4);
     gl.glUniform1i(gl.glGetUniformLocation(p, "has_transfer"), has_transfer ? 1 : 0);
 
     // Support transform (3x4 row-major, support -> world) as a 4x4 for GLSL.
@@ -219,16 +264,44 @@ struct LowRankRenderer::Impl {
       }
     }
     gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "support"), 1, GL_FALSE, support.data());
-    const auto world = light.packed();
-    const auto local = light_in_support_frame(light, support.topLeftCorner<3, 3>().cast<double>()).packed();
-    gl.glUniform4fv(gl.glGetUniformLocation(p, "light_world"), 12, world.data());
-    gl.glUniform4fv(gl.glGetUniformLocation(p, "light_support"), 12, local.data());
+    const auto lights = frame_lights(support);
+    if (has_transfer) update_light_dotted(lights);
+    gl.glUseProgram(p);
+    gl.glUniform4fv(gl.glGetUniformLocation(p, "light"), 24, lights.data());
 
     // Per-frame upload: q_u then q_a.
-    std::vector<float> q(f.q_u);
-    q.insert(q.end(), f.q_a.begin(), f.q_a.end());
+    std::vector<float> q(static_cast<std::size_t>(4 * (r_u4 + r_a4)), 0.0f);
+    std::copy(f.q_u.begin(), f.q_u.end(), q.begin());
+    std::copy(f.q_a.begin(), f.q_a.end(), q.begin() + 4 * r_u4);
     gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kReduced]);
     if (!q.empty()) gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(q), q.data());
+  }
+
+  // The world light and the light rotated into the support frame (§5.3).
+  std::array<float, 96> frame_lights(const Eigen::Matrix4f& support) const {
+    std::array<float, 96> lights{};
+    const auto world = light.packed();
+    const auto local = light_in_support_frame(light, support.topLeftCorner<3, 3>().cast<double>()).packed();
+    std::copy(world.begin(), world.end(), lights.begin());
+    std::copy(local.begin(), local.end(), lights.begin() + 48);
+    return lights;
+  }
+
+  // Re-dots the transfer bases with the light when the light the points see
+  // changed (a new light or a rotated support); otherwise nothing to do.
+  void update_light_dotted(const std::array<float, 96>& lights) {
+    if (dotted_lights && *dotted_lights == lights) return;
+    gl.glUseProgram(dot_program);
+    gl.glUniform1i(gl.glGetUniformLocation(dot_program, "r_a4"), r_a4);
+    gl.glUniform4fv(gl.glGetUniformLocation(dot_program, "light"), 24, lights.data());
+    gl.glEnable(GL_RASTERIZER_DISCARD);
+    gl.glBindVertexArray(vao);
+    gl.glDrawArrays(GL_POINTS, 0, basis.points);
+    gl.glBindVertexArray(0);
+    gl.glDisable(GL_RASTERIZER_DISCARD);
+    gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    dotted_lights = lights;
+    ++light_dot_passes;
   }
 
   void begin_frame() {
@@ -248,13 +321,38 @@ struct LowRankRenderer::Impl {
     backend.present();
   }
 
-  void draw(const FrameState& f) {
-    validate_frame(f, basis, "renderer");
-    begin_frame();
+  // Pass 1: the low-rank program once per scene point (GL_POINTS, rasterizer
+  // off), positions and radiance captured into feedback_buffer.
+  void evaluation_pass(const FrameState& f) {
     set_uniforms(program, f);
+    gl.glEnable(GL_RASTERIZER_DISCARD);
+    gl.glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer);
     gl.glBindVertexArray(vao);
+    gl.glBeginTransformFeedback(GL_POINTS);
+    gl.glDrawArrays(GL_POINTS, 0, basis.points);
+    gl.glEndTransformFeedback();
+    gl.glBindVertexArray(0);
+    gl.glDisable(GL_RASTERIZER_DISCARD);
+  }
+
+  void draw_triangles(GLuint p, GLuint vertex_array, const FrameState& f) {
+    begin_frame();
+    set_uniforms(p, f);
+    gl.glBindVertexArray(vertex_array);
     gl.glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(basis.triangles.size()), GL_UNSIGNED_INT, nullptr);
     gl.glBindVertexArray(0);
+  }
+
+  void draw(const FrameState& f) {
+    validate_frame(f, basis, "renderer");
+    if (evaluation == Evaluation::per_point_pass) {
+      // Each point is evaluated exactly once; the triangles then read the
+      // results as plain vertex attributes (shared vertices are not re-run).
+      evaluation_pass(f);
+      draw_triangles(static_program, evaluated_vao, f);
+    } else {
+      draw_triangles(program, vao, f);
+    }
     show();
     check("drawing a frame");
   }
@@ -277,15 +375,7 @@ struct LowRankRenderer::Impl {
 
   VertexDump evaluate(const FrameState& f) {
     validate_frame(f, basis, "renderer");
-    set_uniforms(program, f);
-    gl.glEnable(GL_RASTERIZER_DISCARD);
-    gl.glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer);
-    gl.glBindVertexArray(vao);
-    gl.glBeginTransformFeedback(GL_POINTS);
-    gl.glDrawArrays(GL_POINTS, 0, basis.points);
-    gl.glEndTransformFeedback();
-    gl.glBindVertexArray(0);
-    gl.glDisable(GL_RASTERIZER_DISCARD);
+    evaluation_pass(f);
     std::vector<float> captured(static_cast<std::size_t>(6 * basis.points));
     gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer);
     gl.glGetBufferSubData(GL_TRANSFORM_FEEDBACK_BUFFER, 0, byte_size(captured), captured.data());
@@ -317,17 +407,9 @@ struct LowRankRenderer::Impl {
       gl.glGenVertexArrays(1, &static_vao);
       gl.glGenBuffers(1, &static_buffer);
     }
-    gl.glBindVertexArray(static_vao);
     gl.glBindBuffer(GL_ARRAY_BUFFER, static_buffer);
     gl.glBufferData(GL_ARRAY_BUFFER, byte_size(interleaved), interleaved.data(), GL_STATIC_DRAW);
-    const auto stride = static_cast<GLsizei>(6 * sizeof(float));
-    gl.glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, nullptr);
-    gl.glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride,
-                             reinterpret_cast<const void*>(3 * sizeof(float)));
-    gl.glEnableVertexAttribArray(0);
-    gl.glEnableVertexAttribArray(1);
-    gl.glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
-    gl.glBindVertexArray(0);
+    describe_vertices(static_vao, static_buffer);
     has_static = true;
     check("uploading the static mesh");
   }
@@ -335,11 +417,7 @@ struct LowRankRenderer::Impl {
   void draw_static() {
     if (!has_static)
       throw RenderError("draw_static: no static mesh was uploaded (call set_static_mesh first)");
-    begin_frame();
-    set_uniforms(static_program, FrameState{});
-    gl.glBindVertexArray(static_vao);
-    gl.glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(basis.triangles.size()), GL_UNSIGNED_INT, nullptr);
-    gl.glBindVertexArray(0);
+    draw_triangles(static_program, static_vao, FrameState{});
     check("drawing the static mesh");
   }
 };
@@ -356,6 +434,12 @@ void LowRankRenderer::set_camera(const Camera& camera) {
 }
 void LowRankRenderer::set_exposure(float exposure) {
   impl_->exposure = exposure;
+}
+std::uint64_t LowRankRenderer::light_dot_passes() const {
+  return impl_->light_dot_passes;
+}
+void LowRankRenderer::set_evaluation(Evaluation evaluation) {
+  impl_->evaluation = evaluation;
 }
 void LowRankRenderer::draw(const FrameState& frame) {
   impl_->draw(frame);

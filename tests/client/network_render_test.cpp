@@ -171,6 +171,7 @@ std::size_t files_in(const std::filesystem::path& dir) {
 
 TEST_F(NetworkRender, ReconnectsAfterTheServerRestartsAndRechecksTheBases) {
   testing::PeerOptions options;
+  options.period_ms = 20;  // slow enough that the client cannot finish before the peer goes away
   auto peer = std::make_unique<testing::TestPeer>(package_, options);
   const std::string cmd = peer->cmd_endpoint(), pub = peer->pub_endpoint();
   BackgroundTool tool({"--connect", cmd, "--frames", "60", "--size", "32x32", "--out", path("re"),
@@ -200,6 +201,7 @@ TEST_F(NetworkRender, ReconnectsAfterTheServerRestartsAndRechecksTheBases) {
 
 TEST_F(NetworkRender, ReconnectWithUnchangedBasesDoesNotDownloadAgain) {
   testing::PeerOptions options;
+  options.period_ms = 20;  // slow enough that the client cannot finish before the peer goes away
   auto peer = std::make_unique<testing::TestPeer>(package_, options);
   const std::string cmd = peer->cmd_endpoint(), pub = peer->pub_endpoint();
   BackgroundTool tool({"--connect", cmd, "--frames", "40", "--size", "32x32", "--out", path("same"),

@@ -32,6 +32,12 @@ struct VertexDump {
   std::vector<float> radiance;   // S x 3, linear exit radiance
 };
 
+// Where the superposition runs. per_point_pass (default): once per scene point
+// into a buffer (transform feedback), then the triangles are drawn from it;
+// in_draw: inside the triangle draw, where a shared vertex may be evaluated
+// again for each batch of triangles that uses it (kept for the benchmark).
+enum class Evaluation { per_point_pass, in_draw };
+
 class LowRankRenderer {
  public:
   // The backend's context must stay current and alive while the renderer lives.
@@ -43,6 +49,7 @@ class LowRankRenderer {
   void set_light(const ShLight& world_light);
   void set_camera(const Camera& camera);
   void set_exposure(float exposure);
+  void set_evaluation(Evaluation evaluation);
 
   // Draws the frame into the offscreen framebuffer (and the window, if any).
   void draw(const FrameState& frame);
@@ -55,6 +62,9 @@ class LowRankRenderer {
   // (no low-rank evaluation), uploaded once by set_static_mesh.
   void set_static_mesh(const VertexDump& vertices);
   void draw_static();
+  // How often the transfer bases were dotted with the light (light_dot.vert):
+  // once per change of light or support rotation, not once per frame.
+  std::uint64_t light_dot_passes() const;
   // Waits until the GPU finished (timing).
   void finish();
   Image read_pixels();
