@@ -234,6 +234,27 @@ TEST(GlEvaluation, SphereImageCentreShowsTheIrradianceFacingTheCamera) {
   EXPECT_EQ(image.rgba[0], std::lround(255 * 0.02));
 }
 
+TEST(GlEvaluation, TransferIsDottedWithTheLightOnlyWhenTheLightItSeesChanges) {
+  const auto package = testing::make_plate_package();
+  auto backend = make_render_backend("osmesa", 32, 32);
+  LowRankRenderer renderer(*backend, basis_from_package(package, 1), 32, 32);
+  FrameState f = portrait_frames(package, 0)[0];
+  renderer.draw(f);
+  EXPECT_EQ(renderer.light_dot_passes(), 1u);
+  f.q_u[0] += 0.1f;  // deformation and q_a changes alone do not re-dot
+  f.q_a[0] += 0.1f;
+  renderer.draw(f);
+  renderer.evaluate(f);
+  EXPECT_EQ(renderer.light_dot_passes(), 1u);
+  f.support = portrait_frames(package, 0)[40].support;  // the door turned
+  const VertexDump turned = renderer.evaluate(f);
+  EXPECT_EQ(renderer.light_dot_passes(), 2u);
+  renderer.set_light(light_probe("sky"));
+  const VertexDump sky = renderer.evaluate(f);
+  EXPECT_EQ(renderer.light_dot_passes(), 3u);
+  EXPECT_NE(turned.radiance, sky.radiance);
+}
+
 TEST(GlEvaluation, StaticMeshDrawsTheSameImage) {
   const auto package = testing::make_plate_package();
   const auto basis = basis_from_package(package, 1);
