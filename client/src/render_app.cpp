@@ -36,8 +36,11 @@ void check_source(const RenderOptions& o) {
   }
   if (o.play_irf && !o.connect.empty())
     throw std::invalid_argument("--play-irf is for local mode (--package)");
-  if ((o.instance || !o.create.empty()) && o.connect.empty()) {
-    throw std::invalid_argument("--instance and --create need --connect tcp://host:5555");
+  if (!o.create.empty() && o.connect.empty()) {
+    throw std::invalid_argument("--create needs --connect tcp://host:5555");
+  }
+  if (o.instance && o.connect.empty() && !o.replay) {
+    throw std::invalid_argument("--instance needs --connect tcp://host:5555 or --replay stream.rec");
   }
   if (o.instance && !o.create.empty()) throw std::invalid_argument("give --instance or --create, not both");
   for (const auto& [name, value] :
@@ -75,7 +78,8 @@ struct RenderTarget {
   std::unique_ptr<LowRankRenderer> renderer;
   std::unique_ptr<FrameOutput> output;
 
-  RenderTarget(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
+  // `frame_rate`: frames per second of the stream (1 / dt), for the video.
+  RenderTarget(const ClientBasis& basis, const RenderOptions& o, const ShLight& light, double frame_rate) {
     backend = make_render_backend(o.backend, o.width, o.height);
     renderer = std::make_unique<LowRankRenderer>(*backend, basis, o.width, o.height);
     renderer->set_light(light);
@@ -84,7 +88,7 @@ struct RenderTarget {
     OutputOptions out;
     out.png_dir = o.out_dir;
     out.video = o.video;
-    out.video_fps = 60;
+    out.video_fps = frame_rate > 0 && std::isfinite(frame_rate) ? frame_rate : 60;
     out.dump_frame = o.dump_frame;
     out.dump_path = o.dump_path;
     output = std::make_unique<FrameOutput>(*renderer, o.width, o.height, out);
@@ -141,7 +145,7 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log) 
                                             *o.dump_frame, frames.front().frame, frames.back().frame));
   }
 
-  RenderTarget target(basis, o, light);
+  RenderTarget target(basis, o, light, 1.0 / package.attributes.dt);
   fmt::print(log, "phasecast-render: {} ({}), scene '{}', {} points, r_u = {}, r_a = {}, {} frames\n",
              target.renderer->gl_description(), o.backend, basis.scene, basis.points, basis.rank_u,
              basis.rank_a, frames.size());
@@ -218,6 +222,16 @@ Subscription resolve(CommandClient& cmd, const RenderOptions& o, std::optional<s
   return sub;
 }
 
+// Once the bases are on the GPU the client keeps only their sizes, name and
+// hash (what validate_frame and the reconnect check need).
+void keep_sizes_only(ClientBasis& basis) {
+  basis.U_u = {};
+  basis.U_a = {};
+  basis.mean_transfer = {};
+  basis.mean_shape = {};
+  basis.normals = {};
+}
+
 ClientBasis download(CommandClient& cmd, const v1::SceneInfo& scene, std::ostream& log) {
   fmt::print(log, "phasecast-render: downloading the bases of '{}' (hash {:016x})\n", scene.name(),
              scene.content_hash());
@@ -242,7 +256,8 @@ void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log
   Subscription sub = resolve(*cmd, o, created);
   if (!o.create.empty()) created = sub.instance;
   ClientBasis basis = download(*cmd, sub.scene, log);
-  auto target = std::make_unique<RenderTarget>(basis, o, light);
+  auto target = std::make_unique<RenderTarget>(basis, o, light, 1.0 / sub.scene.dt());
+  keep_sizes_only(basis);
   fmt::print(log, "phasecast-render: {} ({}), following instance {} of '{}' on {}\n",
              target->renderer->gl_description(), o.backend, sub.instance, basis.scene, sub.pub_endpoint);
   auto subscriber = std::make_unique<FrameSubscriber>(sub.pub_endpoint, sub.instance);
@@ -301,7 +316,8 @@ void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log
       done.render_seconds += s.render_seconds;
       done.wall_seconds += s.wall_seconds;
       target.reset();
-      target = std::make_unique<RenderTarget>(basis, o, light);
+      target = std::make_unique<RenderTarget>(basis, o, light, 1.0 / sub.scene.dt());
+      keep_sizes_only(basis);
     } else {
       fmt::print(log, "phasecast-render: reconnected; bases unchanged (hash {:016x})\n", basis.content_hash);
     }

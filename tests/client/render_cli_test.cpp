@@ -150,7 +150,9 @@ TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
       "phasecast-render: choose one frame source (expected --connect tcp://host:5555, --replay stream.rec "
       "--package p.h5, or --package p.h5 [--play-irf I])\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--create", "plate"}),
-            "phasecast-render: --instance and --create need --connect tcp://host:5555\n");
+            "phasecast-render: --create needs --connect tcp://host:5555\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--instance", "2"}),
+            "phasecast-render: --instance needs --connect tcp://host:5555 or --replay stream.rec\n");
   EXPECT_EQ(one_line_error({"--replay", path("s.rec")}),
             "phasecast-render: --replay needs --package p.h5: a recording holds frames, not the bases\n");
   EXPECT_EQ(
