@@ -68,7 +68,8 @@ namespace phasecast::client::detail {
   X(PFNGLDRAWARRAYSPROC, glDrawArrays)                               \
   X(PFNGLBEGINTRANSFORMFEEDBACKPROC, glBeginTransformFeedback)       \
   X(PFNGLENDTRANSFORMFEEDBACKPROC, glEndTransformFeedback)           \
-  X(PFNGLMEMORYBARRIERPROC, glMemoryBarrier)
+  X(PFNGLMEMORYBARRIERPROC, glMemoryBarrier)                         \
+  X(PFNGLDISPATCHCOMPUTEPROC, glDispatchCompute)
 
 // One pointer per entry point, named as in GL.
 struct GlFunctions {

@@ -49,22 +49,7 @@ GLuint compile(const GlFunctions& gl, GLenum stage, std::string_view source, con
   return shader;
 }
 
-// `capture`: record world_position and radiance by transform feedback.
-// `fragment`: attach radiance.frag (the light-dot pass only writes buffers).
-GLuint link(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture,
-            bool fragment = true) {
-  const GLuint vs = compile(gl, GL_VERTEX_SHADER, vertex, vertex_name);
-  const GLuint fs = fragment ? compile(gl, GL_FRAGMENT_SHADER, shaders::radiance_frag, "radiance.frag") : 0;
-  const GLuint program = gl.glCreateProgram();
-  gl.glAttachShader(program, vs);
-  if (fragment) gl.glAttachShader(program, fs);
-  if (capture) {
-    const char* varyings[] = {"world_position", "radiance"};
-    gl.glTransformFeedbackVaryings(program, 2, varyings, GL_INTERLEAVED_ATTRIBS);
-  }
-  gl.glLinkProgram(program);
-  gl.glDeleteShader(vs);
-  if (fragment) gl.glDeleteShader(fs);
+void check_link(const GlFunctions& gl, GLuint program, const char* name) {
   GLint ok = GL_FALSE;
   gl.glGetProgramiv(program, GL_LINK_STATUS, &ok);
   if (!ok) {
@@ -72,9 +57,27 @@ GLuint link(const GlFunctions& gl, std::string_view vertex, const char* vertex_n
     gl.glGetProgramInfoLog(program, static_cast<GLsizei>(log.size()), nullptr, log.data());
     gl.glDeleteProgram(program);
     std::string first_line(log.data());
-    throw RenderError(fmt::format("shader program {} does not link: {}", vertex_name,
+    throw RenderError(fmt::format("shader program {} does not link: {}", name,
                                   first_line.substr(0, first_line.find('\n'))));
   }
+}
+
+// A vertex program with radiance.frag; `capture`: record world_position and
+// radiance by transform feedback.
+GLuint link(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture) {
+  const GLuint vs = compile(gl, GL_VERTEX_SHADER, vertex, vertex_name);
+  const GLuint fs = compile(gl, GL_FRAGMENT_SHADER, shaders::radiance_frag, "radiance.frag");
+  const GLuint program = gl.glCreateProgram();
+  gl.glAttachShader(program, vs);
+  gl.glAttachShader(program, fs);
+  if (capture) {
+    const char* varyings[] = {"world_position", "radiance"};
+    gl.glTransformFeedbackVaryings(program, 2, varyings, GL_INTERLEAVED_ATTRIBS);
+  }
+  gl.glLinkProgram(program);
+  gl.glDeleteShader(vs);
+  gl.glDeleteShader(fs);
+  check_link(gl, program, vertex_name);
   return program;
 }
 
@@ -87,6 +90,16 @@ std::vector<float> pad_columns(const std::vector<float>& m, int cols) {
   std::vector<float> out(rows * padded, 0.0f);
   for (std::size_t r = 0; r < rows; ++r) std::copy_n(&m[r * c], c, &out[r * padded]);
   return out;
+}
+
+GLuint link_compute(const GlFunctions& gl, std::string_view source, const char* name) {
+  const GLuint cs = compile(gl, GL_COMPUTE_SHADER, source, name);
+  const GLuint program = gl.glCreateProgram();
+  gl.glAttachShader(program, cs);
+  gl.glLinkProgram(program);
+  gl.glDeleteShader(cs);
+  check_link(gl, program, name);
+  return program;
 }
 
 template <class T>
@@ -125,7 +138,7 @@ struct LowRankRenderer::Impl {
     light = light_probe("grace");
     program = link(gl, shaders::low_rank_vert, "low_rank.vert", true);
     static_program = link(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
-    dot_program = link(gl, shaders::light_dot_vert, "light_dot.vert", false, false);
+    dot_program = link_compute(gl, shaders::light_dot_comp, "light_dot.comp");
     upload_bases();
     create_framebuffer();
     check("setting up the renderer");
@@ -188,7 +201,7 @@ struct LowRankRenderer::Impl {
     upload_storage(kPointFlags, flags, "flags");
     upload_storage(kRestNormals, basis.normals, "normals");
     upload_storage(kReduced, std::vector<float>(static_cast<std::size_t>(4 * (r_u4 + r_a4)) + 4), "q");
-    // Written by light_dot.vert: M_bar.L (a vec4 per point), U_a.L ([S][3][r_a4] vec4s).
+    // Written by light_dot.comp: M_bar.L (a vec4 per point), U_a.L ([S][3][r_a4] vec4s).
     upload_storage(kMeanDotted, std::vector<float>(4 * static_cast<std::size_t>(basis.points)), "M_bar.L");
     upload_storage(kBasisDotted, std::vector<float>(12 * static_cast<std::size_t>(basis.points) * r_a4),
                    "U_a.L");
@@ -294,11 +307,8 @@ struct LowRankRenderer::Impl {
     gl.glUseProgram(dot_program);
     gl.glUniform1i(gl.glGetUniformLocation(dot_program, "r_a4"), r_a4);
     gl.glUniform4fv(gl.glGetUniformLocation(dot_program, "light"), 24, lights.data());
-    gl.glEnable(GL_RASTERIZER_DISCARD);
-    gl.glBindVertexArray(vao);
-    gl.glDrawArrays(GL_POINTS, 0, basis.points);
-    gl.glBindVertexArray(0);
-    gl.glDisable(GL_RASTERIZER_DISCARD);
+    gl.glUniform1i(gl.glGetUniformLocation(dot_program, "points"), basis.points);
+    gl.glDispatchCompute(static_cast<GLuint>((basis.points + 63) / 64), 1, 1);
     gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     dotted_lights = lights;
     ++light_dot_passes;

@@ -62,7 +62,7 @@ class LowRankRenderer {
   // (no low-rank evaluation), uploaded once by set_static_mesh.
   void set_static_mesh(const VertexDump& vertices);
   void draw_static();
-  // How often the transfer bases were dotted with the light (light_dot.vert):
+  // How often the transfer bases were dotted with the light (light_dot.comp):
   // once per change of light or support rotation, not once per frame.
   std::uint64_t light_dot_passes() const;
   // Waits until the GPU finished (timing).

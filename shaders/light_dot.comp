@@ -2,10 +2,13 @@
 // The light-dotted form of the transfer model (§4.2, §5.3): per scene point
 // and colour channel, M_bar . L and U_a . L (one value per transfer mode).
 // Exit radiance is then M_bar.L + sum_j (U_a.L)_j q_a[j]: 3 (1 + r_a) values
-// per point each frame instead of 48 (1 + r_a). Run once per point (GL_POINTS,
-// rasterizer off) only when the light seen by the points changes: a new
-// light, or a new support rotation (the light is rotated into the support
-// frame for attached points).
+// per point each frame instead of 48 (1 + r_a). A compute shader, one
+// invocation per point (llvmpipe runs compute on all its threads, vertex
+// shading on one), dispatched only when the light seen by the points changes:
+// a new light, or a new support rotation (the light is rotated into the
+// support frame for attached points).
+
+layout(local_size_x = 64) in;
 
 layout(std430, binding = 2) readonly buffer MeanTransfer { vec4 M_bar[]; };  // [S][3][4]: k in vec4s
 layout(std430, binding = 3) readonly buffer TransferBasis { vec4 U_a[]; };  // [48S][r_a4]
@@ -15,9 +18,11 @@ layout(std430, binding = 8) writeonly buffer BasisDotted { vec4 U_dot[]; };  // 
 
 uniform int r_a4;
 uniform vec4 light[24];  // as in low_rank.vert: world at 0, support frame at 12
+uniform int points;      // S
 
 void main() {
-  uint v = uint(gl_VertexID);
+  uint v = gl_GlobalInvocationID.x;
+  if (v >= uint(points)) return;
   int base = (flags[v] & 2u) != 0u ? 12 : 0;
   uint n = uint(r_a4);
   vec3 mean_dotted;
@@ -37,5 +42,4 @@ void main() {
     }
   }
   M_dot[v] = vec4(mean_dotted, 0.0);
-  gl_Position = vec4(0.0, 0.0, 0.0, 1.0);
 }
