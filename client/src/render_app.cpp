@@ -5,6 +5,7 @@
 #include "phasecast/client/network.h"
 #include "phasecast/core/hash.h"
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <fmt/ostream.h>
 
@@ -34,8 +35,9 @@ void check_source(const RenderOptions& o) {
   if (o.replay && !o.package) {
     throw std::invalid_argument("--replay needs --package p.h5: a recording holds frames, not the bases");
   }
-  if (o.play_irf && !o.connect.empty())
-    throw std::invalid_argument("--play-irf is for local mode (--package)");
+  if (o.play_irf && (!o.connect.empty() || o.replay)) {
+    throw std::invalid_argument("--play-irf is for local mode (--package without --replay or --connect)");
+  }
   if (!o.create.empty() && o.connect.empty()) {
     throw std::invalid_argument("--create needs --connect tcp://host:5555");
   }
@@ -68,6 +70,14 @@ Camera camera_for(const ClientBasis& basis, const RenderOptions& o) {
           fmt::format("--fov {} is invalid (expected degrees in (0, 180))", *o.fov_y_deg));
     }
     c.fov_y_deg = *o.fov_y_deg;
+  }
+  const Eigen::Vector3f view = c.target - c.eye;
+  if (!(view.norm() > 0)) {
+    throw std::invalid_argument("camera eye and target coincide (expected distinct --eye and --target)");
+  }
+  if (!(view.normalized().cross(c.up).norm() > 1e-6f)) {
+    throw std::invalid_argument(
+        "camera --up is parallel to the view direction (expected a vector across it)");
   }
   return c;
 }

@@ -153,6 +153,15 @@ TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
             "phasecast-render: --create needs --connect tcp://host:5555\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--instance", "2"}),
             "phasecast-render: --instance needs --connect tcp://host:5555 or --replay stream.rec\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--fov", "180"}),
+            "phasecast-render: --fov 180 is invalid (expected degrees in (0, 180))\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--eye", "0.5,0.5,0", "--target", "0.5,0.5,0"}),
+            "phasecast-render: camera eye and target coincide (expected distinct --eye and --target)\n");
+  EXPECT_EQ(
+      one_line_error({"--package", path("plate.h5"), "--up", "0,0,1"}),
+      "phasecast-render: camera --up is parallel to the view direction (expected a vector across it)\n");
+  EXPECT_EQ(one_line_error({"--replay", path("s.rec"), "--package", path("plate.h5"), "--play-irf", "1"}),
+            "phasecast-render: --play-irf is for local mode (--package without --replay or --connect)\n");
   EXPECT_EQ(one_line_error({"--replay", path("s.rec")}),
             "phasecast-render: --replay needs --package p.h5: a recording holds frames, not the bases\n");
   EXPECT_EQ(
