@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 
 namespace phasecast::client {
@@ -166,6 +167,14 @@ TEST(ClientBackends, UnknownBackendNameListsTheKnownOnes) {
             "render backend 'vulkan' is unknown (expected one of osmesa, egl, window)");
   EXPECT_EQ(error_of([] { make_render_backend("osmesa", 0, 64); }),
             "render size 0x64 is invalid (expected 1..16384 pixels per side)");
+}
+
+TEST(ClientBackends, WindowWithoutDisplaySaysWhatToUseInstead) {
+  ::unsetenv("DISPLAY");
+  ::unsetenv("WAYLAND_DISPLAY");
+  EXPECT_THAT(error_of([] { make_render_backend("window", 64, 64); }),
+              ::testing::AllOf(HasSubstr("window backend: GLFW could not start"),
+                               HasSubstr("use --backend osmesa or egl on machines without a display")));
 }
 
 TEST(ClientNetwork, SequenceGapsAndRestartsAreCounted) {
