@@ -169,6 +169,11 @@ v1::Reply TestPeer::answer(const v1::Request& request) {
       chunk->set_total_bytes(part.bytes.size());
       chunk->set_data(reinterpret_cast<const char*>(part.bytes.data()) + offset, n);
       chunk->set_content_hash(options_.content_hash);
+      if (b.part() == static_cast<v1::BasisPart>(core::basis_parts(p).back().id) &&
+          offset + n == part.bytes.size()) {
+        ++downloads_done_;  // the last part's last chunk: one client has all its bases
+        last_download_ = std::chrono::steady_clock::now();
+      }
     }
     if (!reply.has_basis()) {
       reply.set_ok(false);
@@ -205,7 +210,11 @@ void TestPeer::serve() {
         sockets_->router.send(zmq::buffer(reply.SerializeAsString()), zmq::send_flags::none);
       }
     }
-    if (clock::now() >= next_frame && (options_.max_frames == 0 || seq < options_.max_frames)) {
+    const bool held = downloads_done_ < options_.hold_until_downloads ||
+                      (options_.hold_until_downloads > 0 &&
+                       clock::now() < last_download_ + std::chrono::milliseconds(options_.hold_extra_ms));
+    if (held) next_frame = clock::now();
+    if (!held && clock::now() >= next_frame && (options_.max_frames == 0 || seq < options_.max_frames)) {
       next_frame += std::chrono::milliseconds(options_.period_ms);
       if (!options_.skip_seq.count(seq)) {
         const auto topic = fmt::format("inst/{}/", options_.instance);

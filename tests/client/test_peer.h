@@ -10,6 +10,7 @@
 #include "phasecast/proto/phasecast.pb.h"
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -32,6 +33,10 @@ struct PeerOptions {
   bool wildcard_pub_host = true;   // announce pub_endpoint as tcp://0.0.0.0:PORT
   std::uint32_t max_chunk = 4096;  // small chunks so downloads take several requests
   std::uint64_t max_frames = 0;    // stop publishing after this many (0: never)
+  // Publish only after this many complete basis downloads were served, and
+  // hold_extra_ms after the last (clients subscribe after their GL setup).
+  int hold_until_downloads = 0;
+  int hold_extra_ms = 600;
 };
 
 class TestPeer {
@@ -57,6 +62,8 @@ class TestPeer {
   std::string cmd_endpoint_, pub_endpoint_;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> published_{0}, basis_requests_{0};
+  int downloads_done_ = 0;  // serve() thread only
+  std::chrono::steady_clock::time_point last_download_{};
   struct Sockets;
   std::unique_ptr<Sockets> sockets_;
   std::thread thread_;
