@@ -1,8 +1,11 @@
 #version 450 core
 // The thin client's low-rank superposition (§5.3). Bases live in shader
 // storage buffers uploaded once; per frame only q_u, q_a (buffer Reduced) and
-// the support transform change. Drawn with glDrawElements and no vertex
-// attributes: gl_VertexID is the scene point index.
+// the support transform change. No vertex attributes: gl_VertexID is the
+// scene point index. Normally run once per point (glDrawArrays GL_POINTS,
+// rasterizer off) with world_position and radiance captured by transform
+// feedback for the triangle draw; Evaluation::in_draw runs it inside
+// glDrawElements instead. The transfer arrives light-dotted (light_dot.comp).
 //
 // GPU layout (packed by low_rank_renderer.cpp from the row-major protocol
 // layout): ranks are padded to whole vec4 blocks, r_u4 = ceil(r_u / 4) and
