@@ -5,9 +5,9 @@
 #include "phasecast/client/network.h"
 #include "phasecast/core/hash.h"
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <fmt/ostream.h>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <atomic>
