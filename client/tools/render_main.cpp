@@ -27,7 +27,7 @@ int main(int argc, char** argv) {
   app.add_option("--connect", o.connect, "command endpoint of phasecast-server, e.g. tcp://host:5555");
   auto* instance_opt = app.add_option("--instance", instance,
                                       "instance to follow (default: first instance of the "
-                                      "first scene)");
+                                      "first scene), or to take from a --replay recording");
   app.add_option("--create", o.create, "create a new instance of this scene and follow it");
   app.add_option("--replay", replay, "render a recorded stream (needs --package)");
   app.add_option("--package", package, "scene package (.h5): local mode, or the bases for --replay");
@@ -60,8 +60,11 @@ int main(int argc, char** argv) {
                  "network: seconds to wait for each reply (default 2)");
   try {
     app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
+  } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "phasecast-render: " << e.what() << " (see --help)\n";  // one line, like every other error
+    return e.get_exit_code();
   }
   try {
     const auto wh = phasecast::client::parse_size(size);

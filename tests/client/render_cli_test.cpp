@@ -162,6 +162,9 @@ TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
       "phasecast-render: camera --up is parallel to the view direction (expected a vector across it)\n");
   EXPECT_EQ(one_line_error({"--replay", path("s.rec"), "--package", path("plate.h5"), "--play-irf", "1"}),
             "phasecast-render: --play-irf is for local mode (--package without --replay or --connect)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--frames", "many"}),
+            "phasecast-render: Could not convert: --frames = many (see --help)\n");
+  EXPECT_THAT(one_line_error({"--package", path("plate.h5"), "--colour"}), HasSubstr("--colour"));
   EXPECT_EQ(one_line_error({"--replay", path("s.rec")}),
             "phasecast-render: --replay needs --package p.h5: a recording holds frames, not the bases\n");
   EXPECT_EQ(
