@@ -1,0 +1,141 @@
+// Frames/s of the low-rank vertex program (§5.3) at 512x512 and 1280x720,
+// and the same mesh drawn from static per-vertex data in the same run, so
+// that the cost of the evaluation is the difference of the two.
+//
+// Scenes: cloth grids of the paper's sizes, every point deformable and
+// attached, r_u = 12 smooth modes and r_a = 7 transfer modes (the "12+7"
+// superposition of issue 7). PHASECAST_BENCH_BACKEND=egl picks another backend.
+
+#include "phasecast/client/low_rank_renderer.h"
+
+#include <benchmark/benchmark.h>
+
+#include <string>
+#include <utility>
+
+#include <cmath>
+#include <cstdlib>
+#include <numbers>
+
+namespace phasecast::client {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// An n x n grid on [0,1]^2 with sine modes for U_u and U_a.
+ClientBasis grid_scene(int n, int r_u, int r_a) {
+  ClientBasis b;
+  b.scene = "grid";
+  b.points = n * n;
+  b.rank_u = r_u;
+  b.rank_a = r_a;
+  const auto S = static_cast<std::size_t>(b.points);
+  b.U_u.resize(3 * S * static_cast<std::size_t>(r_u));
+  b.U_a.resize(48 * S * static_cast<std::size_t>(r_a));
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double x = double(i) / (n - 1), y = double(j) / (n - 1);
+      const auto v = static_cast<std::size_t>(j * n + i);
+      b.mean_shape.insert(b.mean_shape.end(), {float(x), float(y), 0.0f});
+      b.normals.insert(b.normals.end(), {0.0f, 0.0f, 1.0f});
+      for (int k = 0; k < r_u; ++k) {
+        const double mode = std::sin((k / 3 + 1) * kPi * x) * std::sin((k % 3 + 1) * kPi * y) / n;
+        b.U_u[(3 * v + 2) * static_cast<std::size_t>(r_u) + static_cast<std::size_t>(k)] = float(mode);
+      }
+      for (int c = 0; c < 48; ++c) {
+        b.mean_transfer.push_back(c % 16 == 0 ? 0.3f : 0.02f);
+        for (int k = 0; k < r_a; ++k) {
+          b.U_a[(48 * v + static_cast<std::size_t>(c)) * static_cast<std::size_t>(r_a) +
+                static_cast<std::size_t>(k)] = float(0.01 * std::cos((k + 1) * kPi * x + c));
+        }
+      }
+    }
+  }
+  b.deformable.assign(S, 1);
+  b.attached.assign(S, 1);
+  for (int j = 0; j + 1 < n; ++j) {
+    for (int i = 0; i + 1 < n; ++i) {
+      const auto a = static_cast<std::uint32_t>(j * n + i), c = a + static_cast<std::uint32_t>(n);
+      b.triangles.insert(b.triangles.end(), {a, a + 1, c + 1, a, c + 1, c});
+    }
+  }
+  b.camera = std::array<float, 10>{0.5f, 0.5f, 1.6f, 0.5f, 0.5f, 0.0f, 0.0f, 1.0f, 0.0f, 40.0f};
+  return b;
+}
+
+// `rotating`: the support turns every frame (a door opening), so the light
+// in the support frame changes and the transfer is re-dotted each frame.
+FrameState frame(int t, int r_u, int r_a, bool rotating) {
+  FrameState f;
+  f.frame = static_cast<std::uint64_t>(t);
+  for (int k = 0; k < r_u; ++k) f.q_u.push_back(float(0.5 * std::sin(0.1 * t + k)));
+  for (int k = 0; k < r_a; ++k) f.q_a.push_back(float(std::cos(0.07 * t + k)));
+  const float a = rotating ? float(0.3 * std::sin(0.02 * t)) : 0.2f;
+  f.support = {std::cos(a), 0, std::sin(a), 0, 0, 1, 0, 0, -std::sin(a), 0, std::cos(a), 0};
+  return f;
+}
+
+std::string backend_name() {
+  const char* name = std::getenv("PHASECAST_BENCH_BACKEND");
+  return name ? name : "osmesa";
+}
+
+// Args: grid side, width, height, mode (0: low-rank with the per-point pass,
+// 1: low-rank evaluated inside the triangle draw, 2: static mesh), read back
+// pixels (0/1), support rotating every frame (0/1).
+void BM_Render(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0)), w = static_cast<int>(state.range(1)),
+            h = static_cast<int>(state.range(2));
+  const int mode = static_cast<int>(state.range(3));
+  const bool static_mesh = mode == 2, read_back = state.range(4) != 0, rotating = state.range(5) != 0;
+  const int r_u = 12, r_a = 7;
+  const ClientBasis basis = grid_scene(n, r_u, r_a);
+  auto backend = make_render_backend(backend_name(), w, h);
+  LowRankRenderer renderer(*backend, basis, w, h);
+  renderer.set_evaluation(mode == 1 ? Evaluation::in_draw : Evaluation::per_point_pass);
+  if (static_mesh) renderer.set_static_mesh(renderer.evaluate(frame(0, r_u, r_a, false)));
+  int t = 0;
+  for (auto _ : state) {
+    if (static_mesh) {
+      renderer.draw_static();
+    } else {
+      renderer.draw(frame(t++, r_u, r_a, rotating));
+    }
+    if (read_back) {
+      benchmark::DoNotOptimize(renderer.read_pixels());
+    } else {
+      renderer.finish();
+    }
+  }
+  state.counters["fps"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["points"] = basis.points;
+  state.counters["triangles"] = basis.triangle_count();
+  const char* names[] = {"low-rank 12+7, per-point pass", "low-rank 12+7, in draw", "static mesh"};
+  state.SetLabel(std::string(names[mode]) + (read_back ? " + read back" : "") +
+                 (rotating && !static_mesh ? ", support rotating" : "") + " | " + backend_name());
+}
+
+// Paper-sized meshes: 158^2 = 25k points / 49k triangles, 58^2 = 3.4k / 6.5k.
+void Arguments(benchmark::internal::Benchmark* b) {
+  for (int n : {158, 58}) {
+    for (auto [w, h] : {std::pair{512, 512}, std::pair{1280, 720}}) {
+      b->Args({n, w, h, 2, 0, 0});  // static reference
+      b->Args({n, w, h, 0, 0, 0});  // low-rank, support still
+      b->Args({n, w, h, 0, 0, 1});  // low-rank, support rotating
+      b->Args({n, w, h, 1, 0, 0});  // low-rank inside the draw
+      b->Args({n, w, h, 0, 1, 0});  // with pixel read-back (what PNG output costs)
+    }
+  }
+}
+
+BENCHMARK(BM_Render)
+    ->Apply(Arguments)
+    ->ArgNames({"side", "w", "h", "mode", "readback", "rotating"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace phasecast::client
+
+BENCHMARK_MAIN();

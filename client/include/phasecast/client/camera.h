@@ -1,0 +1,37 @@
+#pragma once
+// The view: from the scene metadata (package attribute / SceneInfo.camera:
+// eye, target, up, fov_y_deg) when present, else framed around the rest mesh;
+// command-line overrides replace single fields.
+
+#include "phasecast/client/client_basis.h"
+
+#include <Eigen/Core>
+
+#include <array>
+#include <string>
+
+namespace phasecast::client {
+
+struct Camera {
+  Eigen::Vector3f eye{0, 0, 3};
+  Eigen::Vector3f target{0, 0, 0};
+  Eigen::Vector3f up{0, 1, 0};
+  float fov_y_deg = 40;
+};
+
+// The scene's camera, or one looking down -z at the bounding box of x_bar.
+Camera scene_camera(const ClientBasis& basis);
+
+// Perspective projection times look-at view, column-major for GL.
+Eigen::Matrix4f view_projection(const Camera& camera, int width, int height, float scene_radius);
+
+// Radius of the bounding sphere of x_bar about its bounding-box centre.
+float scene_radius(const ClientBasis& basis);
+
+// Parses "x,y,z"; throws std::invalid_argument naming `what` otherwise.
+Eigen::Vector3f parse_vector3(const std::string& text, const std::string& what);
+
+// Parses "WxH" (e.g. 1280x720); throws std::invalid_argument otherwise.
+std::array<int, 2> parse_size(const std::string& text);
+
+}  // namespace phasecast::client

@@ -1,0 +1,61 @@
+#pragma once
+// What happens to each rendered frame: a PNG named by the server's frame
+// number, an MP4 through ffmpeg, the vertex dump of one chosen frame, and the
+// frames/s figures (render-only and end-to-end).
+
+#include "phasecast/client/low_rank_renderer.h"
+
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+namespace phasecast::client {
+
+struct OutputOptions {
+  std::optional<std::filesystem::path> png_dir;  // frame_%06d.png here
+  std::optional<std::filesystem::path> video;    // MP4 through ffmpeg
+  double video_fps = 60;
+  std::optional<std::uint64_t> dump_frame;  // --dump-vertices FRAME path
+  std::filesystem::path dump_path;
+};
+
+struct RenderStats {
+  std::uint64_t frames = 0;
+  double render_seconds = 0;  // inside the renderer: draw + read back
+  double wall_seconds = 0;    // first frame received to last frame written
+  double render_fps() const { return render_seconds > 0 ? double(frames) / render_seconds : 0; }
+  double end_to_end_fps() const { return wall_seconds > 0 ? double(frames) / wall_seconds : 0; }
+};
+
+// Path of ffmpeg on PATH, or empty.
+std::filesystem::path find_ffmpeg();
+
+class FrameOutput {
+ public:
+  // Creates the PNG directory and starts ffmpeg. Throws std::runtime_error
+  // when ffmpeg is needed but not installed (the message says so).
+  FrameOutput(LowRankRenderer& renderer, int width, int height, OutputOptions options);
+  ~FrameOutput();
+  FrameOutput(const FrameOutput&) = delete;
+  FrameOutput& operator=(const FrameOutput&) = delete;
+
+  void render(const FrameState& frame);
+  // Closes the video; throws if a requested vertex dump never happened.
+  void finish();
+  const RenderStats& stats() const { return stats_; }
+  bool dumped() const { return dumped_; }
+
+ private:
+  LowRankRenderer& renderer_;
+  int width_, height_;
+  OutputOptions options_;
+  std::FILE* ffmpeg_ = nullptr;
+  RenderStats stats_;
+  std::optional<std::chrono::steady_clock::time_point> first_;
+  bool dumped_ = false;
+};
+
+}  // namespace phasecast::client

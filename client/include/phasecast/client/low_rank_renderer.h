@@ -1,0 +1,80 @@
+#pragma once
+// GPU evaluation of the low-rank model (§5.3). The bases go to shader storage
+// buffers once (ranks are not capped by vertex-attribute limits); per frame
+// only q_u, q_a, the support transform and the support-frame light change.
+// The vertex program (shaders/low_rank.vert) computes x = x_bar + U_u q_u
+// (eq. 7), the support transform for attached points, and the exit radiance
+// (M_bar + U_a q_a) . L per colour channel (§4.2).
+
+#include "phasecast/client/camera.h"
+#include "phasecast/client/client_basis.h"
+#include "phasecast/client/frame_state.h"
+#include "phasecast/client/render_backend.h"
+#include "phasecast/client/sh_light.h"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace phasecast::client {
+
+// RGBA8, top row first, sRGB-encoded.
+struct Image {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> rgba;
+};
+
+// What the vertex program computed for every scene point (transform feedback).
+struct VertexDump {
+  std::vector<float> positions;  // S x 3, world frame
+  std::vector<float> radiance;   // S x 3, linear exit radiance
+};
+
+// Where the superposition runs. per_point_pass (default): once per scene point
+// into a buffer (transform feedback), then the triangles are drawn from it;
+// in_draw: inside the triangle draw, where a shared vertex may be evaluated
+// again for each batch of triangles that uses it (kept for the benchmark).
+enum class Evaluation { per_point_pass, in_draw };
+
+class LowRankRenderer {
+ public:
+  // The backend's context must stay current and alive while the renderer lives.
+  LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height);
+  ~LowRankRenderer();
+  LowRankRenderer(const LowRankRenderer&) = delete;
+  LowRankRenderer& operator=(const LowRankRenderer&) = delete;
+
+  void set_light(const ShLight& world_light);
+  void set_camera(const Camera& camera);
+  void set_exposure(float exposure);
+  void set_evaluation(Evaluation evaluation);
+
+  // Draws the frame into the offscreen framebuffer (and the window, if any).
+  void draw(const FrameState& frame);
+  // draw() then read back the pixels.
+  Image render(const FrameState& frame);
+  // Positions and radiance of every point via transform feedback.
+  VertexDump evaluate(const FrameState& frame);
+
+  // Benchmark reference: the same mesh drawn from static per-vertex data
+  // (no low-rank evaluation), uploaded once by set_static_mesh.
+  void set_static_mesh(const VertexDump& vertices);
+  void draw_static();
+  // How often the transfer bases were dotted with the light (light_dot.comp):
+  // once per change of light or support rotation, not once per frame.
+  std::uint64_t light_dot_passes() const;
+  // Waits until the GPU finished (timing).
+  void finish();
+  Image read_pixels();
+
+  // "OpenGL 4.5 (Core Profile) Mesa 22.3.6, llvmpipe (...)".
+  std::string gl_description() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace phasecast::client

@@ -1,0 +1,97 @@
+#pragma once
+// The client side of docs/protocol.md: a command connection (DEALER, with
+// Lazy Pirate retries: a request that times out is retried on a fresh
+// socket), the chunked basis download that makes the client thin (§5.3), a
+// frame subscriber on the instance's topic and sequence-gap counting.
+// ZeroMQ stays private to the implementation.
+
+#include "phasecast/client/client_basis.h"
+#include "phasecast/proto/phasecast.pb.h"
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace phasecast::client {
+
+// Transport failures (server not answering) and refused requests; one line.
+class NetworkError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class CommandClient {
+ public:
+  CommandClient(std::string endpoint, std::chrono::milliseconds timeout, int attempts);
+  ~CommandClient();
+  CommandClient(const CommandClient&) = delete;
+  CommandClient& operator=(const CommandClient&) = delete;
+
+  const std::string& endpoint() const { return endpoint_; }
+
+  // Sends `request` (its id is set here) and returns the reply's result.
+  // Throws NetworkError when no reply comes after every attempt, and when the
+  // server answers ok = false ("<what>: server refused: <error>").
+  v1::Reply call(v1::Request request, const std::string& what);
+
+  v1::SceneList list_scenes();
+  v1::InstanceList list_instances();
+  v1::InstanceInfo create_instance(const std::string& scene);
+
+  // Downloads every basis part the scene lists, in chunks of at most
+  // `chunk_bytes`, and checks each chunk's content hash against the scene's.
+  // `progress(part_name, done_bytes, total_bytes)` is called per chunk.
+  ClientBasis download_basis(
+      const v1::SceneInfo& scene, std::uint32_t chunk_bytes,
+      const std::function<void(const std::string&, std::uint64_t, std::uint64_t)>& progress);
+
+ private:
+  struct Impl;
+  std::string endpoint_;
+  std::unique_ptr<Impl> impl_;
+  std::uint64_t next_id_ = 1;
+};
+
+class FrameSubscriber {
+ public:
+  // Connects a SUB socket to `endpoint` and subscribes to "inst/<instance>/".
+  FrameSubscriber(const std::string& endpoint, std::uint32_t instance);
+  ~FrameSubscriber();
+  FrameSubscriber(const FrameSubscriber&) = delete;
+  FrameSubscriber& operator=(const FrameSubscriber&) = delete;
+
+  // The next frame, or nullopt after `timeout` without one. Messages that do
+  // not parse or belong to another instance are counted and skipped.
+  std::optional<v1::Frame> receive(std::chrono::milliseconds timeout);
+  std::uint64_t malformed() const { return malformed_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::uint32_t instance_;
+  std::uint64_t malformed_ = 0;
+};
+
+// Per-instance sequence numbers (Frame.seq): counts the frames missed in gaps
+// and the restarts of the stream (seq going back: a restarted server).
+struct SequenceTracker {
+  std::optional<std::uint64_t> last;
+  std::uint64_t missed = 0;
+  std::uint64_t gaps = 0;
+  std::uint64_t restarts = 0;
+  void observe(std::uint64_t seq);
+};
+
+// SceneList.pub_endpoint with a wildcard host ("*", "0.0.0.0") replaced by
+// the host of the command endpoint. Throws NetworkError for an empty or
+// malformed endpoint.
+std::string resolve_pub_endpoint(const std::string& pub_endpoint, const std::string& command_endpoint);
+
+// Basis part name as in docs/protocol.md ("U_u", "MEAN_SHAPE" -> "mean_shape").
+std::string basis_part_name(v1::BasisPart part);
+
+}  // namespace phasecast::client

@@ -1,0 +1,44 @@
+#pragma once
+// phasecast-render as a library call, so the tool's main stays thin: pick
+// the frame source (server, recording or the package's own portrait), set up
+// backend, renderer, camera and light, render, report.
+
+#include <cstdint>
+#include <filesystem>
+#include <iosfwd>
+#include <optional>
+#include <string>
+
+namespace phasecast::client {
+
+struct RenderOptions {
+  // Frame source: exactly one of connect, replay (+ package) or package alone.
+  std::string connect;                          // tcp://host:5555 (command socket)
+  std::optional<std::uint32_t> instance;        // network: the instance to follow
+  std::string create;                           // network: create an instance of this scene
+  std::optional<std::filesystem::path> replay;  // recording file
+  std::optional<std::filesystem::path> package;
+  std::optional<int> play_irf;  // local mode: IRF to play (default 0)
+
+  std::string backend = "osmesa";
+  int width = 512, height = 512;
+  std::uint64_t max_frames = 0;  // 0: all (local/replay) or until interrupted (network)
+  std::optional<std::filesystem::path> out_dir;
+  std::optional<std::filesystem::path> video;
+  std::string light = "grace";
+  float exposure = 1;
+  std::optional<std::uint64_t> dump_frame;
+  std::filesystem::path dump_path;
+  std::string eye, target, up;  // "x,y,z" overrides of the scene camera
+  std::optional<float> fov_y_deg;
+
+  double frame_timeout_s = 3;    // network: silence after which the server counts as gone
+  double give_up_after_s = 60;   // network: stop reconnecting after this long
+  double request_timeout_s = 2;  // network: wait this long for each reply (3 attempts)
+};
+
+// Throws std::invalid_argument naming the offending option; every failure
+// is one line in the exception. Progress and the summary go to `log`.
+void run_render(const RenderOptions& options, std::ostream& log);
+
+}  // namespace phasecast::client

@@ -1,0 +1,99 @@
+#include "phasecast/client/camera.h"
+
+#include <fmt/format.h>
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+
+namespace phasecast::client {
+namespace {
+
+Eigen::AlignedBox3f rest_bounds(const ClientBasis& b) {
+  Eigen::AlignedBox3f box;
+  for (std::size_t v = 0; v < static_cast<std::size_t>(b.points); ++v) {
+    box.extend(Eigen::Vector3f(b.mean_shape[3 * v], b.mean_shape[3 * v + 1], b.mean_shape[3 * v + 2]));
+  }
+  return box;
+}
+
+}  // namespace
+
+float scene_radius(const ClientBasis& b) {
+  const auto box = rest_bounds(b);
+  return std::max(0.5f * box.diagonal().norm(), 1e-3f);
+}
+
+Camera scene_camera(const ClientBasis& b) {
+  Camera c;
+  if (b.camera) {
+    const auto& a = *b.camera;
+    c.eye = {a[0], a[1], a[2]};
+    c.target = {a[3], a[4], a[5]};
+    c.up = {a[6], a[7], a[8]};
+    c.fov_y_deg = a[9];
+    return c;
+  }
+  const auto box = rest_bounds(b);
+  c.target = box.center();
+  const float distance =
+      scene_radius(b) / std::tan(0.5f * c.fov_y_deg * std::numbers::pi_v<float> / 180) * 1.1f;
+  c.eye = c.target + Eigen::Vector3f(0, 0, distance);
+  return c;
+}
+
+Eigen::Matrix4f view_projection(const Camera& c, int width, int height, float radius) {
+  const Eigen::Vector3f f = (c.target - c.eye).normalized();
+  const Eigen::Vector3f s = f.cross(c.up).normalized();
+  const Eigen::Vector3f u = s.cross(f);
+  Eigen::Matrix4f view = Eigen::Matrix4f::Identity();
+  view.block<1, 3>(0, 0) = s.transpose();
+  view.block<1, 3>(1, 0) = u.transpose();
+  view.block<1, 3>(2, 0) = -f.transpose();
+  view(0, 3) = -s.dot(c.eye);
+  view(1, 3) = -u.dot(c.eye);
+  view(2, 3) = f.dot(c.eye);
+
+  // Depth range from the distance to the target and the scene size, so any
+  // scale of scene keeps depth precision.
+  const float distance = (c.target - c.eye).norm();
+  const float far_plane = distance + 4 * radius;
+  const float near_plane = std::max(distance - 4 * radius, far_plane * 1e-3f);
+  const float t = std::tan(0.5f * c.fov_y_deg * std::numbers::pi_v<float> / 180);
+  const float aspect = static_cast<float>(width) / static_cast<float>(height);
+  Eigen::Matrix4f proj = Eigen::Matrix4f::Zero();
+  proj(0, 0) = 1 / (aspect * t);
+  proj(1, 1) = 1 / t;
+  proj(2, 2) = -(far_plane + near_plane) / (far_plane - near_plane);
+  proj(2, 3) = -2 * far_plane * near_plane / (far_plane - near_plane);
+  proj(3, 2) = -1;
+  return proj * view;
+}
+
+Eigen::Vector3f parse_vector3(const std::string& text, const std::string& what) {
+  std::istringstream in(text);
+  Eigen::Vector3f v;
+  char comma1 = 0, comma2 = 0;
+  if (!(in >> v.x() >> comma1 >> v.y() >> comma2 >> v.z()) || comma1 != ',' || comma2 != ',' ||
+      !(in >> std::ws).eof() || !v.allFinite()) {
+    throw std::invalid_argument(
+        fmt::format("{} '{}' is invalid (expected three finite numbers x,y,z)", what, text));
+  }
+  return v;
+}
+
+std::array<int, 2> parse_size(const std::string& text) {
+  std::istringstream in(text);
+  int w = 0, h = 0;
+  char x = 0;
+  if (!(in >> w >> x >> h) || (x != 'x' && x != 'X') || !(in >> std::ws).eof() || w <= 0 || h <= 0 ||
+      w > 16384 || h > 16384) {
+    throw std::invalid_argument(
+        fmt::format("--size '{}' is invalid (expected WIDTHxHEIGHT, e.g. 1280x720)", text));
+  }
+  return {w, h};
+}
+
+}  // namespace phasecast::client

@@ -1,0 +1,482 @@
+#include "phasecast/client/low_rank_renderer.h"
+
+#include "gl_functions.h"
+#include "phasecast/client/embedded_shaders.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cstring>
+#include <optional>
+
+namespace phasecast::client {
+
+using detail::GlFunctions;
+
+namespace {
+
+// Shader storage bindings of shaders/low_rank.vert.
+enum Binding : GLuint {
+  kMeanShape = 0,
+  kDisplacementBasis = 1,
+  kMeanTransfer = 2,
+  kTransferBasis = 3,
+  kPointFlags = 4,
+  kRestNormals = 5,
+  kReduced = 6,
+  kMeanDotted = 7,
+  kBasisDotted = 8,
+  kBindingCount = 9
+};
+
+GLuint compile(const GlFunctions& gl, GLenum stage, std::string_view source, const char* name) {
+  const GLuint shader = gl.glCreateShader(stage);
+  const char* text = source.data();
+  const auto length = static_cast<GLint>(source.size());
+  gl.glShaderSource(shader, 1, &text, &length);
+  gl.glCompileShader(shader);
+  GLint ok = GL_FALSE;
+  gl.glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    std::array<char, 4096> log{};
+    gl.glGetShaderInfoLog(shader, static_cast<GLsizei>(log.size()), nullptr, log.data());
+    gl.glDeleteShader(shader);
+    std::string first_line(log.data());
+    first_line = first_line.substr(0, first_line.find('\n'));
+    throw RenderError(fmt::format("shader {} does not compile: {}", name, first_line));
+  }
+  return shader;
+}
+
+void check_link(const GlFunctions& gl, GLuint program, const char* name) {
+  GLint ok = GL_FALSE;
+  gl.glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    std::array<char, 4096> log{};
+    gl.glGetProgramInfoLog(program, static_cast<GLsizei>(log.size()), nullptr, log.data());
+    gl.glDeleteProgram(program);
+    std::string first_line(log.data());
+    throw RenderError(fmt::format("shader program {} does not link: {}", name,
+                                  first_line.substr(0, first_line.find('\n'))));
+  }
+}
+
+// A vertex program with radiance.frag; `capture`: record world_position and
+// radiance by transform feedback.
+GLuint link(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture) {
+  const GLuint vs = compile(gl, GL_VERTEX_SHADER, vertex, vertex_name);
+  const GLuint fs = compile(gl, GL_FRAGMENT_SHADER, shaders::radiance_frag, "radiance.frag");
+  const GLuint program = gl.glCreateProgram();
+  gl.glAttachShader(program, vs);
+  gl.glAttachShader(program, fs);
+  if (capture) {
+    const char* varyings[] = {"world_position", "radiance"};
+    gl.glTransformFeedbackVaryings(program, 2, varyings, GL_INTERLEAVED_ATTRIBS);
+  }
+  gl.glLinkProgram(program);
+  gl.glDeleteShader(vs);
+  gl.glDeleteShader(fs);
+  check_link(gl, program, vertex_name);
+  return program;
+}
+
+// Row-major rows x cols -> rows x (4 ceil(cols / 4)), zero-padded, so the
+// shader reads each row in vec4 blocks.
+std::vector<float> pad_columns(const std::vector<float>& m, int cols) {
+  const auto c = static_cast<std::size_t>(cols), padded = 4 * ((c + 3) / 4);
+  if (c == 0 || c == padded) return m;
+  const std::size_t rows = m.size() / c;
+  std::vector<float> out(rows * padded, 0.0f);
+  for (std::size_t r = 0; r < rows; ++r) std::copy_n(&m[r * c], c, &out[r * padded]);
+  return out;
+}
+
+GLuint link_compute(const GlFunctions& gl, std::string_view source, const char* name) {
+  const GLuint cs = compile(gl, GL_COMPUTE_SHADER, source, name);
+  const GLuint program = gl.glCreateProgram();
+  gl.glAttachShader(program, cs);
+  gl.glLinkProgram(program);
+  gl.glDeleteShader(cs);
+  check_link(gl, program, name);
+  return program;
+}
+
+template <class T>
+GLsizeiptr byte_size(const std::vector<T>& v) {
+  return static_cast<GLsizeiptr>(v.size() * sizeof(T));
+}
+
+}  // namespace
+
+struct LowRankRenderer::Impl {
+  RenderBackend& backend;
+  GlFunctions gl;
+  ClientBasis basis;  // sizes and flags; the bulk data lives on the GPU
+  int width, height;
+  float radius;
+  GLuint program = 0, static_program = 0, dot_program = 0;
+  std::optional<std::array<float, 96>> dotted_lights;  // lights the dotted form was made with
+  std::uint64_t light_dot_passes = 0;
+  GLuint vao = 0, static_vao = 0, evaluated_vao = 0;
+  Evaluation evaluation = Evaluation::per_point_pass;
+  std::array<GLuint, kBindingCount> storage{};
+  GLuint index_buffer = 0, feedback_buffer = 0, static_buffer = 0;
+  GLuint framebuffer = 0, colour_buffer = 0, depth_buffer = 0;
+  Camera camera;
+  float exposure = 1;
+  ShLight light;
+  bool has_static = false;
+  bool has_transfer = false;
+  int r_u4 = 0, r_a4 = 0;  // ranks in vec4 blocks (shaders/low_rank.vert)
+
+  Impl(RenderBackend& b, const ClientBasis& bases, int w, int h)
+      : backend(b), gl(detail::load_gl_functions(b)), basis(bases), width(w), height(h) {
+    basis.validate("renderer");
+    radius = scene_radius(basis);
+    camera = scene_camera(basis);
+    light = light_probe("grace");
+    program = link(gl, shaders::low_rank_vert, "low_rank.vert", true);
+    static_program = link(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
+    dot_program = link_compute(gl, shaders::light_dot_comp, "light_dot.comp");
+    upload_bases();
+    create_framebuffer();
+    check("setting up the renderer");
+  }
+
+  ~Impl() {
+    gl.glDeleteProgram(program);
+    gl.glDeleteProgram(static_program);
+    gl.glDeleteProgram(dot_program);
+    gl.glDeleteBuffers(static_cast<GLsizei>(storage.size()), storage.data());
+    const GLuint buffers[] = {index_buffer, feedback_buffer, static_buffer};
+    gl.glDeleteBuffers(3, buffers);
+    const GLuint vaos[] = {vao, static_vao, evaluated_vao};
+    gl.glDeleteVertexArrays(3, vaos);
+    gl.glDeleteFramebuffers(1, &framebuffer);
+    const GLuint renderbuffers[] = {colour_buffer, depth_buffer};
+    gl.glDeleteRenderbuffers(2, renderbuffers);
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+
+  void check(const char* what) const {
+    const GLenum error = gl.glGetError();
+    if (error != GL_NO_ERROR) {
+      throw RenderError(
+          fmt::format("{} backend: OpenGL error 0x{:04x} while {}", backend.name(), error, what));
+    }
+  }
+
+  // Empty parts (no U_a) still get a small buffer so every binding is valid.
+  template <class T>
+  void upload_storage(Binding binding, const std::vector<T>& data, const char* part) {
+    GLint limit32 = 0;
+    gl.glGetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &limit32);
+    if (byte_size(data) > static_cast<GLsizeiptr>(static_cast<unsigned>(limit32))) {
+      throw RenderError(
+          fmt::format("{} backend: basis part {} needs {} bytes, more than one shader storage "
+                      "block may hold ({} bytes)",
+                      backend.name(), part, byte_size(data), static_cast<unsigned>(limit32)));
+    }
+    gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[binding]);
+    const std::array<T, 4> padding{};
+    gl.glBufferData(GL_SHADER_STORAGE_BUFFER, data.empty() ? byte_size(std::vector<T>(4)) : byte_size(data),
+                    data.empty() ? padding.data() : data.data(), GL_STATIC_DRAW);
+    gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, storage[binding]);
+  }
+
+  void upload_bases() {
+    gl.glGenBuffers(static_cast<GLsizei>(storage.size()), storage.data());
+    std::vector<std::uint32_t> flags(static_cast<std::size_t>(basis.points));
+    for (std::size_t v = 0; v < flags.size(); ++v) {
+      flags[v] = (basis.deformable[v] ? 1u : 0u) | (basis.attached[v] ? 2u : 0u);
+    }
+    r_u4 = (basis.rank_u + 3) / 4;
+    r_a4 = (basis.rank_a + 3) / 4;
+    upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
+    upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
+    upload_storage(kMeanTransfer, basis.mean_transfer, "mean_transfer");
+    upload_storage(kTransferBasis, pad_columns(basis.U_a, basis.rank_a), "U_a");
+    upload_storage(kPointFlags, flags, "flags");
+    upload_storage(kRestNormals, basis.normals, "normals");
+    upload_storage(kReduced, std::vector<float>(static_cast<std::size_t>(4 * (r_u4 + r_a4)) + 4), "q");
+    // Written by light_dot.comp: M_bar.L (a vec4 per point), U_a.L ([S][3][r_a4] vec4s).
+    upload_storage(kMeanDotted, std::vector<float>(4 * static_cast<std::size_t>(basis.points)), "M_bar.L");
+    upload_storage(kBasisDotted, std::vector<float>(12 * static_cast<std::size_t>(basis.points) * r_a4),
+                   "U_a.L");
+    // The client keeps only sizes and flags on the CPU once the GPU has the bases.
+    has_transfer = basis.has_transfer();
+    basis.U_u = {};
+    basis.U_a = {};
+    basis.mean_transfer = {};
+
+    gl.glGenVertexArrays(1, &vao);
+    gl.glBindVertexArray(vao);
+    gl.glGenBuffers(1, &index_buffer);
+    gl.glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
+    gl.glBufferData(GL_ELEMENT_ARRAY_BUFFER, byte_size(basis.triangles), basis.triangles.data(),
+                    GL_STATIC_DRAW);
+    gl.glBindVertexArray(0);
+
+    gl.glGenBuffers(1, &feedback_buffer);
+    gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer);
+    gl.glBufferData(GL_TRANSFORM_FEEDBACK_BUFFER, static_cast<GLsizeiptr>(6 * sizeof(float)) * basis.points,
+                    nullptr, GL_DYNAMIC_COPY);
+    gl.glGenVertexArrays(1, &evaluated_vao);
+    describe_vertices(evaluated_vao, feedback_buffer);
+  }
+
+  // Interleaved position, radiance (6 floats per point) as attributes 0, 1
+  // of static_mesh.vert, indexed by the triangles.
+  void describe_vertices(GLuint vertex_array, GLuint buffer) {
+    gl.glBindVertexArray(vertex_array);
+    gl.glBindBuffer(GL_ARRAY_BUFFER, buffer);
+    const auto stride = static_cast<GLsizei>(6 * sizeof(float));
+    gl.glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, nullptr);
+    gl.glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride,
+                             reinterpret_cast<const void*>(3 * sizeof(float)));
+    gl.glEnableVertexAttribArray(0);
+    gl.glEnableVertexAttribArray(1);
+    gl.glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
+    gl.glBindVertexArray(0);
+  }
+
+  void create_framebuffer() {
+    gl.glGenFramebuffers(1, &framebuffer);
+    gl.glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+    gl.glGenRenderbuffers(1, &colour_buffer);
+    gl.glBindRenderbuffer(GL_RENDERBUFFER, colour_buffer);
+    gl.glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height);
+    gl.glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_buffer);
+    gl.glGenRenderbuffers(1, &depth_buffer);
+    gl.glBindRenderbuffer(GL_RENDERBUFFER, depth_buffer);
+    gl.glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height);
+    gl.glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_buffer);
+    if (gl.glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+      throw RenderError(fmt::format("{} backend: a {}x{} RGBA8 + depth framebuffer is incomplete",
+                                    backend.name(), width, height));
+    }
+  }
+
+  void set_uniforms(GLuint p, const FrameState& f) {
+    gl.glUseProgram(p);
+    const Eigen::Matrix4f vp = view_projection(camera, width, height, radius);
+    gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "view_projection"), 1, GL_FALSE, vp.data());
+    gl.glUniform1f(gl.glGetUniformLocation(p, "exposure"), exposure);
+    if (p != program) return;
+    gl.glUniform1i(gl.glGetUniformLocation(p, "r_u4"), r_u4);
+    gl.glUniform1i(gl.glGetUniformLocation(p, "r_a4"), r_a4);
+    gl.glUniform1i(gl.glGetUniformLocation(p, "has_transfer"), has_transfer ? 1 : 0);
+
+    // Support transform (3x4 row-major, support -> world) as a 4x4 for GLSL.
+    Eigen::Matrix4f support = Eigen::Matrix4f::Identity();
+    if (f.support.size() == 12) {
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 4; ++j) support(i, j) = f.support[static_cast<std::size_t>(4 * i + j)];
+      }
+    }
+    gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "support"), 1, GL_FALSE, support.data());
+    const auto lights = frame_lights(support);
+    if (has_transfer) update_light_dotted(lights);
+    gl.glUseProgram(p);
+    gl.glUniform4fv(gl.glGetUniformLocation(p, "light"), 24, lights.data());
+
+    // Per-frame upload: q_u then q_a.
+    std::vector<float> q(static_cast<std::size_t>(4 * (r_u4 + r_a4)), 0.0f);
+    std::copy(f.q_u.begin(), f.q_u.end(), q.begin());
+    std::copy(f.q_a.begin(), f.q_a.end(), q.begin() + 4 * r_u4);
+    gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kReduced]);
+    if (!q.empty()) gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(q), q.data());
+  }
+
+  // The world light and the light rotated into the support frame (§5.3).
+  std::array<float, 96> frame_lights(const Eigen::Matrix4f& support) const {
+    std::array<float, 96> lights{};
+    const auto world = light.packed();
+    const auto local = light_in_support_frame(light, support.topLeftCorner<3, 3>().cast<double>()).packed();
+    std::copy(world.begin(), world.end(), lights.begin());
+    std::copy(local.begin(), local.end(), lights.begin() + 48);
+    return lights;
+  }
+
+  // Re-dots the transfer bases with the light when the light the points see
+  // changed (a new light or a rotated support); otherwise nothing to do.
+  void update_light_dotted(const std::array<float, 96>& lights) {
+    if (dotted_lights && *dotted_lights == lights) return;
+    gl.glUseProgram(dot_program);
+    gl.glUniform1i(gl.glGetUniformLocation(dot_program, "r_a4"), r_a4);
+    gl.glUniform4fv(gl.glGetUniformLocation(dot_program, "light"), 24, lights.data());
+    gl.glUniform1i(gl.glGetUniformLocation(dot_program, "points"), basis.points);
+    gl.glDispatchCompute(static_cast<GLuint>((basis.points + 63) / 64), 1, 1);
+    gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    dotted_lights = lights;
+    ++light_dot_passes;
+  }
+
+  void begin_frame() {
+    gl.glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+    gl.glViewport(0, 0, width, height);
+    gl.glClearColor(0.02f, 0.02f, 0.025f, 1.0f);
+    gl.glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    gl.glEnable(GL_DEPTH_TEST);
+    gl.glDepthFunc(GL_LESS);
+  }
+
+  void show() {
+    if (!backend.shows_frames()) return;
+    gl.glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
+    gl.glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+    gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    backend.present();
+  }
+
+  // Pass 1: the low-rank program once per scene point (GL_POINTS, rasterizer
+  // off), positions and radiance captured into feedback_buffer.
+  void evaluation_pass(const FrameState& f) {
+    set_uniforms(program, f);
+    gl.glEnable(GL_RASTERIZER_DISCARD);
+    gl.glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer);
+    gl.glBindVertexArray(vao);
+    gl.glBeginTransformFeedback(GL_POINTS);
+    gl.glDrawArrays(GL_POINTS, 0, basis.points);
+    gl.glEndTransformFeedback();
+    gl.glBindVertexArray(0);
+    gl.glDisable(GL_RASTERIZER_DISCARD);
+  }
+
+  void draw_triangles(GLuint p, GLuint vertex_array, const FrameState& f) {
+    begin_frame();
+    set_uniforms(p, f);
+    gl.glBindVertexArray(vertex_array);
+    gl.glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(basis.triangles.size()), GL_UNSIGNED_INT, nullptr);
+    gl.glBindVertexArray(0);
+  }
+
+  void draw(const FrameState& f) {
+    validate_frame(f, basis, "renderer");
+    if (evaluation == Evaluation::per_point_pass) {
+      // Each point is evaluated exactly once; the triangles then read the
+      // results as plain vertex attributes (shared vertices are not re-run).
+      evaluation_pass(f);
+      draw_triangles(static_program, evaluated_vao, f);
+    } else {
+      draw_triangles(program, vao, f);
+    }
+    show();
+    check("drawing a frame");
+  }
+
+  Image read_pixels() {
+    Image image{width, height, std::vector<std::uint8_t>(static_cast<std::size_t>(4 * width * height))};
+    gl.glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
+    gl.glReadBuffer(GL_COLOR_ATTACHMENT0);
+    gl.glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    std::vector<std::uint8_t> bottom_up(image.rgba.size());
+    gl.glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, bottom_up.data());
+    check("reading back pixels");
+    const auto row = static_cast<std::size_t>(4 * width);
+    for (std::size_t y = 0; y < static_cast<std::size_t>(height); ++y) {
+      std::memcpy(image.rgba.data() + y * row,
+                  bottom_up.data() + (static_cast<std::size_t>(height) - 1 - y) * row, row);
+    }
+    return image;
+  }
+
+  VertexDump evaluate(const FrameState& f) {
+    validate_frame(f, basis, "renderer");
+    evaluation_pass(f);
+    std::vector<float> captured(static_cast<std::size_t>(6 * basis.points));
+    gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer);
+    gl.glGetBufferSubData(GL_TRANSFORM_FEEDBACK_BUFFER, 0, byte_size(captured), captured.data());
+    check("capturing vertices by transform feedback");
+    VertexDump dump;
+    dump.positions.reserve(3 * static_cast<std::size_t>(basis.points));
+    dump.radiance.reserve(3 * static_cast<std::size_t>(basis.points));
+    for (std::size_t v = 0; v < static_cast<std::size_t>(basis.points); ++v) {
+      dump.positions.insert(dump.positions.end(), &captured[6 * v], &captured[6 * v + 3]);
+      dump.radiance.insert(dump.radiance.end(), &captured[6 * v + 3], &captured[6 * v + 6]);
+    }
+    return dump;
+  }
+
+  void set_static_mesh(const VertexDump& d) {
+    if (d.positions.size() != 3 * static_cast<std::size_t>(basis.points) ||
+        d.radiance.size() != d.positions.size()) {
+      throw RenderError(
+          fmt::format("static mesh has {} positions and {} radiance values (expected 3S = {} each)",
+                      d.positions.size(), d.radiance.size(), 3 * basis.points));
+    }
+    std::vector<float> interleaved;
+    interleaved.reserve(2 * d.positions.size());
+    for (std::size_t v = 0; v < static_cast<std::size_t>(basis.points); ++v) {
+      interleaved.insert(interleaved.end(), &d.positions[3 * v], &d.positions[3 * v + 3]);
+      interleaved.insert(interleaved.end(), &d.radiance[3 * v], &d.radiance[3 * v + 3]);
+    }
+    if (!static_vao) {
+      gl.glGenVertexArrays(1, &static_vao);
+      gl.glGenBuffers(1, &static_buffer);
+    }
+    gl.glBindBuffer(GL_ARRAY_BUFFER, static_buffer);
+    gl.glBufferData(GL_ARRAY_BUFFER, byte_size(interleaved), interleaved.data(), GL_STATIC_DRAW);
+    describe_vertices(static_vao, static_buffer);
+    has_static = true;
+    check("uploading the static mesh");
+  }
+
+  void draw_static() {
+    if (!has_static)
+      throw RenderError("draw_static: no static mesh was uploaded (call set_static_mesh first)");
+    draw_triangles(static_program, static_vao, FrameState{});
+    check("drawing the static mesh");
+  }
+};
+
+LowRankRenderer::LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height)
+    : impl_(std::make_unique<Impl>(backend, basis, width, height)) {}
+LowRankRenderer::~LowRankRenderer() = default;
+
+void LowRankRenderer::set_light(const ShLight& world_light) {
+  impl_->light = world_light;
+}
+void LowRankRenderer::set_camera(const Camera& camera) {
+  impl_->camera = camera;
+}
+void LowRankRenderer::set_exposure(float exposure) {
+  impl_->exposure = exposure;
+}
+std::uint64_t LowRankRenderer::light_dot_passes() const {
+  return impl_->light_dot_passes;
+}
+void LowRankRenderer::set_evaluation(Evaluation evaluation) {
+  impl_->evaluation = evaluation;
+}
+void LowRankRenderer::draw(const FrameState& frame) {
+  impl_->draw(frame);
+}
+Image LowRankRenderer::render(const FrameState& frame) {
+  impl_->draw(frame);
+  return impl_->read_pixels();
+}
+VertexDump LowRankRenderer::evaluate(const FrameState& frame) {
+  return impl_->evaluate(frame);
+}
+void LowRankRenderer::set_static_mesh(const VertexDump& vertices) {
+  impl_->set_static_mesh(vertices);
+}
+void LowRankRenderer::draw_static() {
+  impl_->draw_static();
+}
+void LowRankRenderer::finish() {
+  impl_->gl.glFinish();
+}
+Image LowRankRenderer::read_pixels() {
+  return impl_->read_pixels();
+}
+std::string LowRankRenderer::gl_description() const {
+  const auto* version = reinterpret_cast<const char*>(impl_->gl.glGetString(GL_VERSION));
+  const auto* renderer = reinterpret_cast<const char*>(impl_->gl.glGetString(GL_RENDERER));
+  return fmt::format("OpenGL {}, {}", version ? version : "?", renderer ? renderer : "?");
+}
+
+}  // namespace phasecast::client

@@ -1,0 +1,101 @@
+// phasecast-render: the thin render client (§5.3). See docs/client.md.
+
+#include "phasecast/client/camera.h"
+#include "phasecast/client/render_app.h"
+#include "phasecast/client/render_backend.h"
+#include "phasecast/client/sh_light.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <CLI/CLI.hpp>
+
+#include <iostream>
+
+int main(int argc, char** argv) {
+  using phasecast::client::RenderOptions;
+  RenderOptions o;
+  CLI::App app{
+      "phasecast-render: renders a Phasecast scene from its reduced state (q_u, q_a) with the bases "
+      "on the GPU. Frame sources: a server (--connect), a recording (--replay with --package) or the "
+      "package's own phase portrait (--package [--play-irf I])."};
+  std::string size = "512x512";
+  std::vector<std::string> dump;
+  std::uint32_t instance = 0;
+  int play_irf = 0;
+  std::string replay, package, out, video;
+  float fov = 0;
+  app.add_option("--connect", o.connect, "command endpoint of phasecast-server, e.g. tcp://host:5555");
+  auto* instance_opt = app.add_option("--instance", instance,
+                                      "instance to follow (default: first instance of the "
+                                      "first scene), or to take from a --replay recording");
+  app.add_option("--create", o.create, "create a new instance of this scene and follow it");
+  app.add_option("--replay", replay, "render a recorded stream (needs --package)");
+  app.add_option("--package", package, "scene package (.h5): local mode, or the bases for --replay");
+  auto* irf_opt =
+      app.add_option("--play-irf", play_irf, "local mode: play this IRF of the package (default 0)");
+  app.add_option("--backend", o.backend,
+                 fmt::format("render backend: {} (default osmesa)",
+                             fmt::join(phasecast::client::render_backend_names(), ", ")));
+  app.add_option("--size", size, "image size WIDTHxHEIGHT (default 512x512)");
+  app.add_option("--frames", o.max_frames, "stop after this many frames (0: all / until interrupted)");
+  app.add_option("--out", out, "write PNG frames frame_%06d.png (server frame numbers) into this directory");
+  app.add_option("--video", video, "write an MP4 through ffmpeg");
+  app.add_option("--light", o.light,
+                 fmt::format("SH light probe: {} (default grace)",
+                             fmt::join(phasecast::client::light_probe_names(), ", ")));
+  app.add_option("--exposure", o.exposure, "multiplies the exit radiance before display (default 1)");
+  app.add_option("--dump-vertices", dump,
+                 "FRAME PATH: write the GPU-computed positions and radiance of that frame "
+                 "(.npy or .csv)")
+      ->expected(2);
+  app.add_option("--eye", o.eye, "camera position x,y,z (default: scene metadata)");
+  app.add_option("--target", o.target, "camera target x,y,z");
+  app.add_option("--up", o.up, "camera up vector x,y,z");
+  auto* fov_opt = app.add_option("--fov", fov, "vertical field of view in degrees");
+  app.add_option("--frame-timeout", o.frame_timeout_s,
+                 "network: seconds without frames before reconnecting (default 3)");
+  app.add_option("--give-up-after", o.give_up_after_s,
+                 "network: seconds of failed reconnects before exiting (default 60)");
+  app.add_option("--request-timeout", o.request_timeout_s,
+                 "network: seconds to wait for each reply (default 2)");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "phasecast-render: " << e.what() << " (see --help)\n";  // one line, like every other error
+    return e.get_exit_code();
+  }
+  try {
+    const auto wh = phasecast::client::parse_size(size);
+    o.width = wh[0];
+    o.height = wh[1];
+    if (*instance_opt) o.instance = instance;
+    if (*irf_opt) o.play_irf = play_irf;
+    if (*fov_opt) o.fov_y_deg = fov;
+    if (!replay.empty()) o.replay = replay;
+    if (!package.empty()) o.package = package;
+    if (!out.empty()) o.out_dir = out;
+    if (!video.empty()) o.video = video;
+    if (!dump.empty()) {
+      std::size_t used = 0;
+      try {
+        o.dump_frame = std::stoull(dump[0], &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != dump[0].size()) {
+        throw std::invalid_argument(fmt::format(
+            "--dump-vertices frame '{}' is invalid (expected a frame number, then out.npy or out.csv)",
+            dump[0]));
+      }
+      o.dump_path = dump[1];
+    }
+    // Progress and the summary go to stdout; stderr carries only the error line.
+    phasecast::client::run_render(o, std::cout);
+  } catch (const std::exception& e) {
+    std::cerr << "phasecast-render: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

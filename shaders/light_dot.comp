@@ -1,0 +1,45 @@
+#version 450 core
+// The light-dotted form of the transfer model (§4.2, §5.3): per scene point
+// and colour channel, M_bar . L and U_a . L (one value per transfer mode).
+// Exit radiance is then M_bar.L + sum_j (U_a.L)_j q_a[j]: 3 (1 + r_a) values
+// per point each frame instead of 48 (1 + r_a). A compute shader, one
+// invocation per point (llvmpipe runs compute on all its threads, vertex
+// shading on one), dispatched only when the light seen by the points changes:
+// a new light, or a new support rotation (the light is rotated into the
+// support frame for attached points).
+
+layout(local_size_x = 64) in;
+
+layout(std430, binding = 2) readonly buffer MeanTransfer { vec4 M_bar[]; };  // [S][3][4]: k in vec4s
+layout(std430, binding = 3) readonly buffer TransferBasis { vec4 U_a[]; };  // [48S][r_a4]
+layout(std430, binding = 4) readonly buffer PointFlags { uint flags[]; };     // bit 1 attached
+layout(std430, binding = 7) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [S]: xyz = M_bar_c . L_c
+layout(std430, binding = 8) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [S][3][r_a4]: (U_a . L)_j
+
+uniform int r_a4;
+uniform vec4 light[24];  // as in low_rank.vert: world at 0, support frame at 12
+uniform int points;      // S
+
+void main() {
+  uint v = gl_GlobalInvocationID.x;
+  if (v >= uint(points)) return;
+  int base = (flags[v] & 2u) != 0u ? 12 : 0;
+  uint n = uint(r_a4);
+  vec3 mean_dotted;
+  for (int c = 0; c < 3; ++c) {
+    vec4 sum = vec4(0.0);
+    for (int kb = 0; kb < 4; ++kb) sum += M_bar[12u * v + uint(4 * c + kb)] * light[base + 4 * c + kb];
+    mean_dotted[c] = sum.x + sum.y + sum.z + sum.w;
+    for (uint b = 0u; b < n; ++b) {
+      vec4 acc = vec4(0.0);
+      for (int kb = 0; kb < 4; ++kb) {
+        vec4 L = light[base + 4 * c + kb];
+        uint row = 48u * v + uint(16 * c + 4 * kb);
+        acc += U_a[row * n + b] * L.x + U_a[(row + 1u) * n + b] * L.y + U_a[(row + 2u) * n + b] * L.z +
+               U_a[(row + 3u) * n + b] * L.w;
+      }
+      U_dot[(3u * v + uint(c)) * n + b] = acc;
+    }
+  }
+  M_dot[v] = vec4(mean_dotted, 0.0);
+}

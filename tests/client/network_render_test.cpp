@@ -1,0 +1,247 @@
+// phasecast-render --connect against the in-test peer (test_peer.h) on
+// loopback: basis download without a package file, PNGs named by the
+// server's frame numbers equal to local rendering, two clients agree,
+// sequence gaps, reconnect with the content-hash re-check, refused requests.
+
+#include "phasecast/client/image_io.h"
+#include "run_tool.h"
+#include "synthetic_package.h"
+#include "test_peer.h"
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <fstream>
+#include <regex>
+#include <thread>
+
+extern char** environ;
+
+namespace phasecast::client {
+namespace {
+
+using ::testing::HasSubstr;
+
+// Runs phasecast-render in the background (two clients at once).
+class BackgroundTool {
+ public:
+  // Its stdout and stderr both go to `log`.
+  BackgroundTool(const std::vector<std::string>& args, const std::filesystem::path& log) {
+    std::vector<std::string> argv = {testing::tool_path("phasecast-render").string()};
+    argv.insert(argv.end(), args.begin(), args.end());
+    std::vector<char*> raw;
+    for (auto& a : argv) raw.push_back(a.data());
+    raw.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&actions, 2, 1);
+    if (posix_spawn(&pid_, raw[0], &actions, nullptr, raw.data(), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  int wait() {
+    int status = 0;
+    if (pid_ <= 0 || ::waitpid(pid_, &status, 0) != pid_) return -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+class NetworkRender : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::scratch_dir(std::string("network_") +
+                                ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    package_ = testing::make_plate_package();
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  std::vector<std::string> client_args(const testing::TestPeer& peer, const std::string& out,
+                                       int frames) const {
+    return {"--connect", peer.cmd_endpoint(),
+            "--frames",  std::to_string(frames),
+            "--size",    "96x72",
+            "--light",   "sun",
+            "--out",     path(out)};
+  }
+
+  std::filesystem::path dir_;
+  core::ScenePackage package_;
+};
+
+TEST_F(NetworkRender, RendersServerFramesWithoutAPackageFile) {
+  testing::PeerOptions options;
+  options.irf = 4;
+  testing::TestPeer peer(package_, options);
+  const auto r = testing::run_tool("phasecast-render", client_args(peer, "net", 25));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("downloading the bases of 'plate'"));
+  EXPECT_THAT(r.out, HasSubstr("25 frames at 96x72"));
+  EXPECT_GT(peer.basis_requests(), 6u);  // small chunks: several requests per large part
+
+  // Each PNG is named by the server's frame number and equals local
+  // rendering of the same state node (same bases, same GPU code).
+  core::write_package(package_, dir_ / "plate.h5");
+  const auto local =
+      testing::run_tool("phasecast-render", {"--package", path("plate.h5"), "--play-irf", "4", "--size",
+                                             "96x72", "--light", "sun", "--out", path("local")});
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  int compared = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir_ / "net")) {
+    const auto frame = std::stoull(entry.path().stem().string().substr(6));
+    const auto local_file = dir_ / "local" / frame_file_name(frame % 90);
+    EXPECT_EQ(max_channel_difference(read_png(entry.path()), read_png(local_file)), 0) << entry.path();
+    ++compared;
+  }
+  EXPECT_EQ(compared, 25);
+}
+
+TEST_F(NetworkRender, TwoClientsOnOneInstanceRenderTheSameFrames) {
+  testing::PeerOptions options;
+  options.irf = 2;
+  options.period_ms = 15;
+  options.hold_until_downloads = 2;  // both clients see the stream from its first frame
+  testing::TestPeer peer(package_, options);
+  BackgroundTool a(client_args(peer, "a", 30), dir_ / "a.log");
+  BackgroundTool b(client_args(peer, "b", 30), dir_ / "b.log");
+  ASSERT_EQ(a.wait(), 0) << slurp(dir_ / "a.log");
+  ASSERT_EQ(b.wait(), 0) << slurp(dir_ / "b.log");
+  int common = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir_ / "a")) {
+    const auto other = dir_ / "b" / entry.path().filename();
+    if (!std::filesystem::exists(other)) continue;
+    EXPECT_EQ(max_channel_difference(read_png(entry.path()), read_png(other)), 0) << entry.path().filename();
+    ++common;
+  }
+  EXPECT_GE(common, 20);
+}
+
+TEST_F(NetworkRender, SequenceGapsAreCountedAndReported) {
+  // Every frame with seq % 10 == 7 is dropped: wherever the client joins,
+  // 30 frames span at least two single-frame gaps.
+  testing::PeerOptions options;
+  for (std::uint64_t s = 7; s < 5000; s += 10) options.skip_seq.insert(s);
+  testing::TestPeer peer(package_, options);
+  const auto r = testing::run_tool("phasecast-render", {"--connect", peer.cmd_endpoint(), "--frames", "30",
+                                                        "--size", "32x32", "--out", path("gaps")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m, std::regex(R"(sequence gaps (\d+) \((\d+) frames missed\))")))
+      << r.out;
+  EXPECT_GE(std::stoi(m[1]), 2);
+  EXPECT_EQ(m[1], m[2]);
+  for (const auto& entry : std::filesystem::directory_iterator(dir_ / "gaps")) {
+    EXPECT_NE(std::stoull(entry.path().stem().string().substr(6)) % 10, 7u) << entry.path();
+  }
+}
+
+TEST_F(NetworkRender, MalformedFramesAreSkippedAndReported) {
+  testing::PeerOptions options;
+  for (std::uint64_t s = 3; s < 5000; s += 10) options.corrupt_seq.insert(s);
+  testing::TestPeer peer(package_, options);
+  const auto r = testing::run_tool("phasecast-render", {"--connect", peer.cmd_endpoint(), "--frames", "25",
+                                                        "--size", "32x32", "--out", path("bad")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      r.out, m, std::regex(R"(skipped instance 1: frame (\d+): q_u has 5 values \(expected r_u = 4\))")))
+      << r.out;
+  EXPECT_EQ(std::stoull(m[1]) % 10, 3u);
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "bad" / frame_file_name(std::stoull(m[1]))));
+  ASSERT_TRUE(std::regex_search(r.out, m, std::regex(R"(rejected frames (\d+))")));
+  EXPECT_GE(std::stoi(m[1]), 2);
+}
+
+std::size_t files_in(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!std::filesystem::exists(dir, ec)) return 0;
+  return static_cast<std::size_t>(std::distance(std::filesystem::directory_iterator(dir), {}));
+}
+
+TEST_F(NetworkRender, ReconnectsAfterTheServerRestartsAndRechecksTheBases) {
+  testing::PeerOptions options;
+  options.period_ms = 20;  // slow enough that the client cannot finish before the peer goes away
+  auto peer = std::make_unique<testing::TestPeer>(package_, options);
+  const std::string cmd = peer->cmd_endpoint(), pub = peer->pub_endpoint();
+  BackgroundTool tool({"--connect", cmd, "--frames", "60", "--size", "32x32", "--out", path("re"),
+                       "--frame-timeout", "0.5", "--request-timeout", "0.3", "--give-up-after", "30"},
+                      dir_ / "re.log");
+  // Let the client render a while, then the server goes away...
+  for (int i = 0; i < 3000 && files_in(dir_ / "re") < 15; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  peer.reset();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const auto before = files_in(dir_ / "re");
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  EXPECT_EQ(files_in(dir_ / "re"), before);  // nothing new while it is gone
+  // ...and comes back on the same endpoints with another package.
+  options.cmd_endpoint = cmd;
+  options.pub_endpoint = pub;
+  options.content_hash = 0x5678;
+  peer = std::make_unique<testing::TestPeer>(package_, options);
+  ASSERT_EQ(tool.wait(), 0) << slurp(dir_ / "re.log");
+  const auto log = slurp(dir_ / "re.log");
+  EXPECT_THAT(log, HasSubstr("no frames for 0.5 s; reconnecting"));
+  EXPECT_THAT(log, HasSubstr("bases changed (hash 0000000000001234 -> 0000000000005678); downloading again"));
+  EXPECT_THAT(log, HasSubstr("60 frames at 32x32"));
+  EXPECT_THAT(log, HasSubstr("sequence gaps 0 (0 frames missed), stream restarts 0, reconnects 1"));
+  EXPECT_GT(peer->basis_requests(), 0u);
+}
+
+TEST_F(NetworkRender, ReconnectWithUnchangedBasesDoesNotDownloadAgain) {
+  testing::PeerOptions options;
+  options.period_ms = 20;  // slow enough that the client cannot finish before the peer goes away
+  auto peer = std::make_unique<testing::TestPeer>(package_, options);
+  const std::string cmd = peer->cmd_endpoint(), pub = peer->pub_endpoint();
+  BackgroundTool tool({"--connect", cmd, "--frames", "40", "--size", "32x32", "--out", path("same"),
+                       "--frame-timeout", "0.4", "--request-timeout", "0.3", "--give-up-after", "30"},
+                      dir_ / "same.log");
+  for (int i = 0; i < 3000 && files_in(dir_ / "same") < 10; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  peer.reset();
+  std::this_thread::sleep_for(std::chrono::milliseconds(900));
+  options.cmd_endpoint = cmd;
+  options.pub_endpoint = pub;
+  peer = std::make_unique<testing::TestPeer>(package_, options);
+  ASSERT_EQ(tool.wait(), 0) << slurp(dir_ / "same.log");
+  const auto log = slurp(dir_ / "same.log");
+  EXPECT_THAT(log, HasSubstr("reconnected; bases unchanged (hash 0000000000001234)"));
+  EXPECT_EQ(peer->basis_requests(), 0u);
+}
+
+TEST_F(NetworkRender, RefusedAndUnansweredRequestsGiveOneLineErrors) {
+  testing::TestPeer peer(package_, {});
+  auto r = testing::run_tool("phasecast-render", {"--connect", peer.cmd_endpoint(), "--create", "pot"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.err,
+            "phasecast-render: create_instance pot: server refused: create_instance: unknown scene 'pot' "
+            "(expected one of plate)\n");
+  r = testing::run_tool("phasecast-render", {"--connect", peer.cmd_endpoint(), "--instance", "9"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.err,
+            fmt::format("phasecast-render: --instance 9: the server at {} has no such instance (it has 1)\n",
+                        peer.cmd_endpoint()));
+  r = testing::run_tool("phasecast-render", {"--connect", "tcp://127.0.0.1:1", "--request-timeout", "0.1"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.err,
+            "phasecast-render: list_scenes: no reply from tcp://127.0.0.1:1 after 3 attempts of 100 ms (is "
+            "phasecast-server running?)\n");
+  r = testing::run_tool("phasecast-render", {"--connect", "nonsense"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_THAT(r.err, HasSubstr("--connect 'nonsense' is not a usable ZeroMQ endpoint"));
+}
+
+}  // namespace
+}  // namespace phasecast::client

@@ -1,0 +1,205 @@
+// phasecast-render in local mode as a user runs it: golden image of a
+// replayed recording, vertex dumps against the CPU, one-line errors.
+
+#include "phasecast/client/client_basis.h"
+#include "phasecast/client/frame_output.h"
+#include "phasecast/client/frame_sources.h"
+#include "phasecast/client/image_io.h"
+#include "phasecast/core/hash.h"
+#include "run_tool.h"
+#include "synthetic_package.h"
+#include "test_peer.h"
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+namespace phasecast::client {
+namespace {
+
+using ::testing::HasSubstr;
+
+const std::filesystem::path kGoldenDir = PHASECAST_CLIENT_TEST_DIR "/golden";
+
+class RenderCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::scratch_dir(std::string("render_cli_") +
+                                ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    package_ = testing::make_plate_package();
+    core::write_package(package_, dir_ / "plate.h5");
+    hash_ = core::file_content_hash(dir_ / "plate.h5");
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  // Runs the tool and expects failure with exactly one line on stderr.
+  std::string one_line_error(const std::vector<std::string>& args) const {
+    const auto r = testing::run_tool("phasecast-render", args);
+    EXPECT_NE(r.exit_code, 0) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    return r.err;
+  }
+
+  std::filesystem::path dir_;
+  core::ScenePackage package_;
+  std::uint64_t hash_ = 0;
+};
+
+// Golden image: frame 45 of a recording of IRF 4, under the "sun" light.
+// Tolerance: PSNR >= 40 dB or max channel difference <= 2/255 (llvmpipe
+// versions differ by rounding). PHASECAST_UPDATE_GOLDEN=1 rewrites it.
+TEST_F(RenderCli, ReplayedRecordingMatchesGoldenImage) {
+  testing::write_recording(dir_ / "s.rec", "plate", "plate.h5", hash_, testing::irf_stream(package_, 4));
+  const auto r =
+      testing::run_tool("phasecast-render", {"--replay", path("s.rec"), "--package", path("plate.h5"),
+                                             "--light", "sun", "--size", "160x120", "--out", path("out")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("90 frames at 160x120"));
+  const auto rendered = dir_ / "out" / "frame_000045.png";
+  const auto golden = kGoldenDir / "plate_irf4_sun_frame_000045.png";
+  if (std::getenv("PHASECAST_UPDATE_GOLDEN")) {
+    std::filesystem::create_directories(kGoldenDir);
+    std::filesystem::copy_file(rendered, golden, std::filesystem::copy_options::overwrite_existing);
+  }
+  const Image a = read_png(rendered), b = read_png(golden);
+  const double p = psnr(a, b);
+  const int diff = max_channel_difference(a, b);
+  EXPECT_TRUE(p >= 40 || diff <= 2) << "PSNR " << p << " dB, max channel difference " << diff;
+  // The frames differ over time: the cloth moves and the door turns.
+  EXPECT_GT(max_channel_difference(read_png(dir_ / "out" / "frame_000000.png"), a), 20);
+}
+
+TEST_F(RenderCli, VertexDumpsEqualCpuPositions) {
+  for (const std::string format : {"npy", "csv"}) {
+    const auto file = path("dump." + format);
+    const auto r = testing::run_tool("phasecast-render", {"--package", path("plate.h5"), "--play-irf", "2",
+                                                          "--size", "64x64", "--dump-vertices", "17", file});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    std::vector<float> table;
+    if (format == "npy") {
+      std::ifstream in(file, std::ios::binary);
+      std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      ASSERT_EQ(all.substr(0, 6), "\x93NUMPY");
+      const auto header_len = static_cast<std::size_t>(static_cast<unsigned char>(all[8])) +
+                              256 * static_cast<std::size_t>(static_cast<unsigned char>(all[9]));
+      EXPECT_THAT(all.substr(10, header_len), HasSubstr("'shape': (85, 6)"));
+      table.resize((all.size() - 10 - header_len) / 4);
+      std::memcpy(table.data(), all.data() + 10 + header_len, table.size() * 4);
+    } else {
+      std::ifstream in(file);
+      std::string line;
+      std::getline(in, line);
+      EXPECT_EQ(line, "x,y,z,r,g,b");
+      while (std::getline(in, line)) {
+        std::stringstream row(line);
+        std::string cell;
+        while (std::getline(row, cell, ',')) table.push_back(std::stof(cell));
+      }
+    }
+    ASSERT_EQ(table.size(), 85u * 6);
+    const auto f = portrait_frames(package_, 2)[17];
+    const auto cpu = cpu_positions(basis_from_package(package_, 0), f.q_u, f.support);
+    for (std::size_t v = 0; v < 85; ++v) {
+      for (std::size_t c = 0; c < 3; ++c) {
+        EXPECT_NEAR(table[6 * v + c], cpu[3 * v + c], 1e-5 * (std::abs(cpu[3 * v + c]) + 1))
+            << format << " " << v;
+      }
+    }
+  }
+}
+
+TEST_F(RenderCli, HelpDescribesTheModes) {
+  const auto r = testing::run_tool("phasecast-render", {"--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_THAT(r.out, HasSubstr("--connect"));
+  EXPECT_THAT(r.out, HasSubstr("--dump-vertices"));
+  EXPECT_THAT(r.out, HasSubstr("osmesa, egl, window"));
+}
+
+TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--backend", "vulkan"}),
+            "phasecast-render: render backend 'vulkan' is unknown (expected one of osmesa, egl, window)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--light", "moon"}),
+            "phasecast-render: light probe 'moon' is unknown (expected one of grace, sky, sun, white)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--size", "big"}),
+            "phasecast-render: --size 'big' is invalid (expected WIDTHxHEIGHT, e.g. 1280x720)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--play-irf", "7"}),
+            "phasecast-render: --play-irf 7 is out of range (expected 0..5: the package has 6 IRFs)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--dump-vertices", "3", path("d.txt")}),
+            fmt::format(
+                "phasecast-render: --dump-vertices file '{}' has an unknown format (expected a .npy or .csv "
+                "name)\n",
+                path("d.txt")));
+  EXPECT_EQ(
+      one_line_error({"--package", path("plate.h5"), "--dump-vertices", "x3", path("d.csv")}),
+      "phasecast-render: --dump-vertices frame 'x3' is invalid (expected a frame number, then out.npy or "
+      "out.csv)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--dump-vertices", "500", path("d.csv")}),
+            "phasecast-render: --dump-vertices 500: no such frame (expected 0..89)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--eye", "1,2"}),
+            "phasecast-render: --eye '1,2' is invalid (expected three finite numbers x,y,z)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--frame-timeout", "0"}),
+            "phasecast-render: --frame-timeout 0 is invalid (expected a positive number of seconds)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--exposure", "-1"}),
+            "phasecast-render: --exposure -1 is invalid (expected a positive number)\n");
+  EXPECT_EQ(
+      one_line_error({"--package", path("plate.h5"), "--connect", "tcp://127.0.0.1:9"}),
+      "phasecast-render: choose one frame source (expected --connect tcp://host:5555, --replay stream.rec "
+      "--package p.h5, or --package p.h5 [--play-irf I])\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--create", "plate"}),
+            "phasecast-render: --create needs --connect tcp://host:5555\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--instance", "2"}),
+            "phasecast-render: --instance needs --connect tcp://host:5555 or --replay stream.rec\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--fov", "180"}),
+            "phasecast-render: --fov 180 is invalid (expected degrees in (0, 180))\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--eye", "0.5,0.5,0", "--target", "0.5,0.5,0"}),
+            "phasecast-render: camera eye and target coincide (expected distinct --eye and --target)\n");
+  EXPECT_EQ(
+      one_line_error({"--package", path("plate.h5"), "--up", "0,0,1"}),
+      "phasecast-render: camera --up is parallel to the view direction (expected a vector across it)\n");
+  EXPECT_EQ(one_line_error({"--replay", path("s.rec"), "--package", path("plate.h5"), "--play-irf", "1"}),
+            "phasecast-render: --play-irf is for local mode (--package without --replay or --connect)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--frames", "many"}),
+            "phasecast-render: Could not convert: --frames = many (see --help)\n");
+  EXPECT_THAT(one_line_error({"--package", path("plate.h5"), "--colour"}), HasSubstr("--colour"));
+  EXPECT_EQ(one_line_error({"--replay", path("s.rec")}),
+            "phasecast-render: --replay needs --package p.h5: a recording holds frames, not the bases\n");
+  EXPECT_EQ(
+      one_line_error({}),
+      "phasecast-render: choose one frame source (expected --connect tcp://host:5555, --replay stream.rec "
+      "--package p.h5, or --package p.h5 [--play-irf I])\n");
+  EXPECT_THAT(one_line_error({"--package", path("missing.h5")}), HasSubstr("missing.h5"));
+}
+
+TEST_F(RenderCli, RecordingOfAnotherPackageIsRejected) {
+  testing::write_recording(dir_ / "s.rec", "plate", "plate.h5", hash_ + 1, testing::irf_stream(package_, 0));
+  EXPECT_EQ(one_line_error({"--replay", path("s.rec"), "--package", path("plate.h5")}),
+            fmt::format(
+                "phasecast-render: recording {} was made with package hash {:016x}, but {} has hash {:016x} "
+                "(expected the same package)\n",
+                path("s.rec"), hash_ + 1, path("plate.h5"), hash_));
+  auto stream = testing::irf_stream(package_, 0);
+  stream[3].add_q_u(1.0f);
+  testing::write_recording(dir_ / "t.rec", "plate", "plate.h5", hash_, stream);
+  EXPECT_EQ(
+      one_line_error({"--replay", path("t.rec"), "--package", path("plate.h5")}),
+      fmt::format("phasecast-render: {}: frame 3: q_u has 5 values (expected r_u = 4)\n", path("t.rec")));
+}
+
+TEST_F(RenderCli, VideoNeedsFfmpegOrSaysSo) {
+  const auto r = testing::run_tool("phasecast-render", {"--package", path("plate.h5"), "--frames", "12",
+                                                        "--size", "64x48", "--video", path("v.mp4")});
+  if (find_ffmpeg().empty()) {
+    EXPECT_NE(r.exit_code, 0);
+    EXPECT_THAT(r.err, HasSubstr("ffmpeg is not installed"));
+  } else {
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_GT(std::filesystem::file_size(path("v.mp4")), 100u);
+  }
+}
+
+}  // namespace
+}  // namespace phasecast::client
