@@ -6,7 +6,9 @@
 // usual --benchmark_* flags. Ray figures are one thread (rays/s per core);
 // transfer figures are for one thread and for all cores.
 
+#include "phasecast/precompute/kmeans.h"
 #include "phasecast/precompute/transfer.h"
+#include "phasecast/precompute/transfer_appearance.h"
 #include "phasecast/precompute/transfer_file.h"
 #include "phasecast/precompute/transfer_rays.h"
 
@@ -138,6 +140,41 @@ void BM_TransferPerPoint(benchmark::State& state) {
   state.SetLabel(transfer_mode_name(mode));
 }
 
+// Synthetic phase portrait: N state nodes in r_u = 20 dimensions, on a few
+// smooth orbits (the k-means input of §4.3).
+MatrixXfR portrait(int N) {
+  MatrixXfR q(N, 20);
+  for (int i = 0; i < N; ++i) {
+    const double t = 0.01 * i;
+    for (int d = 0; d < 20; ++d)
+      q(i, d) = static_cast<float>(std::exp(-0.05 * d) * std::sin((d + 1) * t + d));
+  }
+  return q;
+}
+
+// k-means of N = range(0) nodes into N_a = 64 clusters.
+void BM_KMeans(benchmark::State& state) {
+  const MatrixXfR q = portrait(static_cast<int>(state.range(0)));
+  for (auto _ : state) benchmark::DoNotOptimize(kmeans(q, {.clusters = 64, .seed = 1}).inertia);
+  state.counters["N"] = static_cast<double>(q.rows());
+}
+
+// Transfer SVD + NRBF fit + leave-one-out + q_a at all nodes, for N_a = 64
+// fields of the bench scene (S points) and N = 5000 nodes.
+void BM_BuildAppearance(benchmark::State& state) {
+  const MatrixXfR q = portrait(5000);
+  const auto clusters = kmeans(q, {.clusters = 64, .seed = 1});
+  const auto n = 48 * scene().positions.rows();
+  MatrixXfR fields(64, n);
+  std::mt19937_64 rng(3);
+  for (Eigen::Index i = 0; i < fields.size(); ++i) {
+    fields.data()[i] = static_cast<float>(static_cast<double>(rng() >> 11) * 0x1.0p-53);
+  }
+  for (auto _ : state) benchmark::DoNotOptimize(build_appearance(q, clusters, fields, {}).q_a.data());
+  state.counters["S"] = static_cast<double>(scene().positions.rows());
+  state.counters["N_a"] = 64;
+}
+
 BENCHMARK(BM_OcclusionRays);
 BENCHMARK(BM_ClosestHitRays);
 BENCHMARK(BM_TransferPerPoint)
@@ -147,6 +184,8 @@ BENCHMARK(BM_TransferPerPoint)
     ->Unit(benchmark::kSecond)
     ->UseRealTime()
     ->Iterations(1);
+BENCHMARK(BM_KMeans)->Arg(5000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BuildAppearance)->Unit(benchmark::kSecond)->Iterations(1);
 
 }  // namespace
 }  // namespace phasecast::precompute
