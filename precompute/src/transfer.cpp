@@ -19,7 +19,8 @@ namespace phasecast::precompute {
 namespace {
 
 constexpr int kSh = 16;
-constexpr int kPerPoint = 48;  // 3 channels x 16 SH coefficients
+constexpr int kPerPoint = 48;      // 3 channels x 16 SH coefficients
+constexpr int kMaxRays = 1 << 20;  // bounds memory: a direction and its 16 Y_k take 140 bytes
 
 // A front-face hit kept from the first pass so that every bounce gathers from
 // the same rays without casting them again (Sloan et al. 2002, §5).
@@ -123,7 +124,9 @@ const char* transfer_mode_name(TransferMode mode) {
 }
 
 void validate_transfer_options(const TransferOptions& o) {
-  if (o.rays < 1) throw std::invalid_argument(fmt::format("transfer: rays must be >= 1, got {}", o.rays));
+  if (o.rays < 1 || o.rays > kMaxRays) {
+    throw std::invalid_argument(fmt::format("transfer: rays must be in 1..{}, got {}", kMaxRays, o.rays));
+  }
   if (o.bounces < 0)
     throw std::invalid_argument(fmt::format("transfer: bounces must be >= 0, got {}", o.bounces));
   if (o.threads < 0)
@@ -199,8 +202,9 @@ MatrixXfR compute_transfer(const MatrixXfR& P, const MatrixXuR& F, const MatrixX
   if (cast) caster = std::make_unique<RayCaster>(P, F);
   const float offset = ray_offset(P);
 
-  Eigen::MatrixXd total(S, kPerPoint);
-  Eigen::MatrixXd bounce(S, kPerPoint);
+  // Row-major: a point's 48 values are contiguous, so a gather reads whole rows.
+  RowMatrix<double> total(S, kPerPoint);
+  RowMatrix<double> bounce(S, kPerPoint);
   std::vector<std::vector<CachedHit>> hits(gather ? static_cast<size_t>(S) : 0);
 
   // Direct light: T_pck = (rho_c/pi) sum_i (4pi/N) V(omega_i) max(0, n.omega_i) Y_k(omega_i)   (§4.1).
@@ -232,7 +236,7 @@ MatrixXfR compute_transfer(const MatrixXfR& P, const MatrixXuR& F, const MatrixX
   // Bounce b gathers bounce b-1 at the cached hits, interpolated over the hit
   // triangle:  T^b_p = (rho/pi) sum_i (4pi/N) max(0, n.omega_i) T^{b-1}(hit_i).
   for (int b = 1; gather && b <= o.bounces; ++b) {
-    const Eigen::MatrixXd previous = bounce;
+    const RowMatrix<double> previous = bounce;
     const std::string stage = fmt::format("bounce {}/{}", b, o.bounces);
     parallel_points(S, threads, stage.c_str(), o, [&](long p) {
       Eigen::Matrix<double, 1, kPerPoint> sum = Eigen::Matrix<double, 1, kPerPoint>::Zero();

@@ -137,7 +137,7 @@ TEST_F(TransferCli, RejectsABadAlbedo) {
 
 TEST_F(TransferCli, RejectsZeroRays) {
   EXPECT_EQ(failure({"transfer", path("cube.obj"), "-o", path("t.h5"), "--rays", "0"}),
-            "phasecast-precompute: transfer: rays must be >= 1, got 0\n");
+            "phasecast-precompute: transfer: rays must be in 1..1048576, got 0\n");
 }
 
 TEST_F(TransferCli, RejectsAnUnwritableOutput) {

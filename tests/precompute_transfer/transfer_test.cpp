@@ -246,7 +246,9 @@ TEST(TransferRejects, BadOptions) {
   const TransferMesh cube = testing::flat_cube();
   TransferOptions o;
   o.rays = 0;
-  EXPECT_EQ(failure_of(cube, o), "transfer: rays must be >= 1, got 0");
+  EXPECT_EQ(failure_of(cube, o), "transfer: rays must be in 1..1048576, got 0");
+  o.rays = (1 << 20) + 1;
+  EXPECT_EQ(failure_of(cube, o), "transfer: rays must be in 1..1048576, got 1048577");
   o = {};
   o.bounces = -1;
   EXPECT_EQ(failure_of(cube, o), "transfer: bounces must be >= 0, got -1");
