@@ -56,6 +56,8 @@ MatrixXdR basis_matrix(const MatrixXdR& C, const Eigen::VectorXd& w, const Matri
 
 // (Phi^T Phi + lambda I) W = Phi^T V
 MatrixXdR solve_weights(const MatrixXdR& Phi, const MatrixXdR& V, double lambda) {
+  if (V.cols() == 0)
+    return MatrixXdR(Phi.cols(), 0);  // r_a = 0: nothing to fit (Eigen solvers need a column)
   Eigen::MatrixXd lhs = Phi.transpose() * Phi;
   lhs.diagonal().array() += lambda;
   const Eigen::MatrixXd rhs = Phi.transpose() * V;

@@ -61,6 +61,19 @@ TEST(Appearance, FillsAValidPackage) {
   EXPECT_EQ(back.portrait.q_a, model.q_a);
 }
 
+TEST(Appearance, OneClusterHasRankZero) {
+  core::ScenePackage p = testing::make_plate_package({.grid = 4, .appearance = false});
+  const auto clusters = kmeans(p.portrait.q_u, {.clusters = 1});
+  const auto model = build_appearance(p.portrait.q_u, clusters, transfer_fields(p, clusters), {});
+  EXPECT_EQ(model.appearance.rank(), 0);
+  EXPECT_EQ(model.q_a.rows(), p.portrait.nodes());
+  EXPECT_EQ(model.q_a.cols(), 0);
+  EXPECT_EQ(model.leave_one_out.errors.size(), 0);
+  p.appearance = model.appearance;
+  p.portrait.q_a = model.q_a;
+  EXPECT_NO_THROW(core::validate_package(p, "one cluster"));
+}
+
 TEST(Appearance, RejectsMismatchedFields) {
   core::ScenePackage p = testing::make_plate_package({.grid = 4, .appearance = false});
   const auto clusters = kmeans(p.portrait.q_u, {.clusters = 3});
