@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 
 namespace phasecast {
@@ -144,6 +145,27 @@ TEST_F(TransferCli, RejectsAnUnwritableOutput) {
   EXPECT_THAT(
       failure({"transfer", path("cube.obj"), "-o", path("no/such/dir/t.h5"), "--rays", "8", "-q"}),
       StartsWith("phasecast-precompute: " + path("no/such/dir/t.h5") + ": cannot write transfer file"));
+}
+
+TEST_F(TransferCli, LoadsAndTriangulatesTheObj) {
+  const auto mesh = precompute::load_obj_mesh(path("cube.obj"));
+  EXPECT_EQ(mesh.positions.rows(), 8);
+  EXPECT_EQ(mesh.triangles.rows(), 12);  // six quads
+  // Corner (0, 0, 0): three faces of equal area meet, the normal is the outward diagonal.
+  EXPECT_LT((mesh.normals.row(0) + Eigen::RowVector3f::Constant(1.0f / std::sqrt(3.0f))).norm(), 1e-6f);
+}
+
+TEST(TransferFile, RejectsMismatchedContents) {
+  precompute::TransferFile file;
+  file.positions = MatrixXfR::Zero(3, 3);
+  file.normals = MatrixXfR::Zero(3, 3);
+  file.transfer = MatrixXfR::Zero(2, 48);
+  try {
+    precompute::write_transfer_file(file, "unused.h5");
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "unused.h5: transfer file needs S x 3 positions and normals and S x 48 transfer");
+  }
 }
 
 TEST(TransferFile, RejectsFilesThatAreNotTransferFiles) {

@@ -204,6 +204,12 @@ TEST(Transfer, SphereDirectionsAreUnitAndBalanced) {
   ASSERT_EQ(d.rows(), 1000);
   EXPECT_LT((d.rowwise().norm().array() - 1).abs().maxCoeff(), 1e-6f);
   EXPECT_LT(d.colwise().mean().norm(), 1e-3f);  // no preferred direction
+  try {
+    precompute::sphere_directions(0);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "sphere_directions: count must be >= 1, got 0");
+  }
 }
 
 TEST(Transfer, RayCasterResolvesDoubleSidedPairs) {

@@ -17,7 +17,7 @@ struct TransferMesh {
 };
 
 // Reads an OBJ file (polygons triangulated; groups merged). Scene points are
-// the OBJ's vertices, normals are area-weighted vertex normals of its faces.
+// the OBJ's vertices, normals are angle-weighted vertex normals of its faces.
 // Throws std::runtime_error naming the file for a missing or malformed file,
 // one without faces, or non-finite coordinates.
 TransferMesh load_obj_mesh(const std::filesystem::path& path);
