@@ -187,78 +187,106 @@ MatrixXfR vertex_normals(const MatrixXfR& P, const MatrixXuR& F) {
   return out;
 }
 
+namespace {
+
+using ShTable = Eigen::Matrix<double, Eigen::Dynamic, kSh, Eigen::RowMajor>;
+using Transfer = RowMatrix<double>;  // S x 48, row-major: a gather reads whole rows
+
+// Y_k(omega_i) of the fixed direction set, computed once.
+ShTable sh_table(const MatrixXfR& dirs) {
+  ShTable Y(dirs.rows(), kSh);
+  for (Eigen::Index i = 0; i < dirs.rows(); ++i) {
+    const auto y = core::sh_basis(dirs(i, 0), dirs(i, 1), dirs(i, 2));
+    for (int k = 0; k < kSh; ++k) Y(i, k) = y[static_cast<size_t>(k)];
+  }
+  return Y;
+}
+
+// Everything one transfer run shares between its passes.
+struct TransferRun {
+  const MatrixXfR& P;
+  const MatrixXfR& N;
+  const TransferOptions& o;
+  int threads = 1;
+  MatrixXfR dirs{};                   // the fixed direction set, rays x 3
+  ShTable Y{};                        // Y_k of each direction
+  std::array<double, 3> weight{};     // (rho_c / pi) (4 pi / rays): the weight of one direction
+  const RayCaster* caster = nullptr;  // null: nothing to cast against (unshadowed, or no triangles)
+  bool gather = false;                // interreflected with bounces: cache front-face hits
+  float offset = 0;                   // ray origins leave the surface along the normal by this
+};
+
+// Direct light: T_pck = (rho_c/pi) sum_i (4pi/N) V(omega_i) max(0, n.omega_i) Y_k(omega_i)   (§4.1).
+Transfer direct_light(const TransferRun& r, std::vector<std::vector<CachedHit>>& hits) {
+  Transfer T(r.P.rows(), kPerPoint);
+  parallel_points(r.P.rows(), r.threads, "direct", r.o, [&](long p) {
+    const std::array<float, 3> n{r.N(p, 0), r.N(p, 1), r.N(p, 2)};
+    const std::array<float, 3> origin{r.P(p, 0) + r.offset * n[0], r.P(p, 1) + r.offset * n[1],
+                                      r.P(p, 2) + r.offset * n[2]};
+    Eigen::Matrix<double, 1, kSh> sum = Eigen::Matrix<double, 1, kSh>::Zero();
+    for (Eigen::Index i = 0; i < r.dirs.rows(); ++i) {
+      const std::array<float, 3> w{r.dirs(i, 0), r.dirs(i, 1), r.dirs(i, 2)};
+      const float cosine = n[0] * w[0] + n[1] * w[1] + n[2] * w[2];
+      if (cosine <= 0) continue;
+      bool visible = true;
+      if (r.gather) {
+        const RayHit hit = r.caster->closest(origin, w);
+        visible = !hit.hit;
+        if (hit.front) hits[static_cast<size_t>(p)].push_back({hit.points, hit.weights, cosine});
+      } else if (r.caster) {
+        visible = !r.caster->occluded(origin, w);
+      }
+      if (visible) sum += cosine * r.Y.row(i);
+    }
+    for (int c = 0; c < 3; ++c) T.block<1, kSh>(p, kSh * c) = r.weight[static_cast<size_t>(c)] * sum;
+  });
+  return T;
+}
+
+// Bounce b gathers bounce b-1 at the cached hits, interpolated over the hit
+// triangle:  T^b_p = (rho/pi) sum_i (4pi/N) max(0, n.omega_i) T^{b-1}(hit_i).
+Transfer next_bounce(const TransferRun& r, const std::vector<std::vector<CachedHit>>& hits,
+                     const Transfer& previous, const std::string& stage) {
+  Transfer T(previous.rows(), kPerPoint);
+  parallel_points(previous.rows(), r.threads, stage.c_str(), r.o, [&](long p) {
+    Eigen::Matrix<double, 1, kPerPoint> sum = Eigen::Matrix<double, 1, kPerPoint>::Zero();
+    for (const CachedHit& h : hits[static_cast<size_t>(p)]) {
+      for (int j = 0; j < 3; ++j) {
+        sum +=
+            (h.cosine * h.weights[static_cast<size_t>(j)]) * previous.row(h.points[static_cast<size_t>(j)]);
+      }
+    }
+    for (int c = 0; c < 3; ++c) {
+      T.block<1, kSh>(p, kSh * c) = r.weight[static_cast<size_t>(c)] * sum.segment<kSh>(kSh * c);
+    }
+  });
+  return T;
+}
+
+}  // namespace
+
 MatrixXfR compute_transfer(const MatrixXfR& P, const MatrixXuR& F, const MatrixXfR& N,
                            const TransferOptions& o) {
   validate_transfer_options(o);
   check_inputs(P, F, N);
-  const long S = P.rows();
-  const int rays = o.rays;
-  const int threads =
-      o.threads > 0 ? o.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const MatrixXfR dirs = sphere_directions(rays);
-  Eigen::Matrix<double, Eigen::Dynamic, kSh, Eigen::RowMajor> Y(rays, kSh);  // Y_k(omega_i), computed once
-  for (int i = 0; i < rays; ++i) {
-    const auto y = core::sh_basis(dirs(i, 0), dirs(i, 1), dirs(i, 2));
-    for (int k = 0; k < kSh; ++k) Y(i, k) = y[static_cast<size_t>(k)];
-  }
-  // (rho/pi) * (4 pi / rays): the Monte Carlo weight of one direction.
-  std::array<double, 3> weight;
-  for (int c = 0; c < 3; ++c) weight[static_cast<size_t>(c)] = 4.0 * o.albedo[static_cast<size_t>(c)] / rays;
-
-  const bool cast = o.mode != TransferMode::unshadowed && F.rows() > 0;
-  const bool gather = o.mode == TransferMode::interreflected && o.bounces > 0 && cast;
   std::unique_ptr<RayCaster> caster;
-  if (cast) caster = std::make_unique<RayCaster>(P, F);
-  const float offset = ray_offset(P);
+  if (o.mode != TransferMode::unshadowed && F.rows() > 0) caster = std::make_unique<RayCaster>(P, F);
+  TransferRun run{P, N, o};
+  run.threads =
+      o.threads > 0 ? o.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  run.dirs = sphere_directions(o.rays);
+  run.caster = caster.get();
+  run.gather = o.mode == TransferMode::interreflected && o.bounces > 0 && caster;
+  run.offset = ray_offset(P);
+  run.Y = sh_table(run.dirs);
+  for (int c = 0; c < 3; ++c)
+    run.weight[static_cast<size_t>(c)] = 4.0 * o.albedo[static_cast<size_t>(c)] / o.rays;
 
-  // Row-major: a point's 48 values are contiguous, so a gather reads whole rows.
-  RowMatrix<double> total(S, kPerPoint);
-  RowMatrix<double> bounce(S, kPerPoint);
-  std::vector<std::vector<CachedHit>> hits(gather ? static_cast<size_t>(S) : 0);
-
-  // Direct light: T_pck = (rho_c/pi) sum_i (4pi/N) V(omega_i) max(0, n.omega_i) Y_k(omega_i)   (§4.1).
-  parallel_points(S, threads, "direct", o, [&](long p) {
-    const std::array<float, 3> n{N(p, 0), N(p, 1), N(p, 2)};
-    const std::array<float, 3> origin{P(p, 0) + offset * n[0], P(p, 1) + offset * n[1],
-                                      P(p, 2) + offset * n[2]};
-    Eigen::Matrix<double, 1, kSh> sum = Eigen::Matrix<double, 1, kSh>::Zero();
-    for (int i = 0; i < rays; ++i) {
-      const std::array<float, 3> w{dirs(i, 0), dirs(i, 1), dirs(i, 2)};
-      const float cosine = n[0] * w[0] + n[1] * w[1] + n[2] * w[2];
-      if (cosine <= 0) continue;
-      bool visible = true;
-      if (gather) {
-        const RayHit hit = caster->closest(origin, w);
-        visible = !hit.hit;
-        if (hit.front) hits[static_cast<size_t>(p)].push_back({hit.points, hit.weights, cosine});
-      } else if (cast) {
-        visible = !caster->occluded(origin, w);
-      }
-      if (visible) sum += cosine * Y.row(i);
-    }
-    for (int c = 0; c < 3; ++c) {
-      bounce.block<1, kSh>(p, kSh * c) = weight[static_cast<size_t>(c)] * sum;
-    }
-  });
-  total = bounce;
-
-  // Bounce b gathers bounce b-1 at the cached hits, interpolated over the hit
-  // triangle:  T^b_p = (rho/pi) sum_i (4pi/N) max(0, n.omega_i) T^{b-1}(hit_i).
-  for (int b = 1; gather && b <= o.bounces; ++b) {
-    const RowMatrix<double> previous = bounce;
-    const std::string stage = fmt::format("bounce {}/{}", b, o.bounces);
-    parallel_points(S, threads, stage.c_str(), o, [&](long p) {
-      Eigen::Matrix<double, 1, kPerPoint> sum = Eigen::Matrix<double, 1, kPerPoint>::Zero();
-      for (const CachedHit& h : hits[static_cast<size_t>(p)]) {
-        for (int j = 0; j < 3; ++j) {
-          sum +=
-              (h.cosine * h.weights[static_cast<size_t>(j)]) * previous.row(h.points[static_cast<size_t>(j)]);
-        }
-      }
-      for (int c = 0; c < 3; ++c) {
-        bounce.block<1, kSh>(p, kSh * c) = weight[static_cast<size_t>(c)] * sum.segment<kSh>(kSh * c);
-      }
-    });
+  std::vector<std::vector<CachedHit>> hits(run.gather ? static_cast<size_t>(P.rows()) : 0);
+  Transfer bounce = direct_light(run, hits);
+  Transfer total = bounce;
+  for (int b = 1; run.gather && b <= o.bounces; ++b) {
+    bounce = next_bounce(run, hits, bounce, fmt::format("bounce {}/{}", b, o.bounces));
     total += bounce;
   }
   return total.cast<float>();
