@@ -1,0 +1,7 @@
+#pragma once
+// One registration function per phasecast-precompute subcommand, each in its
+// own file, so parts of the pipeline are added without touching each other.
+
+#include <CLI/CLI.hpp>
+
+void add_simulate_command(CLI::App& app);
