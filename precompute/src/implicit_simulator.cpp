@@ -7,6 +7,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 #include <vector>
@@ -69,11 +70,11 @@ class ImplicitSimulator final : public Simulator {
   const SimState& state() const override { return state_; }
 
   void impulse(const VectorXd& alpha_impulse) override {
-    apply_support_jump(support_.impulse(state_.support, to_vector3(alpha_impulse, 3, "impulse")));
+    apply_support_jump(support_.impulse(state_.support, checked_alpha(alpha_impulse, "impulse")));
   }
 
   void step(const VectorXd& alpha_forcing) override {
-    apply_support_jump(support_.hold(state_.support, to_vector3(alpha_forcing, 3, "step")));
+    apply_support_jump(support_.hold(state_.support, checked_alpha(alpha_forcing, "step")));
     const double h = settings_.frame_dt / settings_.substeps;
     for (int s = 0; s < settings_.substeps; ++s) substep(h);
     state_.time += settings_.frame_dt;
@@ -84,6 +85,23 @@ class ImplicitSimulator final : public Simulator {
   }
 
  private:
+  // A support velocity that moves scene points faster than max_speed would
+  // make fictitious forces of arbitrary size: rejected rather than integrated.
+  Vector3d checked_alpha(const VectorXd& alpha, const char* what) const {
+    const Vector3d w = to_vector3(alpha, 3, what);
+    double fastest = 0;
+    for (int i = 0; i < vertices(); ++i) {
+      fastest = std::max(fastest, support_.point_velocity(w, state_.x.segment<3>(3 * i)).norm());
+    }
+    if (fastest > settings_.max_speed) {
+      throw SimulationError(
+          fmt::format("{}: support velocity ({}, {}, {}) moves scene points at {:.4g} m/s, above "
+                      "max_speed {} m/s",
+                      what, w.x(), w.y(), w.z(), fastest, settings_.max_speed));
+    }
+    return w;
+  }
+
   bool is_free(int vertex) const { return !model_.pinned[static_cast<size_t>(vertex)]; }
 
   // A jump dw of the support velocity changes every free particle's velocity

@@ -230,3 +230,114 @@ TEST(ElasticForces, RestStateHasNoForce) {
 
 }  // namespace
 }  // namespace phasecast::precompute
+
+#include "phasecast/precompute/scene.h"
+
+namespace phasecast::precompute {
+namespace {
+
+const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+
+Eigen::VectorXd alpha(double wy) {
+  return Eigen::Vector3d(0, wy, 0);
+}
+
+TEST(Integrator, RerunIsBitIdentical) {
+  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  const auto run = [&] {
+    auto sim = make_simulator(scene);
+    sim->impulse(alpha(-1.5));
+    for (int i = 0; i < 40; ++i) sim->step(alpha(-1.5));
+    sim->impulse(alpha(1.5));
+    for (int i = 0; i < 40; ++i) sim->step(alpha(1.5));
+    return sim->state();
+  };
+  const SimState a = run(), b = run();
+  ASSERT_EQ(a.x.size(), b.x.size());
+  EXPECT_EQ(std::memcmp(a.x.data(), b.x.data(), sizeof(double) * static_cast<size_t>(a.x.size())), 0);
+  EXPECT_EQ(std::memcmp(a.v.data(), b.v.data(), sizeof(double) * static_cast<size_t>(a.v.size())), 0);
+  EXPECT_GT((a.x - scene.model.rest).norm(), 1e-3);  // it did move
+}
+
+TEST(Integrator, DampingOnlyDissipatesEnergy) {
+  // The tiny cloth released from a swing with the support at rest: no work
+  // is done on it, so total mechanical energy must never increase.
+  Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  scene.model.obstacles.clear();
+  auto sim = make_simulator(scene);
+  SimState s = sim->rest_state();
+  for (int i = 0; i < scene.model.vertices(); ++i) {
+    if (!scene.model.pinned[static_cast<size_t>(i)]) s.v[3 * i + 2] = 1.0 + 0.1 * i;  // kick off the board
+  }
+  sim->reset(s);
+  double previous = mechanical_energy(scene.model, scene.simulation, sim->state());
+  const double initial = previous;
+  const auto kinetic = [&] { return 0.5 * sim->state().v.squaredNorm() * scene.model.mass.maxCoeff(); };
+  const double initial_kinetic = kinetic();
+  for (int i = 0; i < 150; ++i) {
+    sim->step(alpha(0));
+    const double e = mechanical_energy(scene.model, scene.simulation, sim->state());
+    EXPECT_LE(e, previous + 1e-9 * std::abs(initial)) << "frame " << i;
+    previous = e;
+  }
+  EXPECT_LT(kinetic(), 0.01 * initial_kinetic);  // and it does come to rest
+}
+
+TEST(Integrator, LargeImpulsesStayFiniteAndBounded) {
+  // 35 rad/s moves the far cloth corner at 26 m/s: centrifugal 90 g, Coriolis and an impulsive start.
+  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  auto sim = make_simulator(scene);
+  sim->impulse(alpha(-35));
+  for (int i = 0; i < 20; ++i) sim->step(alpha(0));
+  sim->impulse(alpha(35));
+  for (int i = 0; i < 20; ++i) sim->step(alpha(35));
+  EXPECT_TRUE(sim->state().x.allFinite());
+  EXPECT_TRUE(sim->state().v.allFinite());
+  for (int i = 0; i < sim->vertices(); ++i) {
+    EXPECT_LE(sim->state().v.segment<3>(3 * i).norm(), scene.simulation.max_speed * (1 + 1e-12));
+  }
+}
+
+TEST(Integrator, ImpulsesBeyondMaxSpeedAreRejected) {
+  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  auto sim = make_simulator(scene);
+  try {
+    sim->impulse(alpha(1e6));
+    FAIL() << "accepted";
+  } catch (const SimulationError& e) {
+    EXPECT_STREQ(e.what(),
+                 "impulse: support velocity (0, 1000000, 0) moves scene points at 7.001e+05 m/s, above "
+                 "max_speed 30 m/s");
+  }
+  EXPECT_EQ(sim->state().v, sim->rest_state().v);  // state untouched
+}
+
+TEST(Integrator, NonFiniteOrMissizedPaletteParametersAreRejected) {
+  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  auto sim = make_simulator(scene);
+  try {
+    sim->impulse(alpha(std::nan("")));
+    FAIL() << "NaN accepted";
+  } catch (const SimulationError& e) {
+    EXPECT_STREQ(e.what(), "impulse: palette parameter has a NaN or Inf entry");
+  }
+  try {
+    sim->step(Eigen::VectorXd::Zero(2));
+    FAIL() << "size 2 accepted";
+  } catch (const SimulationError& e) {
+    EXPECT_STREQ(e.what(), "step: expected a palette parameter of size 3, got 2");
+  }
+}
+
+TEST(Integrator, DoorStopsAtTheEndOfItsRange) {
+  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  auto sim = make_simulator(scene);
+  sim->impulse(alpha(-1.5));
+  for (int i = 0; i < 100; ++i) sim->step(alpha(-1.5));  // 2 s at 1.5 rad/s would be 172 degrees
+  const auto T = sim->support_transform();
+  EXPECT_NEAR(T(0, 0), 0.0, 1e-12);  // rotated by exactly 90 degrees
+  EXPECT_NEAR(std::abs(T(0, 2)), 1.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
