@@ -1,4 +1,5 @@
 #include "phasecast/precompute/elastic_forces.h"
+#include "phasecast/precompute/self_collision.h"
 #include "phasecast/precompute/simulator.h"
 
 #include <fmt/format.h>
@@ -31,7 +32,10 @@ Vector3d to_vector3(const VectorXd& alpha, int expected, const char* what) {
 class ImplicitSimulator final : public Simulator {
  public:
   ImplicitSimulator(DeformableModel model, const SimulationSettings& settings, const SupportSettings& support)
-      : model_(std::move(model)), settings_(settings), support_(support) {
+      : model_(std::move(model)),
+        settings_(settings),
+        support_(support),
+        self_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3), model_.thickness) {
     if (!(settings_.frame_dt > 0) || settings_.substeps < 1 || settings_.newton_iterations < 1) {
       throw SimulationError(
           fmt::format("simulation settings: expected frame_dt > 0, substeps >= 1, "
@@ -42,6 +46,10 @@ class ImplicitSimulator final : public Simulator {
     for (int i = 0; i < model_.vertices(); ++i) {
       if (model_.pinned[static_cast<size_t>(i)]) continue;
       for (int k = 0; k < 3; ++k) free_index_[static_cast<size_t>(3 * i + k)] = free_count_++;
+    }
+    inverse_mass_ = VectorXd::Zero(model_.vertices());
+    for (int i = 0; i < model_.vertices(); ++i) {
+      if (!model_.pinned[static_cast<size_t>(i)]) inverse_mass_[i] = 1.0 / model_.mass[i];
     }
     state_ = rest_state();
   }
@@ -164,6 +172,7 @@ class ImplicitSimulator final : public Simulator {
       v += delta;
       if (delta.lpNorm<Eigen::Infinity>() < settings_.newton_tolerance) break;
     }
+    self_collision_.filter(x0, v, h, inverse_mass_);
     state_.v = v;
     state_.x = x0 + h * v;
     resolve_obstacles();
@@ -260,6 +269,8 @@ class ImplicitSimulator final : public Simulator {
   DeformableModel model_;
   SimulationSettings settings_;
   SupportMotion support_;
+  SelfCollision self_collision_;
+  VectorXd inverse_mass_;
   SimState state_;
   std::vector<int> free_index_;
   int free_count_ = 0;

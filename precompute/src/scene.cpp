@@ -380,6 +380,12 @@ Scene load_scene(const std::filesystem::path& path) {
   if (top.has("contact")) {
     Fields contact = top.table("contact");
     scene.model.thickness = contact.positive("thickness", scene.model.thickness);
+    if (contact.has("self_collision")) {
+      const auto* flag = root["contact"]["self_collision"].as_boolean();
+      if (!flag) contact.fail("self_collision", "true or false");
+      scene.model.self_collision = flag->get();
+      contact.mark_used("self_collision");
+    }
     contact.finish();
   }
   auto bodies = top.tables("body");

@@ -39,6 +39,7 @@ class Fields {
   Fields table(const std::string& key);
   std::vector<Fields> tables(const std::string& key);  // array of tables; empty when absent
 
+  void mark_used(const std::string& key) { used_.insert(key); }
   void finish() const;
   const std::string& file() const { return file_; }
   const std::string& prefix() const { return prefix_; }

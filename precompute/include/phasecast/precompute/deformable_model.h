@@ -82,7 +82,9 @@ struct DeformableModel {
   std::vector<TetElement> tets;
   std::vector<DragTriangle> drag;
   std::vector<BoxObstacle> obstacles;
-  double thickness = 0.005;  // contact distance kept from obstacles, m
+  double thickness =
+      0.005;  // contact distance kept from obstacles and, with self_collision, between surfaces, m
+  bool self_collision = false;  // proximity repulsion between the surface triangles and vertices
 
   int vertices() const { return static_cast<int>(mass.size()); }
 };
