@@ -5,3 +5,4 @@
 #include <CLI/CLI.hpp>
 
 void add_simulate_command(CLI::App& app);
+void add_import_command(CLI::App& app);
