@@ -41,7 +41,7 @@ int write_obj_frames(const OrbitStore& store, const std::vector<BoxObstacle>& ob
         Eigen::Map<const Eigen::Matrix<float, 3, 4, Eigen::RowMajor>>(store.support.row(n).data())
             .cast<double>();
     const Eigen::MatrixX3d world = (v * T.leftCols<3>().transpose()).rowwise() + T.col(3).transpose();
-    write_obj(dir / fmt::format("frame_{:05d}.obj", n), world, f);
+    write_obj(dir / fmt::format("frame_{:05d}.obj", n), world, f, store.segments.cast<int>());
     if (progress) progress(n + 1, store.frames());
   }
   return store.frames();

@@ -80,7 +80,7 @@ ObjMesh read_obj(const std::filesystem::path& path) {
 }
 
 void write_obj(const std::filesystem::path& path, const Eigen::MatrixX3d& vertices,
-               const Eigen::MatrixX3i& triangles) {
+               const Eigen::MatrixX3i& triangles, const Eigen::MatrixX2i& lines) {
   std::ofstream out(path);
   if (!out) throw ObjError(fmt::format("{}: cannot create OBJ file", path.string()));
   for (Eigen::Index i = 0; i < vertices.rows(); ++i) {
@@ -89,6 +89,8 @@ void write_obj(const std::filesystem::path& path, const Eigen::MatrixX3d& vertic
   for (Eigen::Index i = 0; i < triangles.rows(); ++i) {
     out << fmt::format("f {} {} {}\n", triangles(i, 0) + 1, triangles(i, 1) + 1, triangles(i, 2) + 1);
   }
+  for (Eigen::Index i = 0; i < lines.rows(); ++i)
+    out << fmt::format("l {} {}\n", lines(i, 0) + 1, lines(i, 1) + 1);
   out.close();
   if (!out) throw ObjError(fmt::format("{}: write failed", path.string()));
 }

@@ -55,6 +55,11 @@ OrbitStore empty_orbit_store(const Scene& scene) {
   const auto& m = scene.model;
   s.rest_positions = Eigen::Map<const RowMatrix<double>>(m.rest.data(), m.vertices(), 3).cast<float>();
   s.triangles = m.surface.cast<std::uint32_t>();
+  s.segments.resize(static_cast<Eigen::Index>(m.rod_stretch.size()), 2);
+  for (size_t e = 0; e < m.rod_stretch.size(); ++e) {
+    s.segments.row(static_cast<Eigen::Index>(e)) << static_cast<std::uint32_t>(m.rod_stretch[e].a),
+        static_cast<std::uint32_t>(m.rod_stretch[e].b);
+  }
   s.pinned = m.pinned;
   const auto D = static_cast<Eigen::Index>(scene.palette.size());
   s.alpha_impulse.resize(D, 3);

@@ -110,6 +110,10 @@ void validate_orbit_store(const OrbitStore& s, const std::string& source) {
   if ((s.triangles.array() >= static_cast<std::uint32_t>(V)).any())
     fail("/mesh/triangles", "vertex index out of range");
   if (s.triangles.cols() != 3 && s.triangles.rows() > 0) fail("/mesh/triangles", "expected F x 3");
+  if (s.segments.rows() > 0 &&
+      (s.segments.cols() != 2 || (s.segments.array() >= static_cast<std::uint32_t>(V)).any())) {
+    fail("/mesh/segments", "expected E x 2 vertex indices in range");
+  }
   if (static_cast<Eigen::Index>(s.pinned.size()) != V)
     fail("/mesh/pinned", fmt::format("expected {} entries", V));
   if (D == 0) fail("/palette/names", "expected at least one palette entry");
@@ -166,6 +170,7 @@ void write_orbit_store(const OrbitStore& s, const std::filesystem::path& path) {
       f.write_attribute("dt", s.dt);
       write_matrix(f, "/mesh/rest_positions", s.rest_positions);
       write_matrix(f, "/mesh/triangles", s.triangles);
+      if (s.segments.rows() > 0) write_matrix(f, "/mesh/segments", s.segments);  // only scenes with rods
       write_vector(f, "/mesh/pinned", s.pinned);
       f.write_strings("/palette/names", s.palette_names);
       write_matrix(f, "/palette/alpha_impulse", s.alpha_impulse);
@@ -208,6 +213,7 @@ OrbitStore read_orbit_store(const std::filesystem::path& path) {
     s.dt = f.read_attribute_number("dt");
     s.rest_positions = r.matrix<float>("/mesh/rest_positions");
     s.triangles = r.matrix<std::uint32_t>("/mesh/triangles");
+    s.segments = f.exists("/mesh/segments") ? r.matrix<std::uint32_t>("/mesh/segments") : MatrixXuR(0, 2);
     s.pinned = r.vector<std::uint8_t>("/mesh/pinned");
     s.palette_names = f.read_strings("/palette/names");
     s.alpha_impulse = r.matrix<float>("/palette/alpha_impulse");

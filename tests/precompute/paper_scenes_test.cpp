@@ -1,13 +1,18 @@
 // The paper's three scenes load in their tiny sizes, their palettes map onto
 // the package kinematics, and short runs move plausibly and stay finite.
 
+#include "phasecast/precompute/obj_frames.h"
 #include "phasecast/precompute/obj_mesh.h"
 #include "phasecast/precompute/orbit_recorder.h"
 #include "phasecast/precompute/scene.h"
+#include "run_tool.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+
+#include <fstream>
+#include <iterator>
 
 namespace phasecast::precompute {
 namespace {
@@ -99,6 +104,25 @@ TEST(PaperScenes, DashboardJoltsReturnToRest) {
   for (int f = 0; f < o.frames(); ++f)
     wobble = std::max(wobble, double((o.positions.row(f).transpose() - rest).cwiseAbs().maxCoeff()));
   EXPECT_GT(wobble, 0.002);
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
+
+namespace phasecast::precompute {
+namespace {
+
+TEST(PaperScenes, PlantStemTravelsThroughTheStoreAndObjFrames) {
+  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/plant_pot.toml");
+  const OrbitStore o = simulate_schedule(s, parse_schedule("right 0.04", s));
+  ASSERT_EQ(o.segments.rows(), 7);
+  const auto path = testing::scratch_dir("plant_segments") / "plant.h5";
+  write_orbit_store(o, path);
+  EXPECT_EQ(read_orbit_store(path).segments, o.segments);
+  write_obj_frames(o, s.model.obstacles, path.parent_path() / "frames");
+  std::ifstream obj(path.parent_path() / "frames/frame_00000.obj");
+  std::string text((std::istreambuf_iterator<char>(obj)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\nl 1 2\n"), std::string::npos);  // the stem's first edge
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 #pragma once
 // Exports an orbit as one OBJ file per frame in world coordinates (support
 // transform applied), the deformable surface followed by the rigid obstacle
-// boxes, so any mesh viewer can play the sequence.
+// boxes, and rod edges as OBJ lines, so any mesh viewer can play the sequence.
 
 #include "phasecast/precompute/deformable_model.h"
 #include "phasecast/precompute/orbit_store.h"

@@ -26,7 +26,8 @@ struct ObjMesh {
 ObjMesh read_obj(const std::filesystem::path& path);
 
 // Writes atomically enough for viewers (one ofstream, checked at close).
+// `lines` (E x 2, optional) become OBJ line elements ("l a b"): rods, stems.
 void write_obj(const std::filesystem::path& path, const Eigen::MatrixX3d& vertices,
-               const Eigen::MatrixX3i& triangles);
+               const Eigen::MatrixX3i& triangles, const Eigen::MatrixX2i& lines = Eigen::MatrixX2i(0, 2));
 
 }  // namespace phasecast::precompute

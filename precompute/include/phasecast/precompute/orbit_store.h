@@ -30,6 +30,7 @@ struct OrbitStore {
   double dt = 0;                     // s between frames
   MatrixXfR rest_positions;          // V x 3
   MatrixXuR triangles;               // F x 3 surface triangles
+  MatrixXuR segments;                // E x 2 rod edges (0 rows: no rods)
   std::vector<std::uint8_t> pinned;  // V
   // Palette (names, alpha_I, alpha_F: D x k, kinematics as core::SupportKinematics).
   std::vector<std::string> palette_names;
