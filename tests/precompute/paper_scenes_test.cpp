@@ -127,3 +127,28 @@ TEST(PaperScenes, PlantStemTravelsThroughTheStoreAndObjFrames) {
 
 }  // namespace
 }  // namespace phasecast::precompute
+
+namespace phasecast::precompute {
+namespace {
+
+// Fig. 8: opening the door (cloth side first) presses the cloth onto the board;
+// closing throws it away from the board.
+TEST(PaperScenes, DoorDragPressesClothOnOpeningAndLiftsItOnClosing) {
+  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/cloth_door.toml");
+  const OrbitStore o = simulate_schedule(s, parse_schedule("open 0.8; close 0.8", s));
+  const double board = s.model.obstacles[0].max.z() + s.model.thickness;
+  const auto mean_gap = [&](int frame) {
+    double gap = 0;
+    int n = 0;
+    for (int v = 0; v < o.vertices(); ++v) {
+      if (!o.pinned[static_cast<size_t>(v)]) gap += o.positions(frame, 3 * v + 2) - board, ++n;
+    }
+    return gap / n;
+  };
+  const double rest_gap = 0.012 - board;
+  EXPECT_LT(mean_gap(35), 0.1 * rest_gap);  // pressed flat onto the board while opening
+  EXPECT_GT(mean_gap(79), 5 * rest_gap);    // blown off the board while closing
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
