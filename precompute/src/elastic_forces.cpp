@@ -25,6 +25,15 @@ void add_block(ElasticEvaluation& out, int a, int b, const Matrix3d& block) {
   }
 }
 
+// A degenerate element still emits its (zero) blocks: the implicit solver
+// relies on a constant sparsity pattern from step to step.
+template <size_t N>
+void add_zero_blocks(ElasticEvaluation& out, const std::array<int, N>& v, bool with_stiffness) {
+  if (!with_stiffness) return;
+  for (int a : v)
+    for (int b : v) add_block(out, a, b, Matrix3d::Zero());
+}
+
 // Rotation part of the polar decomposition F = R S (3 x D, D = 2 or 3).
 // For tets a reflection is removed by flipping the weakest singular direction,
 // which makes inverted elements push back towards their rest orientation.
@@ -89,7 +98,10 @@ void hinge(const HingeElement& h, const Eigen::VectorXd& x, bool with_stiffness,
   for (int k = 0; k < 4; ++k) p[static_cast<size_t>(k)] = point(x, h.v[static_cast<size_t>(k)]);
   const Vector3d nA = (p[1] - p[0]).cross(p[2] - p[0]);
   const Vector3d nB = (p[3] - p[0]).cross(p[1] - p[0]);
-  if (nA.squaredNorm() < 1e-24 || nB.squaredNorm() < 1e-24) return;  // collapsed: no defined angle
+  if (nA.squaredNorm() < 1e-24 || nB.squaredNorm() < 1e-24) {  // collapsed: no defined angle
+    add_zero_blocks(out, h.v, with_stiffness);
+    return;
+  }
   const double delta = dihedral_angle(p[0], p[1], p[2], p[3]) - h.rest_angle;
   const double wrapped = std::remainder(delta, 2 * M_PI);
   out.energy += 0.5 * h.stiffness * wrapped * wrapped;
@@ -109,7 +121,10 @@ void rod_stretch(const RodStretchElement& r, const Eigen::VectorXd& x, bool with
                  ElasticEvaluation& out) {
   const Vector3d d = point(x, r.b) - point(x, r.a);
   const double l = d.norm();
-  if (l < 1e-12) return;
+  if (l < 1e-12) {
+    add_zero_blocks(out, std::array<int, 2>{r.a, r.b}, with_stiffness);
+    return;
+  }
   const Vector3d dir = d / l;
   out.energy += 0.5 * r.stiffness * (l - r.rest_length) * (l - r.rest_length);
   const Vector3d f = r.stiffness * (l - r.rest_length) * dir;
@@ -131,7 +146,10 @@ void rod_bend(const RodBendElement& r, const Eigen::VectorXd& x, bool with_stiff
   const Vector3d e1 = point(x, r.b) - point(x, r.a);
   const Vector3d e2 = point(x, r.c) - point(x, r.b);
   const double l1 = e1.norm(), l2 = e2.norm();
-  if (l1 < 1e-12 || l2 < 1e-12) return;
+  if (l1 < 1e-12 || l2 < 1e-12) {
+    add_zero_blocks(out, std::array<int, 3>{r.a, r.b, r.c}, with_stiffness);
+    return;
+  }
   const Vector3d t1 = e1 / l1, t2 = e2 / l2;
   const Vector3d d = t2 - t1;  // discrete curvature vector, |d| = 2 sin(theta / 2)
   const Matrix3d P1 = (Matrix3d::Identity() - t1 * t1.transpose()) / l1;
@@ -143,7 +161,10 @@ void rod_bend(const RodBendElement& r, const Eigen::VectorXd& x, bool with_stiff
   Matrix3d weight = Matrix3d::Identity();
   if (r.rest_turning > 1e-9) {
     const double dn = d.norm();
-    if (dn < 1e-12) return;
+    if (dn < 1e-12) {
+      add_zero_blocks(out, idx, with_stiffness);
+      return;
+    }
     residual = (dn - r.rest_turning) * d / dn;
     weight = d * d.transpose() / (dn * dn);
   }

@@ -210,13 +210,8 @@ class ImplicitSimulator final : public Simulator {
         }
       }
     }
-    Eigen::SparseMatrix<double> A(free_count_, free_count_);
-    A.setFromTriplets(triplets_.begin(), triplets_.end());
-    if (!pattern_analyzed_) {
-      ldlt_.analyzePattern(A);
-      pattern_analyzed_ = true;
-    }
-    ldlt_.factorize(A);
+    assemble(triplets_);
+    ldlt_.factorize(A_);
     if (ldlt_.info() != Eigen::Success) {
       throw SimulationError(
           fmt::format("implicit step at t={:.4f} s: the system matrix is not positive definite "
@@ -229,6 +224,35 @@ class ImplicitSimulator final : public Simulator {
       if (free_index_[d] >= 0) delta[static_cast<Eigen::Index>(d)] = solution[free_index_[d]];
     }
     return delta;
+  }
+
+  // The pattern of A never changes (every element always emits its blocks), so
+  // the first assembly records where each triplet lands in A's value array and
+  // later assemblies only scatter-add values (no sort), then reuse the symbolic
+  // factorization.
+  void assemble(const std::vector<Eigen::Triplet<double>>& triplets) {
+    if (!pattern_analyzed_) {
+      A_.resize(free_count_, free_count_);
+      A_.setFromTriplets(triplets.begin(), triplets.end());
+      A_.makeCompressed();
+      slots_.resize(triplets.size());
+      for (size_t k = 0; k < triplets.size(); ++k) {
+        const int* begin = A_.innerIndexPtr() + A_.outerIndexPtr()[triplets[k].col()];
+        const int* end = A_.innerIndexPtr() + A_.outerIndexPtr()[triplets[k].col() + 1];
+        slots_[k] = static_cast<int>(std::lower_bound(begin, end, triplets[k].row()) - A_.innerIndexPtr());
+      }
+      ldlt_.analyzePattern(A_);
+      pattern_analyzed_ = true;
+      return;
+    }
+    if (triplets.size() != slots_.size()) {
+      throw SimulationError(
+          fmt::format("implicit step at t={:.4f} s: stiffness pattern changed ({} entries, expected {})",
+                      state_.time, triplets.size(), slots_.size()));
+    }
+    double* values = A_.valuePtr();
+    std::fill(values, values + A_.nonZeros(), 0.0);
+    for (size_t k = 0; k < triplets.size(); ++k) values[slots_[k]] += triplets[k].value();
   }
 
   // Keeps free particles `thickness` outside every obstacle box; the inward
@@ -275,6 +299,8 @@ class ImplicitSimulator final : public Simulator {
   std::vector<int> free_index_;
   int free_count_ = 0;
   std::vector<Eigen::Triplet<double>> triplets_;
+  Eigen::SparseMatrix<double> A_;
+  std::vector<int> slots_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool pattern_analyzed_ = false;
 };
