@@ -100,7 +100,7 @@ int Fields::positive_integer(const std::string& key, int fallback) {
 
 std::vector<double> Fields::numbers(const std::string& key, size_t count) {
   const toml::node* n = node(key);
-  const std::string expected = fmt::format("an array of {} numbers", count);
+  const std::string expected = fmt::format("an array of {} finite numbers", count);
   if (!n || !n->is_array() || n->as_array()->size() != count) fail(key, expected);
   std::vector<double> out;
   for (const auto& e : *n->as_array()) {

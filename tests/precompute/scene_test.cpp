@@ -129,6 +129,13 @@ TEST(SceneErrors, WrongType) {
             ": field 'body[0].density': expected a positive number, got string \"heavy\"");
 }
 
+TEST(SceneErrors, NaNValue) {
+  EXPECT_EQ(rejection("nan", edited(kValid, "young = 100", "young = nan")),
+            ": field 'body[0].young': expected a positive number, got number nan");
+  EXPECT_EQ(rejection("nanvec", edited(kValid, "alpha_forcing = [0, 1, 0]", "alpha_forcing = [0, nan, 0]")),
+            ": field 'palette[0].alpha_forcing': expected an array of 3 finite numbers, got array of 3");
+}
+
 TEST(SceneErrors, UnknownEnergyName) {
   EXPECT_EQ(rejection("energy", edited(kValid, "\"bending\"]", "\"stretchy\"]")),
             ": field 'body[0].energies': expected energy names among membrane, bending, rod, tet_fem "
