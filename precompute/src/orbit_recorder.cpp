@@ -99,9 +99,22 @@ void record_irf(Simulator& simulator, const Scene& scene, int entry, int frames,
   }
 }
 
+void settle(Simulator& simulator, double seconds) {
+  const Eigen::VectorXd none = Eigen::VectorXd::Zero(simulator.alpha_size());
+  const int steps = frames_for(seconds, simulator.frame_dt());
+  for (int i = 0; i < steps; ++i) {
+    simulator.step(none);
+    SimState s = simulator.state();
+    s.v.setZero();
+    s.time = 0;
+    simulator.reset(s);
+  }
+}
+
 OrbitStore simulate_schedule(const Scene& scene, const std::vector<ScheduleItem>& schedule,
                              const ProgressCallback& progress) {
   auto simulator = make_simulator(scene);
+  settle(*simulator, scene.simulation.settle);
   OrbitStore store = empty_orbit_store(scene);
   int total = 0, done = 0;
   for (const auto& item : schedule) total += frames_for(item.duration, scene.simulation.frame_dt);

@@ -303,6 +303,8 @@ SimulationSettings read_simulation(Fields sim) {
   s.max_speed = sim.positive("max_speed", s.max_speed);
   s.friction = sim.number("friction", s.friction);
   if (s.friction < 0 || s.friction > 1) sim.fail("friction", "a number in [0, 1]");
+  s.settle = sim.number("settle", 0);
+  if (s.settle < 0) sim.fail("settle", "a number >= 0");
   sim.finish();
   return s;
 }

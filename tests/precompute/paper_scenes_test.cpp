@@ -152,3 +152,27 @@ TEST(PaperScenes, DoorDragPressesClothOnOpeningAndLiftsItOnClosing) {
 
 }  // namespace
 }  // namespace phasecast::precompute
+
+namespace phasecast::precompute {
+namespace {
+
+double fastest_after_idle_frames(const Scene& scene, double settle_seconds) {
+  auto sim = make_simulator(scene);
+  settle(*sim, settle_seconds);
+  double fastest = 0;
+  for (int i = 0; i < 10; ++i) {
+    sim->step(Eigen::Vector3d::Zero());
+    fastest = std::max(fastest, sim->state().v.lpNorm<Eigen::Infinity>());
+  }
+  return fastest;
+}
+
+TEST(PaperScenes, SettledToyRestsOnItsBase) {
+  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/toy_dashboard.toml");
+  EXPECT_DOUBLE_EQ(s.simulation.settle, 0.6);
+  EXPECT_GT(fastest_after_idle_frames(s, 0), 0.01);  // unsettled, it drops onto its base
+  EXPECT_LT(fastest_after_idle_frames(s, s.simulation.settle), 1e-4);
+}
+
+}  // namespace
+}  // namespace phasecast::precompute

@@ -34,7 +34,13 @@ OrbitStore empty_orbit_store(const Scene& scene);
 void record_irf(Simulator& simulator, const Scene& scene, int entry, int frames, OrbitStore& store,
                 const std::function<void()>& on_frame = {});
 
-// Runs the schedule from the rest state.
+// Relaxes the simulator towards static equilibrium under gravity with the
+// support at rest: `seconds / frame_dt` steps, each followed by zeroing the
+// velocities, so every step is a damped Newton move towards equilibrium
+// (a toy sags onto its base instead of bouncing at the start of the first IRF).
+void settle(Simulator& simulator, double seconds);
+
+// Runs the schedule from the rest state, settled for the scene's simulation.settle seconds.
 OrbitStore simulate_schedule(const Scene& scene, const std::vector<ScheduleItem>& schedule,
                              const ProgressCallback& progress = {});
 

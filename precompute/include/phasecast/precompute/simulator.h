@@ -56,6 +56,7 @@ struct SimulationSettings {
   double stiffness_damping = 0;  // Rayleigh b, s
   double max_speed = 50;         // m/s: particle speeds are clamped here (large impulses stay finite)
   double friction = 0.3;         // fraction of tangential velocity removed at an obstacle contact
+  double settle = 0;  // s of quasi-static relaxation before a recording starts (see orbit_recorder.h)
 };
 
 // Implicit backward Euler with Newton iterations on the velocities and a sparse
