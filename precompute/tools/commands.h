@@ -1,11 +1,13 @@
 #pragma once
-// Subcommands of phasecast-precompute, one file each (cmd_<name>.cpp).
+// One registration function per phasecast-precompute subcommand, each in its
+// own file, so parts of the pipeline are added without touching each other.
 
 #include <CLI/CLI.hpp>
 
-namespace phasecast::precompute::tools {
+void add_simulate_command(CLI::App& app);
+void add_import_command(CLI::App& app);
 
+namespace phasecast::precompute::tools {
 // `transfer <mesh.obj> -o transfer.h5`: diffuse PRT of a static mesh (docs/transfer.md).
 void add_transfer_command(CLI::App& app);
-
 }  // namespace phasecast::precompute::tools

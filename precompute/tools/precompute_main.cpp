@@ -1,17 +1,20 @@
-// phasecast-precompute: the offline pipeline as subcommands (commands.h).
-// Each subcommand's callback runs its work; failures surface here as one line.
+// phasecast-precompute: the offline pipeline (simulate, import, ...). Each
+// subcommand registers itself; its callback runs the library code and throws
+// on failure, reported here as one line.
 
 #include "commands.h"
 
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 
-#include <cstdio>
 #include <exception>
 
 int main(int argc, char** argv) {
-  CLI::App app{"Phasecast offline precompute: radiance transfer and the scene package stages."};
+  CLI::App app{
+      "Phasecast offline precompute: simulate scenes, import external orbits, compute radiance "
+      "transfer, build scene packages."};
   app.require_subcommand(1);
+  add_simulate_command(app);
+  add_import_command(app);
   phasecast::precompute::tools::add_transfer_command(app);
   try {
     app.parse(argc, argv);
