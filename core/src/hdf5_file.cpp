@@ -79,11 +79,19 @@ Handle string_type(bool variable) {
   return t;
 }
 
+// Object headers would otherwise carry modification times, and the same
+// package written twice would differ byte for byte (content hashes name packages).
+Handle untimed(hid_t property_class) {
+  Handle plist(check(H5Pcreate(property_class), "cannot create property list"), H5Pclose);
+  check(H5Pset_obj_track_times(plist.get(), false), "cannot disable time tracking");
+  return plist;
+}
+
 // Chunked layout with the Fletcher-32 filter: a flipped bit in bulk data makes
 // the read fail instead of returning wrong numbers. Chunks are whole rows,
 // about 1 MiB each. Empty datasets cannot be chunked and stay contiguous.
 Handle checksummed_layout(const std::vector<hsize_t>& dims, size_t element_bytes) {
-  Handle dcpl(check(H5Pcreate(H5P_DATASET_CREATE), "cannot create dataset properties"), H5Pclose);
+  Handle dcpl = untimed(H5P_DATASET_CREATE);
   hsize_t row_bytes = element_bytes;
   for (size_t i = 0; i < dims.size(); ++i) {
     if (dims[i] == 0) return dcpl;
@@ -229,7 +237,8 @@ void File::ensure_parent_groups(const std::string& name) {
   while ((pos = name.find('/', pos + 1)) != std::string::npos) {
     const std::string group = name.substr(0, pos);
     if (H5Lexists(file_.get(), group.c_str(), H5P_DEFAULT) > 0) continue;
-    Handle g(check(H5Gcreate2(file_.get(), group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+    Handle gcpl = untimed(H5P_GROUP_CREATE);
+    Handle g(check(H5Gcreate2(file_.get(), group.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT),
                    "cannot create group " + group),
              H5Gclose);
   }

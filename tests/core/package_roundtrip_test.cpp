@@ -1,6 +1,7 @@
 // Writing and reading a package reproduces it exactly; writes are atomic.
 
 #include "phasecast/core/basis.h"
+#include "phasecast/core/hash.h"
 #include "phasecast/core/package.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
@@ -90,6 +91,14 @@ TEST(PackageRoundTrip, WriteIsAtomicAndLeavesNoTemporaryFile) {
   int files = 0;
   for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++files;
   EXPECT_EQ(files, 1);
+}
+
+TEST(PackageRoundTrip, SamePackageGivesTheSameBytes) {
+  // Recordings and clients name packages by content hash: writing must be deterministic.
+  const auto dir = testing::scratch_dir("roundtrip_bytes");
+  core::write_package(testing::make_plate_package(), dir / "a.h5");
+  core::write_package(testing::make_plate_package(), dir / "b.h5");
+  EXPECT_EQ(core::file_content_hash(dir / "a.h5"), core::file_content_hash(dir / "b.h5"));
 }
 
 TEST(PackageRoundTrip, FixtureIsAConsistentPhasePortrait) {
