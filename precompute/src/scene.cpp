@@ -347,6 +347,11 @@ PaletteEntry read_entry(Fields e, const Scene& scene) {
         e.fail(key, "an angular velocity along support.axis");
     }
   }
+  if (e.has("after")) p.after = e.strings("after");
+  p.t_min = e.number("t_min", p.t_min);
+  p.t_max = e.positive("t_max", p.t_max);
+  if (!(p.t_min >= 0 && p.t_min < p.t_max)) e.fail("t_min", "a number >= 0 and below t_max");
+  p.on_end = e.optional_string("on_end").value_or(p.on_end);
   e.finish();
   return p;
 }

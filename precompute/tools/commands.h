@@ -5,3 +5,6 @@
 #include <CLI/CLI.hpp>
 
 void add_simulate_command(CLI::App& app);
+void add_sample_command(CLI::App& app);
+void add_reduce_command(CLI::App& app);
+void add_run_command(CLI::App& app);

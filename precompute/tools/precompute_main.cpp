@@ -13,6 +13,9 @@ int main(int argc, char** argv) {
       "Phasecast offline precompute: simulate scenes, import external orbits, build scene packages."};
   app.require_subcommand(1);
   add_simulate_command(app);
+  add_sample_command(app);
+  add_reduce_command(app);
+  add_run_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
