@@ -9,6 +9,13 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <chrono>
+#include <csignal>
+#include <thread>
+
 namespace phasecast {
 namespace {
 
@@ -78,6 +85,50 @@ TEST(PipelineCli, KilledRunResumesToTheSamePackageBytes) {
   EXPECT_TRUE(p.portrait.support == q.portrait.support);
   EXPECT_EQ(p.portrait.irf_start, q.portrait.irf_start);
   EXPECT_EQ(p.attributes.beta, q.attributes.beta);
+}
+
+// SIGKILL mid-run (after the first checkpoint), then --resume: the orbits equal an uninterrupted run's.
+TEST(PipelineCli, SigkilledRunResumesWithNoLostOrDuplicatedOrbit) {
+  const auto dir = scratch_dir("cli_sigkill");
+  const std::string killed = (dir / "killed.h5").string(), straight = (dir / "straight.h5").string();
+  const std::vector<std::string> opts = {"--chains", "2", "--irfs-per-chain", "12",
+                                         "-j",       "1", "--max-rank",       "20"};
+  std::vector<std::string> argv_s = args(
+      {testing::tool_path("phasecast-precompute").string(), "run", tiny_scene_path().string(), "-o", killed},
+      opts);
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  const auto first_checkpoint = std::filesystem::path(killed + ".work") / "chain-000.state.h5";
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!std::filesystem::exists(first_checkpoint) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the run ended before it could be killed";
+  EXPECT_FALSE(std::filesystem::exists(killed));
+  const auto resumed = run_tool("phasecast-precompute",
+                                args({"run", tiny_scene_path().string(), "-o", killed, "--resume"}, opts));
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  ASSERT_EQ(run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", straight}, opts))
+                .exit_code,
+            0);
+  const auto a = precompute::read_orbit_store(straight + ".work/orbits.h5");
+  const auto b = precompute::read_orbit_store(killed + ".work/orbits.h5");
+  ASSERT_EQ(a.irf_start.size(), 24u);
+  EXPECT_EQ(a.irf_palette, b.irf_palette);
+  EXPECT_EQ(a.irf_length, b.irf_length);
+  EXPECT_TRUE(a.positions == b.positions);
+  EXPECT_TRUE(a.velocities == b.velocities);
+  EXPECT_TRUE(core::read_package(straight).portrait.q_u == core::read_package(killed).portrait.q_u);
 }
 
 TEST(PipelineCli, SampleThenReduceMatchesRun) {

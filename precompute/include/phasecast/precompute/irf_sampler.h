@@ -29,8 +29,8 @@ struct SamplingProgress {
 };
 
 struct SamplingOptions {
-  int chains = 2;           // independent work units
-  int irfs_per_chain = 10;  // IRFs sampled by each chain
+  int chains = 4;           // independent work units
+  int irfs_per_chain = 16;  // IRFs sampled by each chain
   std::uint64_t seed = 1;   // same seed => bit-identical orbits
   int jobs = 2;             // chains simulated at once (threads)
   std::filesystem::path work_dir;
