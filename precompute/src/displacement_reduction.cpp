@@ -85,12 +85,16 @@ void OrbitDisplacementSource::read(Eigen::Index first, Eigen::Index count, Eigen
   block = (rows.transpose().colwise() - mean_);
 }
 
-DisplacementBasis reduce_displacements(const OrbitDisplacementSource& A, const ReductionOptions& o) {
+void check_reduction_options(const ReductionOptions& o) {
   if (o.rank < 0 || o.max_rank < 1 || !(o.eps_u >= 0 && o.eps_u < 1)) {
     throw std::invalid_argument(
         fmt::format("reduction: expected --rank >= 0, --max-rank >= 1 and --eps-u in [0, 1), got {}, {}, {}",
                     o.rank, o.max_rank, o.eps_u));
   }
+}
+
+DisplacementBasis reduce_displacements(const OrbitDisplacementSource& A, const ReductionOptions& o) {
+  check_reduction_options(o);
   RandomizedSvdOptions svd;
   svd.rank = std::max(o.max_rank, o.rank);
   svd.oversampling = o.oversampling;

@@ -219,10 +219,14 @@ IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int i
   return d;
 }
 
-OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
+void check_sampling_options(const SamplingOptions& o) {
   if (o.chains < 1 || o.irfs_per_chain < 1 || o.jobs < 1)
     throw SamplingError(fmt::format("sampling: expected chains, IRFs per chain and jobs >= 1, got {}, {}, {}",
                                     o.chains, o.irfs_per_chain, o.jobs));
+}
+
+OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
+  check_sampling_options(o);
   std::filesystem::create_directories(o.work_dir);
   Shared sh;
   sh.progress.irfs_total = o.chains * o.irfs_per_chain;

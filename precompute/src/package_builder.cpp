@@ -144,8 +144,20 @@ core::SceneMesh scene_mesh(const Scene& scene) {
   return m;
 }
 
+void check_package_options(const PackageOptions& o) {
+  if (!(std::isfinite(o.beta) && o.beta >= 0) || !(std::isfinite(o.blend_lambda) && o.blend_lambda > 0) ||
+      !(std::isfinite(o.filter.dead_end_fraction) && o.filter.dead_end_fraction >= 0) ||
+      o.filter.min_frames < 1) {
+    throw std::invalid_argument(
+        fmt::format("package options: expected --beta >= 0, --blend-lambda > 0, --dead-end-fraction >= 0 and "
+                    "--min-irf-frames >= 1, got {}, {}, {}, {}",
+                    o.beta, o.blend_lambda, o.filter.dead_end_fraction, o.filter.min_frames));
+  }
+}
+
 PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const OrbitIndex& orbits,
                            const DisplacementBasis& basis, const PackageOptions& o) {
+  check_package_options(o);
   check_matches(scene, orbits);
   PackageBuild out;
   core::ScenePackage& pkg = out.package;

@@ -83,6 +83,7 @@ void add_reduce_options(CLI::App* cmd, ReduceArgs& a) {
 }
 
 void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::filesystem::path& orbits) {
+  precompute::check_sampling_options(a.sampling);
   a.sampling.work_dir = a.work_dir.empty() ? std::filesystem::path(orbits.string() + ".work")
                                            : std::filesystem::path(a.work_dir);
   const auto rules = precompute::make_palette_rules(scene);
@@ -105,6 +106,8 @@ void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::f
 
 void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a,
                       const std::filesystem::path& orbits, const std::filesystem::path& package) {
+  precompute::check_reduction_options(a.reduction);
+  precompute::check_package_options(a.package);
   const auto rules = precompute::make_palette_rules(scene);
   const auto index = precompute::read_orbit_index(orbits);
   precompute::ProgressBar mean_bar("mean shape");

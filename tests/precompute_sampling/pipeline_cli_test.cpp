@@ -166,6 +166,31 @@ TEST(PipelineCli, BadRuleInSceneIsOneLine) {
   EXPECT_NE(r.err.find("field 'on_end': unknown name 'halt'"), std::string::npos) << r.err;
 }
 
+TEST(PipelineCli, BadNumbersAreOneLine) {
+  const auto dir = scratch_dir("cli_bad_numbers");
+  const auto scene = tiny_scene_path().string();
+  const auto orbits = (dir / "orbits.h5").string(), pkg = (dir / "p.h5").string();
+  ASSERT_EQ(run_tool("phasecast-precompute",
+                     {"sample", scene, "-o", orbits, "--chains", "1", "--irfs-per-chain", "1"})
+                .exit_code,
+            0);
+  const auto eps = run_tool("phasecast-precompute", {"reduce", scene, orbits, "-o", pkg, "--eps-u", "nan"});
+  EXPECT_EQ(eps.exit_code, 1);
+  EXPECT_TRUE(one_line(eps.err)) << eps.err;
+  EXPECT_NE(eps.err.find("--eps-u in [0, 1), got 0, 60, nan"), std::string::npos) << eps.err;
+  const auto lambda = run_tool("phasecast-precompute", {"reduce", scene, orbits, "-o", pkg, "--max-rank", "5",
+                                                        "--blend-lambda", "-1"});
+  EXPECT_EQ(lambda.exit_code, 1);
+  EXPECT_TRUE(one_line(lambda.err)) << lambda.err;
+  EXPECT_NE(lambda.err.find("--blend-lambda > 0"), std::string::npos) << lambda.err;
+  EXPECT_NE(lambda.err.find("got 0, -1, 0, 1"), std::string::npos) << lambda.err;
+  const auto chains = run_tool("phasecast-precompute", {"sample", scene, "-o", orbits, "--chains", "0"});
+  EXPECT_EQ(chains.exit_code, 1);
+  EXPECT_TRUE(one_line(chains.err)) << chains.err;
+  EXPECT_NE(chains.err.find("expected chains, IRFs per chain and jobs >= 1, got 0, 16, 2"), std::string::npos)
+      << chains.err;
+}
+
 TEST(PipelineCli, HelpListsTheSubcommands) {
   const auto r = run_tool("phasecast-precompute", {"--help"});
   EXPECT_EQ(r.exit_code, 0);

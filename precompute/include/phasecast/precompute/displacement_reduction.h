@@ -62,6 +62,9 @@ struct DisplacementBasis {
   int rank() const { return static_cast<int>(U_u.cols()); }
 };
 
+// Throws std::invalid_argument naming --rank, --max-rank and --eps-u.
+void check_reduction_options(const ReductionOptions& options);
+
 // Rank selection and Q_u = S V^T from the streamed SVD. Throws std::invalid_argument for bad options.
 DisplacementBasis reduce_displacements(const OrbitDisplacementSource& A, const ReductionOptions& options);
 

@@ -49,6 +49,9 @@ struct IrfDraw {
 };
 IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf, int previous);
 
+// Throws SamplingError naming the bad option (chains, IRFs per chain, jobs >= 1).
+void check_sampling_options(const SamplingOptions& options);
+
 // Runs (or resumes) every chain and returns their orbits concatenated in chain order.
 OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& options);
 

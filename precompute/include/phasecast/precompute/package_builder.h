@@ -46,6 +46,9 @@ struct PackageBuild {
 // obstacle as 24 static points (4 per face, single-sided, outward normals).
 core::SceneMesh scene_mesh(const Scene& scene);
 
+// Throws std::invalid_argument naming --beta, --blend-lambda, --dead-end-fraction, --min-irf-frames.
+void check_package_options(const PackageOptions& options);
+
 // Throws std::invalid_argument if the orbit store does not belong to the scene
 // (vertex count, palette names, dt), naming both.
 PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const OrbitIndex& orbits,
