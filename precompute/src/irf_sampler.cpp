@@ -139,6 +139,10 @@ OrbitStore resume_chain(const Scene& scene, const SamplingOptions& o, int chain,
     throw SamplingError(fmt::format("{}: holds {} IRFs but its state file {} records {}", store_path.string(),
                                     stored, state_path.string(), c.irfs));
   }
+  if (c.irfs > o.irfs_per_chain) {
+    throw SamplingError(fmt::format("{}: checkpoint holds {} IRFs, more than --irfs-per-chain {}",
+                                    state_path.string(), c.irfs, o.irfs_per_chain));
+  }
   truncate_store(store, c.irfs);
   sim.reset(c.state);
   return store;
@@ -257,7 +261,11 @@ OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const Samp
         "sampling stopped after {} new IRFs (--stop-after-irfs); rerun with --resume", sh.new_irfs.load()));
   }
   OrbitStore all = empty_orbit_store(scene);
-  for (const auto& c : chains) append_store(all, c);
+  // One chain at a time, freed once copied, so the frames are not held twice.
+  for (auto& c : chains) {
+    append_store(all, c);
+    c = OrbitStore{};
+  }
   return all;
 }
 

@@ -137,6 +137,25 @@ TEST_F(Sampler, ResumeWithAnotherSeedIsRejected) {
   }
 }
 
+TEST_F(Sampler, ResumeWithFewerIrfsThanCheckpointedIsRejected) {
+  const auto dir = scratch_dir("sampler_fewer");
+  auto o = small_options(dir);
+  o.chains = 1;
+  o.irfs_per_chain = 2;
+  sample_irfs(scene, rules, o);
+  o.irfs_per_chain = 1;
+  o.resume = true;
+  try {
+    sample_irfs(scene, rules, o);
+    FAIL() << "expected a SamplingError";
+  } catch (const SamplingError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "chain-000.state.h5: checkpoint holds 2 IRFs, more than --irfs-per-chain 1"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(Sampler, BadOptionsAreRejected) {
   auto o = small_options(scratch_dir("sampler_bad"));
   o.chains = 0;
