@@ -148,6 +148,25 @@ OrbitStore resume_chain(const Scene& scene, const SamplingOptions& o, int chain,
   return store;
 }
 
+// The chain's history after its first `irfs` IRFs, by replaying the draws;
+// they must reproduce the checkpointed entries (else the scene's rules changed).
+std::vector<int> replay_history(const PaletteRules& rules, const SamplingOptions& o, int chain,
+                                const OrbitStore& store, int irfs) {
+  std::vector<int> history;
+  for (int i = 0; i < irfs; ++i) {
+    const IrfDraw d = draw_irf(rules, o.seed, chain, i, history);
+    if (d.entry != store.irf_palette[static_cast<size_t>(i)]) {
+      throw SamplingError(fmt::format(
+          "{}: checkpointed IRF {} is entry {} but the palette rules now draw {} (was the "
+          "scene changed?)",
+          chain_store(o.work_dir, chain).string(), i, store.irf_palette[static_cast<size_t>(i)], d.entry));
+    }
+    if (d.from_rest) history.clear();
+    history.push_back(d.entry);
+  }
+  return history;
+}
+
 OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o, int chain,
                      Shared& sh) {
   auto sim = make_simulator(scene);
@@ -161,10 +180,15 @@ OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const Sampli
     sh.progress.nodes += store.frames();
     if (o.progress) o.progress(sh.progress);
   }
+  std::vector<int> history = replay_history(rules, o, chain, store, c.irfs);
   for (int i = c.irfs; i < o.irfs_per_chain; ++i) {
     if (sh.stop) break;
-    const IrfDraw draw = draw_irf(rules, o.seed, chain, i, c.previous);
-    if (draw.from_rest) sim->reset(sim->rest_state());
+    const IrfDraw draw = draw_irf(rules, o.seed, chain, i, history);
+    if (draw.from_rest) {
+      sim->reset(sim->rest_state());
+      history.clear();
+    }
+    history.push_back(draw.entry);
     record_irf(*sim, scene, draw.entry, draw.frames, store);
     c.irfs = i + 1;
     c.previous = draw.entry;
@@ -199,15 +223,21 @@ void append_store(OrbitStore& all, const OrbitStore& s) {
 
 }  // namespace
 
-IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf, int previous) {
+IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
+                 const std::vector<int>& history) {
   std::uint64_t word = splitmix(splitmix(splitmix(seed) ^ static_cast<std::uint64_t>(chain)) ^
                                 static_cast<std::uint64_t>(irf));
   IrfDraw d;
-  if (previous >= 0 && rules.on_end[static_cast<size_t>(previous)] >= 0) {
-    d.entry = rules.on_end[static_cast<size_t>(previous)];  // the named follow-up (validated as allowed)
+  const int previous = history.empty() ? -1 : history.back();
+  const int follow_up = previous >= 0 ? rules.on_end[static_cast<size_t>(previous)] : core::kEndRest;
+  if (follow_up >= 0 && rules.allowed_after(history, follow_up)) {
+    d.entry = follow_up;  // the named follow-up
   } else {
-    auto next = rules.successors(previous);
-    if (next.empty()) {
+    std::vector<int> next;
+    for (int e = 0; e < rules.size(); ++e) {
+      if (rules.allowed_after(history, e)) next.push_back(e);
+    }
+    if (next.empty()) {  // nothing may follow: back to rest
       d.from_rest = true;
       next = rules.successors(-1);
       if (next.empty())

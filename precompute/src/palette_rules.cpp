@@ -39,6 +39,18 @@ std::vector<int> PaletteRules::successors(int from) const {
   return next;
 }
 
+bool PaletteRules::allowed_after(const std::vector<int>& history, int to) const {
+  if (!allowed(history.empty() ? -1 : history.back(), to)) return false;
+  const int limit = max_in_a_row[static_cast<size_t>(to)];
+  if (limit == 0) return true;
+  int run = 0;
+  for (auto it = history.rbegin();
+       it != history.rend() && group[static_cast<size_t>(*it)] == group[static_cast<size_t>(to)]; ++it) {
+    ++run;
+  }
+  return run < limit;
+}
+
 PaletteRules make_palette_rules(const Scene& scene) {
   const int D = static_cast<int>(scene.palette.size());
   const double dt = scene.simulation.frame_dt;
@@ -59,6 +71,10 @@ PaletteRules make_palette_rules(const Scene& scene) {
     }
     rules.min_frames.push_back(lo);
     rules.max_frames.push_back(hi);
+    int g = 0;
+    while (g < d && scene.palette[static_cast<size_t>(g)].group != e.group) ++g;
+    rules.group.push_back(g == d ? d : rules.group[static_cast<size_t>(g)]);
+    rules.max_in_a_row.push_back(e.max_in_a_row);
   }
   for (int d = 0; d < D; ++d) {
     const auto& e = scene.palette[static_cast<size_t>(d)];

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 
 namespace phasecast::precompute {
 namespace {
@@ -98,32 +99,82 @@ TEST(PaletteRules, TminNotBelowTmaxIsRejectedByTheSceneParser) {
   }
 }
 
+// Draws `irfs` IRFs of one chain, checking every rule on the way; returns the entries.
+std::vector<int> checked_chain(const PaletteRules& rules, std::uint64_t seed, int chain, int irfs) {
+  std::vector<int> history, entries;
+  for (int irf = 0; irf < irfs; ++irf) {
+    const IrfDraw d = draw_irf(rules, seed, chain, irf, history);
+    if (d.from_rest) history.clear();
+    EXPECT_TRUE(rules.allowed_after(history, d.entry)) << "chain " << chain << " IRF " << irf;
+    if (!history.empty() && rules.on_end[static_cast<size_t>(history.back())] >= 0 &&
+        rules.allowed_after(history, rules.on_end[static_cast<size_t>(history.back())])) {
+      EXPECT_EQ(d.entry, rules.on_end[static_cast<size_t>(history.back())]);
+    }
+    EXPECT_GE(d.frames, rules.min_frames[static_cast<size_t>(d.entry)]);
+    EXPECT_LE(d.frames, rules.max_frames[static_cast<size_t>(d.entry)]);
+    const IrfDraw again = draw_irf(rules, seed, chain, irf, history);
+    EXPECT_EQ(again.entry, d.entry);
+    EXPECT_EQ(again.frames, d.frames);
+    history.push_back(d.entry);
+    entries.push_back(d.entry);
+  }
+  return entries;
+}
+
 TEST(IrfDraws, NeverViolateThePaletteRulesAndStayDeterministic) {
   const auto rules = make_palette_rules(load_scene(tiny_scene_path()));
   std::vector<int> used(3, 0);
   for (int chain = 0; chain < 20; ++chain) {
-    int previous = -1;
-    for (int irf = 0; irf < 50; ++irf) {
-      const IrfDraw d = draw_irf(rules, 7, chain, irf, previous);
-      ASSERT_TRUE(rules.allowed(d.from_rest ? -1 : previous, d.entry)) << previous << " -> " << d.entry;
-      if (previous >= 0 && rules.on_end[static_cast<size_t>(previous)] >= 0) {
-        ASSERT_EQ(d.entry, rules.on_end[static_cast<size_t>(previous)]);
-      }
-      ASSERT_GE(d.frames, rules.min_frames[static_cast<size_t>(d.entry)]);
-      ASSERT_LE(d.frames, rules.max_frames[static_cast<size_t>(d.entry)]);
-      const IrfDraw again = draw_irf(rules, 7, chain, irf, previous);
-      ASSERT_EQ(again.entry, d.entry);
-      ASSERT_EQ(again.frames, d.frames);
-      ++used[static_cast<size_t>(d.entry)];
-      previous = d.entry;
-    }
+    for (int e : checked_chain(rules, 7, chain, 50)) ++used[static_cast<size_t>(e)];
   }
   for (int n : used) EXPECT_GT(n, 50);  // every entry gets sampled
   // A different seed gives a different sequence.
   int differ = 0;
   for (int irf = 0; irf < 20; ++irf)
-    differ += draw_irf(rules, 7, 0, irf, 1).frames != draw_irf(rules, 8, 0, irf, 1).frames;
+    differ += draw_irf(rules, 7, 0, irf, {1}).frames != draw_irf(rules, 8, 0, irf, {1}).frames;
   EXPECT_GT(differ, 0);
+}
+
+TEST(IrfDraws, MaxInARowLimitsRunsOfAGroup) {
+  // Let stop follow itself, at most twice in a row; close and open form one group of at most one.
+  const auto dir = scratch_dir("rules_in_a_row");
+  std::string text = testing::read_text(tiny_scene_path());
+  const auto replace = [&](const std::string& from, const std::string& to) {
+    const auto at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  };
+  replace("after = [\"close\", \"open\"]", "after = [\"close\", \"open\", \"stop\"]\nmax_in_a_row = 2");
+  replace("on_end = \"stop\"               # the door stops",
+          "group = \"swing\"\nmax_in_a_row = 1\non_end = \"stop\" #");
+  replace("after = [\"rest\", \"stop\"]\nt_min = 0.2\nt_max = 1.0472\non_end = \"stop\"",
+          "after = [\"rest\", \"stop\"]\nt_min = 0.2\nt_max = 1.0472\ngroup = \"swing\"\non_end = \"stop\"");
+  std::ofstream(dir / "scene.toml") << text;
+  const auto rules = make_palette_rules(load_scene(dir / "scene.toml"));
+  EXPECT_EQ(rules.group[0], rules.group[2]);
+  EXPECT_NE(rules.group[0], rules.group[1]);
+  EXPECT_FALSE(rules.allowed_after({1, 1}, 1));
+  EXPECT_TRUE(rules.allowed_after({0, 1}, 1));
+  int double_stops = 0;
+  for (int chain = 0; chain < 10; ++chain) {
+    const auto entries = checked_chain(rules, 3, chain, 60);
+    for (size_t i = 2; i < entries.size(); ++i) {
+      EXPECT_FALSE(entries[i] == 1 && entries[i - 1] == 1 && entries[i - 2] == 1) << "three stops in a row";
+    }
+    for (size_t i = 1; i < entries.size(); ++i) double_stops += entries[i] == 1 && entries[i - 1] == 1;
+  }
+  EXPECT_GT(double_stops, 0);  // the limit binds: two in a row do occur
+}
+
+TEST(PaletteRules, NegativeMaxInARowIsRejected) {
+  const auto dir = scratch_dir("rules_bad_in_a_row");
+  try {
+    load_scene(edited_tiny_scene(dir, "t_min = 0.4\n", "t_min = 0.4\nmax_in_a_row = -1\n"));
+    FAIL() << "expected a SceneError";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("max_in_a_row"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("a whole number >= 0"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

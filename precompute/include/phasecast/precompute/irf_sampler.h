@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <stdexcept>
+#include <vector>
 
 namespace phasecast::precompute {
 
@@ -39,15 +40,16 @@ struct SamplingOptions {
   std::function<void(const SamplingProgress&)> progress;
 };
 
-// The chain-th chain's IRF sequence decision for its `irf`-th IRF given the
-// previous entry (-1: rest): the entry and its length in frames. Pure
-// function of (seed, chain, irf, previous), so resumes replay it exactly.
+// The chain-th chain's decision for its `irf`-th IRF given its history (the
+// entries since it last left rest, oldest first): the entry and its length in
+// frames. A pure function of (seed, chain, irf, history), so resumes replay it exactly.
 struct IrfDraw {
   int entry = 0;
   int frames = 1;
   bool from_rest = false;  // no entry may follow `previous`: the chain restarts from the rest state
 };
-IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf, int previous);
+IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
+                 const std::vector<int>& history);
 
 // Throws SamplingError naming the bad option (chains, IRFs per chain, jobs >= 1).
 void check_sampling_options(const SamplingOptions& options);

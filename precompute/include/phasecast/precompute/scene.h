@@ -34,6 +34,8 @@ struct PaletteEntry {
   double t_min = 0.1;              // s: shortest IRF the sampler draws
   double t_max = 1.0;              // s: longest IRF the sampler draws
   std::string on_end = "rest";     // "rest", "hold" or the name of a follow-up entry
+  std::string group;               // entries of one group count together for max_in_a_row ("": own name)
+  int max_in_a_row = 0;            // at most this many IRFs of the group in a row (0: unlimited)
 };
 
 // The vertices a body owns in the assembled model (welded vertices included).
