@@ -57,23 +57,29 @@ Eigen::VectorXd read_vec(const h5::File& f, const std::string& name, Eigen::Inde
 
 void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c, const SamplingOptions& o,
                       int chain) {
-  const std::filesystem::path tmp = path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid()));
-  {
-    h5::File f = h5::File::create(tmp);
-    f.write_attribute("seed", std::to_string(o.seed));
-    f.write_attribute("chain", std::int32_t{chain});
-    f.write_attribute("irfs", std::int32_t{c.irfs});
-    f.write_attribute("previous", std::int32_t{c.previous});
-    f.write_attribute("time", c.state.time);
-    write_vec(f, "/x", c.state.x);
-    write_vec(f, "/v", c.state.v);
-    const auto& s = c.state.support;
-    Eigen::VectorXd support(10);
-    support << s.held, s.pulse, s.pulse_time, s.coordinate;
-    write_vec(f, "/support", support);
-    f.flush();
+  try {
+    const std::filesystem::path tmp =
+        path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid()));
+    {
+      h5::File f = h5::File::create(tmp);
+      f.write_attribute("seed", std::to_string(o.seed));
+      f.write_attribute("chain", std::int32_t{chain});
+      f.write_attribute("irfs", std::int32_t{c.irfs});
+      f.write_attribute("previous", std::int32_t{c.previous});
+      f.write_attribute("time", c.state.time);
+      write_vec(f, "/x", c.state.x);
+      write_vec(f, "/v", c.state.v);
+      const auto& s = c.state.support;
+      Eigen::VectorXd support(10);
+      support << s.held, s.pulse, s.pulse_time, s.coordinate;
+      write_vec(f, "/support", support);
+      f.flush();
+    }
+    std::filesystem::rename(tmp, path);
+  } catch (const h5::Failure& e) {
+    std::filesystem::remove(path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid())));
+    throw SamplingError(fmt::format("{}: cannot write the checkpoint: {}", path.string(), e.what()));
   }
-  std::filesystem::rename(tmp, path);
 }
 
 Checkpoint read_checkpoint(const std::filesystem::path& path, const SamplingOptions& o, int chain,
@@ -261,7 +267,12 @@ void check_sampling_options(const SamplingOptions& o) {
 
 OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
   check_sampling_options(o);
-  std::filesystem::create_directories(o.work_dir);
+  std::error_code error;
+  std::filesystem::create_directories(o.work_dir, error);
+  if (error || !std::filesystem::is_directory(o.work_dir)) {
+    throw SamplingError(fmt::format("work folder {}: cannot create it ({})", o.work_dir.string(),
+                                    error ? error.message() : "not a folder"));
+  }
   Shared sh;
   sh.progress.irfs_total = o.chains * o.irfs_per_chain;
   std::vector<OrbitStore> chains(static_cast<size_t>(o.chains));

@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 namespace phasecast::precompute {
 namespace {
 
@@ -151,6 +153,20 @@ TEST_F(Sampler, ResumeWithFewerIrfsThanCheckpointedIsRejected) {
   } catch (const SamplingError& e) {
     EXPECT_NE(std::string(e.what()).find(
                   "chain-000.state.h5: checkpoint holds 2 IRFs, more than --irfs-per-chain 1"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST_F(Sampler, WorkFolderThatIsAFileIsRejected) {
+  const auto dir = scratch_dir("sampler_work_file");
+  std::ofstream(dir / "file") << "x";
+  auto o = small_options(dir / "file");
+  try {
+    sample_irfs(scene, rules, o);
+    FAIL() << "expected a SamplingError";
+  } catch (const SamplingError& e) {
+    EXPECT_NE(std::string(e.what()).find("work folder " + (dir / "file").string() + ": cannot create it"),
               std::string::npos)
         << e.what();
   }
