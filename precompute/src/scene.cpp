@@ -349,6 +349,15 @@ PaletteEntry read_entry(Fields e, const Scene& scene) {
         e.fail(key, "an angular velocity along support.axis");
     }
   }
+  if (e.has("after")) p.after = e.strings("after");
+  p.t_min = e.number("t_min", p.t_min);
+  p.t_max = e.positive("t_max", p.t_max);
+  if (!(p.t_min >= 0 && p.t_min < p.t_max)) e.fail("t_min", "a number >= 0 and below t_max");
+  p.on_end = e.optional_string("on_end").value_or(p.on_end);
+  p.group = e.optional_string("group").value_or(p.name);
+  const double run = e.number("max_in_a_row", 0);
+  if (!(run >= 0 && run <= 1e6 && run == std::floor(run))) e.fail("max_in_a_row", "a whole number >= 0");
+  p.max_in_a_row = static_cast<int>(run);
   e.finish();
   return p;
 }

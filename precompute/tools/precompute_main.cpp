@@ -16,6 +16,9 @@ int main(int argc, char** argv) {
   add_simulate_command(app);
   add_import_command(app);
   phasecast::precompute::tools::add_transfer_command(app);
+  add_sample_command(app);
+  add_reduce_command(app);
+  add_run_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -29,6 +29,13 @@ struct PaletteEntry {
   std::string name;
   Eigen::Vector3d alpha_impulse = Eigen::Vector3d::Zero();
   Eigen::Vector3d alpha_forcing = Eigen::Vector3d::Zero();
+  // Sampling rules (docs/sampling.md; checked by make_palette_rules in palette_rules.h).
+  std::vector<std::string> after;  // entries ("rest" = from rest) this one may follow; empty: any
+  double t_min = 0.1;              // s: shortest IRF the sampler draws
+  double t_max = 1.0;              // s: longest IRF the sampler draws
+  std::string on_end = "rest";     // "rest", "hold" or the name of a follow-up entry
+  std::string group;               // entries of one group count together for max_in_a_row ("": own name)
+  int max_in_a_row = 0;            // at most this many IRFs of the group in a row (0: unlimited)
 };
 
 // The vertices a body owns in the assembled model (welded vertices included).

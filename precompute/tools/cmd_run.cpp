@@ -1,0 +1,36 @@
+// phasecast-precompute run: sample -> reduce in one command (appearance joins later).
+
+#include "commands.h"
+#include "pipeline.h"
+
+#include <memory>
+#include <string>
+
+namespace {
+
+struct Options {
+  std::string scene;
+  std::string output;
+  phasecast::tools::SampleArgs sample;
+  phasecast::tools::ReduceArgs reduce;
+};
+
+}  // namespace
+
+void add_run_command(CLI::App& app) {
+  auto o = std::make_shared<Options>();
+  CLI::App* cmd = app.add_subcommand(
+      "run", "Build a scene package from a scene file: sample IRFs, then reduce (resumable).");
+  cmd->add_option("scene", o->scene, "scene file (.toml)")->required();
+  cmd->add_option("-o,--output", o->output, "scene package to write (.h5)")->required();
+  phasecast::tools::add_sample_options(cmd, o->sample);
+  phasecast::tools::add_reduce_options(cmd, o->reduce);
+  cmd->callback([o] {
+    const auto scene = phasecast::precompute::load_scene(o->scene);
+    auto sample = o->sample;
+    if (sample.work_dir.empty()) sample.work_dir = o->output + ".work";
+    const std::filesystem::path orbits = std::filesystem::path(sample.work_dir) / "orbits.h5";
+    phasecast::tools::run_sample_stage(scene, sample, orbits);
+    phasecast::tools::run_reduce_stage(scene, o->reduce, orbits, o->output);
+  });
+}

@@ -1,0 +1,30 @@
+// phasecast-precompute sample: random IRF chains obeying the palette rules (§3.4).
+
+#include "commands.h"
+#include "pipeline.h"
+
+#include <memory>
+#include <string>
+
+namespace {
+
+struct Options {
+  std::string scene;
+  std::string output;
+  phasecast::tools::SampleArgs sample;
+};
+
+}  // namespace
+
+void add_sample_command(CLI::App& app) {
+  auto o = std::make_shared<Options>();
+  CLI::App* cmd = app.add_subcommand(
+      "sample", "Sample random IRF chains of a scene (checkpointed, resumable) into an orbit store (HDF5).");
+  cmd->add_option("scene", o->scene, "scene file (.toml)")->required();
+  cmd->add_option("-o,--output", o->output, "orbit store to write (.h5)")->required();
+  phasecast::tools::add_sample_options(cmd, o->sample);
+  cmd->callback([o] {
+    const auto scene = phasecast::precompute::load_scene(o->scene);
+    phasecast::tools::run_sample_stage(scene, o->sample, o->output);
+  });
+}

@@ -1,0 +1,134 @@
+#include "pipeline.h"
+
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/displacement_reduction.h"
+#include "phasecast/precompute/progress.h"
+
+#include <fmt/format.h>
+
+#include <unistd.h>
+#include <chrono>
+
+namespace phasecast::tools {
+namespace {
+
+// Sampling progress: IRFs done/total, state nodes and ETA, redrawn on a
+// terminal, one line per 10 % otherwise.
+class SamplingDisplay {
+ public:
+  void operator()(const precompute::SamplingProgress& p) {
+    if (p.irfs_total <= 0) return;
+    if (first_done_ < 0) first_done_ = p.irfs_done;  // resumed IRFs do not count towards the rate
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const int fresh = p.irfs_done - first_done_;
+    const double eta = fresh > 0 ? elapsed * (p.irfs_total - p.irfs_done) / fresh : 0.0;
+    const int percent = 100 * p.irfs_done / p.irfs_total;
+    if (tty_) {
+      fmt::print(stderr, "\rsample: IRFs {}/{} ({:3d}%), {} state nodes, ETA {:.0f}s ", p.irfs_done,
+                 p.irfs_total, percent, p.nodes, eta);
+    } else if (percent / 10 != last_decile_) {
+      last_decile_ = percent / 10;
+      fmt::print(stderr, "sample: IRFs {}/{} ({}%), {} state nodes, elapsed {:.1f}s, ETA {:.0f}s\n",
+                 p.irfs_done, p.irfs_total, percent, p.nodes, elapsed, eta);
+    }
+    std::fflush(stderr);
+  }
+  void finish() const {
+    if (tty_) fmt::print(stderr, "\n");
+  }
+
+ private:
+  bool tty_ = ::isatty(::fileno(stderr)) != 0;
+  int last_decile_ = -1;
+  int first_done_ = -1;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+}  // namespace
+
+void add_sample_options(CLI::App* cmd, SampleArgs& a) {
+  auto& s = a.sampling;
+  cmd->add_option("--chains", s.chains, "independent IRF chains (work units)")->capture_default_str();
+  cmd->add_option("--irfs-per-chain", s.irfs_per_chain, "IRFs sampled by each chain")->capture_default_str();
+  cmd->add_option("--seed", s.seed, "random seed: same seed, same orbits, bit for bit")
+      ->capture_default_str();
+  cmd->add_option("-j,--jobs", s.jobs, "chains simulated at once")->capture_default_str();
+  cmd->add_option("--work-dir", a.work_dir, "checkpoint folder (default: <output>.work)");
+  cmd->add_flag("--resume", s.resume, "continue from the checkpoints of an interrupted run");
+  cmd->add_option("--stop-after-irfs", s.stop_after_irfs,
+                  "stop after this many new IRFs (for testing resume)")
+      ->group("");
+}
+
+void add_reduce_options(CLI::App* cmd, ReduceArgs& a) {
+  auto& r = a.reduction;
+  cmd->add_option("--eps-u", r.eps_u, "rank tolerance: r_u = largest r with sigma_r >= eps_u sigma_1")
+      ->capture_default_str();
+  cmd->add_option("--rank", r.rank, "fixed rank r_u instead of --eps-u (0: use --eps-u)")
+      ->capture_default_str();
+  cmd->add_option("--max-rank", r.max_rank, "singular values computed (length of the error curve)")
+      ->capture_default_str();
+  cmd->add_option("--power-iterations", r.power_iterations, "randomized SVD power iterations")
+      ->capture_default_str();
+  cmd->add_option("--svd-seed", r.seed, "seed of the randomized SVD")->capture_default_str();
+  auto& p = a.package;
+  cmd->add_option("--beta", p.beta, "velocity weight of eq. 9 (0: default of §2.3.2)")->capture_default_str();
+  cmd->add_option("--blend-lambda", p.blend_lambda, "IRF blend decay rate, 1/s (eq. 12)")
+      ->capture_default_str();
+  cmd->add_option("--min-irf-frames", p.filter.min_frames, "drop IRFs with fewer state nodes")
+      ->capture_default_str();
+  cmd->add_option("--dead-end-fraction", p.filter.dead_end_fraction,
+                  "drop IRFs ending farther than this x portrait radius from every IRF start (0: keep all)")
+      ->capture_default_str();
+}
+
+void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::filesystem::path& orbits) {
+  precompute::check_sampling_options(a.sampling);
+  a.sampling.work_dir = a.work_dir.empty() ? std::filesystem::path(orbits.string() + ".work")
+                                           : std::filesystem::path(a.work_dir);
+  const auto rules = precompute::make_palette_rules(scene);
+  fmt::print(stderr, "{}: {} vertices, {} palette entries, {} chains x {} IRFs, seed {}{}\n", scene.name,
+             scene.model.vertices(), scene.palette.size(), a.sampling.chains, a.sampling.irfs_per_chain,
+             a.sampling.seed, a.sampling.resume ? " (resuming)" : "");
+  auto display = std::make_shared<SamplingDisplay>();
+  a.sampling.progress = [display](const precompute::SamplingProgress& p) { (*display)(p); };
+  precompute::OrbitStore store;
+  try {
+    store = precompute::sample_irfs(scene, rules, a.sampling);
+  } catch (...) {
+    display->finish();
+    throw;
+  }
+  display->finish();
+  precompute::write_orbit_store(store, orbits);
+  fmt::print("wrote {} ({} IRFs, {} state nodes)\n", orbits.string(), store.irf_start.size(), store.frames());
+}
+
+void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a,
+                      const std::filesystem::path& orbits, const std::filesystem::path& package) {
+  precompute::check_reduction_options(a.reduction);
+  precompute::check_package_options(a.package);
+  const auto rules = precompute::make_palette_rules(scene);
+  const auto index = precompute::read_orbit_index(orbits);
+  precompute::ProgressBar mean_bar("mean shape");
+  const precompute::OrbitDisplacementSource A(orbits);
+  mean_bar.update(1, 1);
+  mean_bar.finish();
+  precompute::ProgressBar bar("randomized SVD");
+  auto options = a.reduction;
+  options.progress = [&bar](int done, int total) { bar.update(done, total); };
+  const auto basis = precompute::reduce_displacements(A, options);
+  bar.finish();
+  const auto built = precompute::build_package(scene, rules, index, basis, a.package);
+  for (const auto& line : built.filter.messages) fmt::print(stderr, "dropped {}\n", line);
+  core::write_package(built.package, package);
+  const auto& p = built.package;
+  fmt::print(
+      "wrote {}: N = {} state nodes, {} IRFs ({} short and {} dead ends dropped), r_u = {} (error {:.4f}), "
+      "beta = {:.4g}\n",
+      package.string(), p.portrait.nodes(), p.portrait.irf_count(), built.filter.dropped_short,
+      built.filter.dropped_dead_end, p.rank_u(), core::displacement_error_at_rank(p, p.rank_u()),
+      p.attributes.beta);
+}
+
+}  // namespace phasecast::tools

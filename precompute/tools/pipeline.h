@@ -1,0 +1,34 @@
+#pragma once
+// Options and stages shared by the sample, reduce and run subcommands.
+
+#include "phasecast/precompute/irf_sampler.h"
+#include "phasecast/precompute/package_builder.h"
+
+#include <CLI/CLI.hpp>
+
+#include <filesystem>
+#include <string>
+
+namespace phasecast::tools {
+
+struct SampleArgs {
+  precompute::SamplingOptions sampling;
+  std::string work_dir;  // empty: <output>.work
+};
+
+struct ReduceArgs {
+  precompute::ReductionOptions reduction;
+  precompute::PackageOptions package;
+};
+
+void add_sample_options(CLI::App* cmd, SampleArgs& args);
+void add_reduce_options(CLI::App* cmd, ReduceArgs& args);
+
+// Samples IRFs of the scene and writes the concatenated orbit store to `orbits`.
+void run_sample_stage(const precompute::Scene& scene, SampleArgs args, const std::filesystem::path& orbits);
+
+// Reduces the orbit store and writes the package; prints r_u, its error and what the filter dropped.
+void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& args,
+                      const std::filesystem::path& orbits, const std::filesystem::path& package);
+
+}  // namespace phasecast::tools
