@@ -1,0 +1,65 @@
+// phasecast-console: send impulses and script sessions in Lua (docs/console.md).
+
+#include "phasecast/client/console.h"
+
+#include <fmt/format.h>
+#include <CLI/CLI.hpp>
+
+#include <unistd.h>
+#include <csignal>
+#include <iostream>
+#include <iterator>
+
+namespace {
+
+extern "C" void on_sigint(int) {
+  phasecast::client::Console::interrupt();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "Phasecast scripting console: Lua 5.4 with functions that send impulses to a "
+      "phasecast-server and follow its instances. Runs a script file, -e code, a script on "
+      "standard input, or an interactive prompt on a terminal."};
+  phasecast::client::ConsoleOptions options;
+  std::string script;
+  std::vector<std::string> code;
+  int timeout_ms = 2000;
+  app.add_option("--connect", options.endpoint, "server command endpoint")->capture_default_str();
+  app.add_option("--timeout", timeout_ms, "milliseconds to wait for each reply before retrying")
+      ->check(CLI::Range(1, 600000))
+      ->capture_default_str();
+  app.add_option("--attempts", options.attempts, "tries per request before giving up")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  app.add_option("-e,--execute", code, "Lua code to run (repeatable, runs before the script)");
+  app.add_option("script", script, "Lua script file")->check(CLI::ExistingFile);
+  CLI11_PARSE(app, argc, argv);
+  options.timeout = std::chrono::milliseconds(timeout_ms);
+
+  try {
+    phasecast::client::Console console(options);
+    for (const auto& chunk : code) console.run_string(chunk, "=(command line)");
+    if (!script.empty()) {
+      console.run_file(script);
+    } else if (code.empty()) {
+      if (isatty(STDIN_FILENO)) {
+        // In the REPL, Ctrl-C cancels the running wait instead of ending the console.
+        struct sigaction sa {};
+        sa.sa_handler = on_sigint;
+        sigemptyset(&sa.sa_mask);
+        sigaction(SIGINT, &sa, nullptr);
+        console.repl();
+      } else {
+        const std::string input{std::istreambuf_iterator<char>(std::cin), {}};
+        console.run_string(input, "=stdin");
+      }
+    }
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "phasecast-console: {}\n", e.what());
+    return 1;
+  }
+  return 0;
+}
