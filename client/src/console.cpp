@@ -58,7 +58,8 @@ struct Console::Impl {
   }
 
   v1::InstanceInfo instance(std::uint32_t id) {
-    for (const auto& i : command.list_instances().instances()) {
+    const v1::InstanceList list = command.list_instances();
+    for (const auto& i : list.instances()) {
       if (i.instance() == id) return i;
     }
     throw NetworkError(fmt::format("no instance {} on the server", id));

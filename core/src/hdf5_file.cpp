@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <unistd.h>
 #include <algorithm>
 #include <cstring>
 
@@ -360,6 +361,24 @@ void File::write_attribute_on(const std::string& object, const std::string& name
   Handle type = string_type(true);
   const char* raw = value.c_str();
   write_attr(obj.get(), name, type.get(), type.get(), &raw, 1, true);
+}
+
+void write_atomically(const std::filesystem::path& path, const std::function<void(File&)>& fill) {
+  const std::filesystem::path tmp = path.string() + ".partial-" + std::to_string(::getpid());
+  try {
+    {
+      File f = File::create(tmp);
+      fill(f);
+      f.flush();
+    }
+    std::filesystem::rename(tmp, path);
+  } catch (const Failure&) {
+    std::filesystem::remove(tmp);
+    throw;
+  } catch (const std::filesystem::filesystem_error& e) {
+    std::filesystem::remove(tmp);
+    throw Failure(e.code().message());
+  }
 }
 
 void File::flush() {

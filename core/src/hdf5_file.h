@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -115,5 +116,11 @@ class File {
   void ensure_parent_groups(const std::string& name);
   Handle file_;
 };
+
+// Writes a new HDF5 file atomically: `fill` writes into a temporary file in
+// the same folder, which is flushed and then renamed over `path`, so an
+// interrupted write never leaves a partial file under the final name. Any
+// failure removes the temporary file and throws Failure with the reason.
+void write_atomically(const std::filesystem::path& path, const std::function<void(File&)>& fill);
 
 }  // namespace phasecast::core::h5

@@ -8,7 +8,6 @@
 
 #include <fmt/format.h>
 
-#include <unistd.h>
 #include <cmath>
 
 namespace phasecast::core {
@@ -321,20 +320,10 @@ ScenePackage read_package(const std::filesystem::path& path) {
 
 void write_package(const ScenePackage& package, const std::filesystem::path& path) {
   validate_package(package, path.string());
-  const std::filesystem::path tmp = path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid()));
   try {
-    {
-      h5::File f = h5::File::create(tmp);
-      write_to(f, package);
-      f.flush();
-    }
-    std::filesystem::rename(tmp, path);
+    h5::write_atomically(path, [&package](h5::File& f) { write_to(f, package); });
   } catch (const h5::Failure& e) {
-    std::filesystem::remove(tmp);
     throw PackageError(fmt::format("{}: cannot write package: {}", path.string(), e.what()));
-  } catch (const std::filesystem::filesystem_error& e) {
-    std::filesystem::remove(tmp);
-    throw PackageError(fmt::format("{}: cannot write package: {}", path.string(), e.code().message()));
   }
 }
 

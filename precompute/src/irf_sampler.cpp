@@ -6,7 +6,6 @@
 
 #include <fmt/format.h>
 
-#include <unistd.h>
 #include <atomic>
 #include <exception>
 #include <mutex>
@@ -28,6 +27,7 @@ std::uint64_t splitmix(std::uint64_t x) {
 std::filesystem::path chain_store(const std::filesystem::path& dir, int chain) {
   return dir / fmt::format("chain-{:03d}.h5", chain);
 }
+
 std::filesystem::path chain_state(const std::filesystem::path& dir, int chain) {
   return dir / fmt::format("chain-{:03d}.state.h5", chain);
 }
@@ -58,10 +58,7 @@ Eigen::VectorXd read_vec(const h5::File& f, const std::string& name, Eigen::Inde
 void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c, const SamplingOptions& o,
                       int chain) {
   try {
-    const std::filesystem::path tmp =
-        path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid()));
-    {
-      h5::File f = h5::File::create(tmp);
+    h5::write_atomically(path, [&c, &o, chain](h5::File& f) {
       f.write_attribute("seed", std::to_string(o.seed));
       f.write_attribute("chain", std::int32_t{chain});
       f.write_attribute("irfs", std::int32_t{c.irfs});
@@ -73,11 +70,8 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c, co
       Eigen::VectorXd support(10);
       support << s.held, s.pulse, s.pulse_time, s.coordinate;
       write_vec(f, "/support", support);
-      f.flush();
-    }
-    std::filesystem::rename(tmp, path);
+    });
   } catch (const h5::Failure& e) {
-    std::filesystem::remove(path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid())));
     throw SamplingError(fmt::format("{}: cannot write the checkpoint: {}", path.string(), e.what()));
   }
 }

@@ -7,7 +7,6 @@
 
 #include <fmt/format.h>
 
-#include <unistd.h>
 
 namespace phasecast::precompute {
 namespace {
@@ -159,10 +158,8 @@ void validate_orbit_store(const OrbitStore& s, const std::string& source) {
 
 void write_orbit_store(const OrbitStore& s, const std::filesystem::path& path) {
   validate_orbit_store(s, path.string());
-  const std::filesystem::path tmp = path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid()));
   try {
-    {
-      h5::File f = h5::File::create(tmp);
+    h5::write_atomically(path, [&s](h5::File& f) {
       f.write_attribute("format", std::string(kFormat));
       f.write_attribute("format_version", std::int32_t{kOrbitStoreVersion});
       f.write_attribute("scene", s.scene);
@@ -183,15 +180,9 @@ void write_orbit_store(const OrbitStore& s, const std::filesystem::path& path) {
       write_vector(f, "/irfs/start", s.irf_start);
       write_vector(f, "/irfs/length", s.irf_length);
       write_vector(f, "/irfs/palette", s.irf_palette);
-      f.flush();
-    }
-    std::filesystem::rename(tmp, path);
+    });
   } catch (const h5::Failure& e) {
-    std::filesystem::remove(tmp);
     throw OrbitStoreError(fmt::format("{}: cannot write: {}", path.string(), e.what()));
-  } catch (const std::filesystem::filesystem_error& e) {
-    std::filesystem::remove(tmp);
-    throw OrbitStoreError(fmt::format("{}: cannot write: {}", path.string(), e.code().message()));
   }
 }
 

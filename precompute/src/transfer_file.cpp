@@ -7,7 +7,6 @@
 
 #include <fmt/format.h>
 #include <tiny_obj_loader.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <stdexcept>
@@ -116,10 +115,8 @@ void write_transfer_file(const TransferFile& file, const std::filesystem::path& 
     throw std::invalid_argument(fmt::format(
         "{}: transfer file needs S x 3 positions and normals and S x 48 transfer", path.string()));
   }
-  const std::filesystem::path tmp = path.string() + fmt::format(".partial-{}", static_cast<long>(::getpid()));
   try {
-    {
-      h5::File f = h5::File::create(tmp);
+    h5::write_atomically(path, [&file, S](h5::File& f) {
       f.write("/positions", file.positions.data(), {S, 3});
       f.write("/normals", file.normals.data(), {S, 3});
       f.write("/transfer", file.transfer.data(), {S, 3, 16});
@@ -127,16 +124,9 @@ void write_transfer_file(const TransferFile& file, const std::filesystem::path& 
       f.write_attribute("rays", static_cast<std::int32_t>(file.options.rays));
       f.write_attribute("bounces", static_cast<std::int32_t>(file.options.bounces));
       f.write_attribute("albedo", std::vector<float>(file.options.albedo.begin(), file.options.albedo.end()));
-      f.flush();
-    }
-    std::filesystem::rename(tmp, path);
+    });
   } catch (const h5::Failure& e) {
-    std::filesystem::remove(tmp);
     throw std::runtime_error(fmt::format("{}: cannot write transfer file: {}", path.string(), e.what()));
-  } catch (const std::filesystem::filesystem_error& e) {
-    std::filesystem::remove(tmp);
-    throw std::runtime_error(
-        fmt::format("{}: cannot write transfer file: {}", path.string(), e.code().message()));
   }
 }
 

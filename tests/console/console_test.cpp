@@ -95,14 +95,14 @@ TEST_F(ConsoleSession, ScriptsDriveSeveralInstances) {
   std::ofstream(dir_ / "two.lua") << "a = create('plate')\n"
                                      "b = create('plate')\n"
                                      "impulse(a, 'open')\n"
-                                     "impulse(b, 1 - 1)  -- index 0: close\n"
+                                     "impulse(b, 2)  -- by index: open\n"
                                      "wait_frames(5, b)\n"
                                      "print(#instances(), state(a).entry, state(b).entry)\n"
                                      "destroy(a)\n"
                                      "print(#instances())\n";
   const auto r = console({(dir_ / "two.lua").string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(r.out, "3\topen\tclose\n2\n");
+  EXPECT_EQ(r.out, "3\topen\topen\n2\n");
 }
 
 TEST_F(ConsoleSession, ScriptErrorExitsWithFileAndLine) {

@@ -42,8 +42,9 @@ class Console {
   // Async-signal-safe: makes a running wait()/wait_frames() raise "interrupted".
   static void interrupt();
 
+  struct Impl;  // the Lua state and the server connection (console.cpp)
+
  private:
-  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
