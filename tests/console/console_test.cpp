@@ -146,6 +146,43 @@ TEST_F(ConsoleSession, ScriptOnStandardInput) {
   EXPECT_EQ(std::string(buffer, n), "plate\t3\n");
 }
 
+// The pot and dashboard example scripts against tiny packages made by the real
+// precompute (seeds chosen so that every palette entry has sampled IRFs).
+struct ExampleScene {
+  const char* scene;
+  const char* script;
+  const char* seed;
+  const char* irfs;
+  const char* done;
+};
+
+class ConsoleExample : public ::testing::TestWithParam<ExampleScene> {};
+
+TEST_P(ConsoleExample, RunsUnattendedAgainstAPrecomputedPackage) {
+  const auto& e = GetParam();
+  const auto dir = testing::scratch_dir(std::string("console_example_") + e.scene);
+  const auto package = dir / (std::string(e.scene) + ".h5");
+  const auto pre =
+      testing::run_tool("phasecast-precompute",
+                        {"run", std::string(PHASECAST_SCENES_DIR) + "/tiny/" + e.scene + ".toml", "-o",
+                         package.string(), "--chains", "1", "--irfs-per-chain", e.irfs, "--seed", e.seed});
+  ASSERT_EQ(pre.exit_code, 0) << pre.err;
+  testing::ServerProcess server({package.string()});
+  ::setenv("PUSHES", "1", 1);
+  const auto r = testing::run_tool(
+      "phasecast-console", {"--connect", server.cmd(), std::string(PHASECAST_SCRIPTS_DIR) + "/" + e.script});
+  ::unsetenv("PUSHES");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr(e.done));
+}
+
+INSTANTIATE_TEST_SUITE_P(Scripts, ConsoleExample,
+                         ::testing::Values(ExampleScene{"plant_pot", "pot_left_right.lua", "5", "9",
+                                                        "pot session done"},
+                                           ExampleScene{"toy_dashboard", "dashboard_jolts.lua", "4", "10",
+                                                        "dashboard session done"}),
+                         [](const auto& p) { return std::string(p.param.scene); });
+
 TEST(ConsoleOffline, ServerDownIsAClearError) {
   const auto r = testing::run_tool("phasecast-console", {"--connect", "tcp://127.0.0.1:9", "--timeout", "100",
                                                          "--attempts", "2", "-e", "scenes()"});
