@@ -103,6 +103,9 @@ def main():
             with open(args.stats_out, "w") as f:
                 f.write(json_format.MessageToJson(stats.stats, preserving_proto_field_name=True))
         print(f"drive: {applied} impulses queued, {refused} refused at queue time", flush=True)
+    except KeyboardInterrupt:
+        print("drive_impulses: interrupted", file=sys.stderr)
+        return 130
     except Exception as e:  # one line, the shell script reports it
         print(f"drive_impulses: {e}", file=sys.stderr)
         return 1
