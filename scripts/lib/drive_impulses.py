@@ -9,7 +9,9 @@ so the same sequence lands in the same frames however loaded the machine is.
                     [--stats-out stats.json]
 
 Each step is ENTRY@OFFSET: palette entry ENTRY in frame start + OFFSET, where
-start is a few frames after the instance's current frame. A step the palette
+start is a few frames after the instance's current frame. Each impulse is sent
+about three frames ahead of its frame, so the server checks it against the
+entry playing then. A step the palette
 refuses is reported on stdout and counted; it does not end the run (the IRF
 before it may already have ended into another entry). The script waits until
 the last step's frame has passed, then writes the server's stats as JSON.
@@ -19,7 +21,7 @@ import json
 import sys
 import time
 
-DEFAULT_SEQUENCE = "open@0 stop@40 close@100 stop@140 open@200 stop@240"
+DEFAULT_SEQUENCE = "open@0 close@60 open@130 close@200"
 
 
 def parse_sequence(text):
@@ -83,10 +85,15 @@ def main():
         start = instance_frame(commands, args.instance) + 5
         applied = refused = 0
         for entry, offset in steps:
-            def fill(r, entry=entry, offset=offset):
+            # Sent just before its frame, so the server checks it against the entry
+            # playing then (a queued impulse is checked against the one queued before it).
+            target = start + offset
+            while instance_frame(commands, args.instance) + 3 < target:
+                time.sleep(0.02)
+            def fill(r, entry=entry, target=target):
                 r.impulse.instance = args.instance
                 r.impulse.name = entry
-                r.impulse.at_frame = start + offset
+                r.impulse.at_frame = target
             reply = commands.call(fill)
             if reply.ok:
                 applied += 1
