@@ -64,6 +64,9 @@ def main():
                          f"{fps.group(4)} frames/s end-to-end; {seq}"))
         else:
             rows.append((f"renderer {tag}", "no summary line (see logs/render-%s.log)" % tag))
+    check_log = os.path.join(out, "logs", "replay-check.log")
+    check_lines = open(check_log).read().strip().splitlines() if os.path.exists(check_log) else []
+    rows.append(("recording `session.phcrec` replay check", check_lines[-1] if check_lines else "not run"))
     rows.append(("renderers a / b: frames, common frames, byte-identical PNGs",
                  f"{na} / {nb}, {len(common)}, {same}"))
 
