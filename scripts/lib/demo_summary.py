@@ -1,0 +1,82 @@
+#!/usr/bin/env python3
+"""Writes the demo's summary (markdown, stdout) from what scripts/demo left in OUT.
+
+  demo_summary.py OUT PACKAGE RATE
+
+Reads OUT/inspect.json (phasecast-inspect --json), OUT/stats.json (the server's
+Stats after the impulses), OUT/logs/render-{a,b}.log (the renderers' summary
+lines) and compares the two renderers' frames file by file.
+"""
+import json
+import os
+import re
+import sys
+
+
+def renderer_figures(log_path):
+    text = open(log_path).read() if os.path.exists(log_path) else ""
+    fps = re.search(r"(\d+) frames at (\d+x\d+): ([\d.]+) frames/s render-only, ([\d.]+) frames/s end-to-end", text)
+    seq = re.search(r"sequence gaps .*", text)
+    return fps, (seq.group(0) if seq else "no sequence line")
+
+
+def compare_frames(a_dir, b_dir):
+    a = set(n for n in os.listdir(a_dir) if n.endswith(".png"))
+    b = set(n for n in os.listdir(b_dir) if n.endswith(".png"))
+    common = sorted(a & b)
+    same = sum(open(os.path.join(a_dir, n), "rb").read() == open(os.path.join(b_dir, n), "rb").read() for n in common)
+    return len(a), len(b), common, same
+
+
+def percent(x):
+    return f"{100 * x:.3g}%" if x is not None else "n/a"
+
+
+def main():
+    out, package, rate = sys.argv[1], sys.argv[2], float(sys.argv[3])
+    s = json.load(open(os.path.join(out, "inspect.json")))
+    stats_path = os.path.join(out, "stats.json")
+    stats = json.load(open(stats_path)) if os.path.exists(stats_path) else {}
+    na, nb, common, same = compare_frames(os.path.join(out, "frames", "a"), os.path.join(out, "frames", "b"))
+
+    rows = [
+        ("package", f"`{os.path.relpath(package, out)}` ({os.path.getsize(package)} bytes)"),
+        ("scene points S / triangles F", f"{s['S']} / {s['F']}"),
+        ("state nodes N / IRFs", f"{s['N']} / {s['n_irf']}"),
+        ("palette", ", ".join(s["palette"])),
+        ("displacement rank r_u, rel. error", f"{s['r_u']}, {percent(s['rel_error_u'])}"),
+        ("appearance rank r_a, rel. error",
+         f"{s['r_a']}, {percent(s['rel_error_a'])}" if s["r_a"] else "0 (no /appearance: grey diffuse shading of the rest normals)"),
+        ("thin-client download (once)", f"{s['client_download_bytes']} bytes"),
+        ("bytes per frame (reduced state)", s["frame_state_bytes"]),
+        ("bytes per frame (full vertex streaming)", s["full_vertex_frame_bytes"]),
+        ("server tick rate", f"{rate:g} Hz"),
+        ("server frames published / late ticks (when the last impulse had passed)", f"{stats.get('frames_published', '?')} / {stats.get('late_ticks', 0 if stats else '?')}"),
+        ("impulses applied / refused by the palette",
+         f"{stats.get('impulses_applied', 0 if stats else '?')} / {stats.get('impulses_refused', 0 if stats else '?')}"),
+        ("server longest tick", f"{1e3 * float(stats.get('max_tick_seconds', 'nan')):.3g} ms"),
+    ]
+    for tag in ("a", "b"):
+        fps, seq = renderer_figures(os.path.join(out, "logs", f"render-{tag}.log"))
+        if fps:
+            rows.append((f"renderer {tag}",
+                         f"{fps.group(1)} frames at {fps.group(2)}: {fps.group(3)} frames/s render-only, "
+                         f"{fps.group(4)} frames/s end-to-end; {seq}"))
+        else:
+            rows.append((f"renderer {tag}", "no summary line (see logs/render-%s.log)" % tag))
+    check_log = os.path.join(out, "logs", "replay-check.log")
+    check_lines = open(check_log).read().strip().splitlines() if os.path.exists(check_log) else []
+    rows.append(("recording `session.phcrec` replay check", check_lines[-1] if check_lines else "not run"))
+    rows.append(("renderers a / b: frames, common frames, byte-identical PNGs",
+                 f"{na} / {nb}, {len(common)}, {same}"))
+
+    print(f"# Phasecast demo: scene '{s['scene']}'\n")
+    print("| figure | value |\n|---|---|")
+    for k, v in rows:
+        print(f"| {k} | {v} |")
+    if common and same != len(common):
+        print(f"\n**Warning:** {len(common) - same} common frames differ between the two renderers.")
+
+
+if __name__ == "__main__":
+    main()
