@@ -60,6 +60,57 @@ void add_box(core::SceneMesh& m, const Eigen::Vector3d& lo, const Eigen::Vector3
   }
 }
 
+// Vertices that get a back-side copy, ascending: those of sheet triangles
+// (surface triangles with no vertex in a tetrahedron).
+std::vector<int> back_side_vertices(const DeformableModel& model) {
+  const auto V = static_cast<size_t>(model.vertices());
+  std::vector<std::uint8_t> in_tet(V, 0), sheet(V, 0);
+  for (const auto& t : model.tets)
+    for (int v : t.v) in_tet[static_cast<size_t>(v)] = 1;
+  for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
+    const bool thin = !in_tet[static_cast<size_t>(model.surface(t, 0))] &&
+                      !in_tet[static_cast<size_t>(model.surface(t, 1))] &&
+                      !in_tet[static_cast<size_t>(model.surface(t, 2))];
+    if (thin)
+      for (int k = 0; k < 3; ++k) sheet[static_cast<size_t>(model.surface(t, k))] = 1;
+  }
+  std::vector<int> out;
+  for (size_t v = 0; v < V; ++v)
+    if (sheet[v]) out.push_back(static_cast<int>(v));
+  return out;
+}
+
+// Appends the back side of the sheets: copied points with flipped normals and
+// the sheet triangles with reversed winding over them.
+void add_back_side(core::SceneMesh& m, const DeformableModel& model, const std::vector<int>& back) {
+  const Eigen::Index V = model.vertices(), B = static_cast<Eigen::Index>(back.size());
+  std::vector<std::int64_t> copy_of(static_cast<size_t>(V), -1);
+  m.rest_positions.conservativeResize(V + B, 3);
+  m.normals.conservativeResize(V + B, 3);
+  for (Eigen::Index i = 0; i < B; ++i) {
+    const int v = back[static_cast<size_t>(i)];
+    copy_of[static_cast<size_t>(v)] = V + i;
+    for (int k = 0; k < 3; ++k) {
+      m.rest_positions(V + i, k) = m.rest_positions(v, k);
+      m.normals(V + i, k) = -m.normals(v, k);
+    }
+  }
+  std::vector<std::uint32_t> tris;
+  for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
+    const auto a = copy_of[static_cast<size_t>(model.surface(t, 0))];
+    const auto b = copy_of[static_cast<size_t>(model.surface(t, 1))];
+    const auto c = copy_of[static_cast<size_t>(model.surface(t, 2))];
+    if (a < 0 || b < 0 || c < 0) continue;
+    // Sheet triangle: same vertices, reversed winding, so its front faces the other way.
+    tris.insert(tris.end(), {static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(c),
+                             static_cast<std::uint32_t>(b)});
+  }
+  const Eigen::Index F = m.triangles.rows(), added = static_cast<Eigen::Index>(tris.size() / 3);
+  m.triangles.conservativeResize(F + added, 3);
+  for (Eigen::Index t = 0; t < added; ++t)
+    for (int k = 0; k < 3; ++k) m.triangles(F + t, k) = tris[static_cast<size_t>(3 * t + k)];
+}
+
 void check_matches(const Scene& scene, const OrbitIndex& o) {
   std::vector<std::string> names;
   for (const auto& e : scene.palette) names.push_back(e.name);
@@ -121,7 +172,7 @@ core::SceneMesh scene_mesh(const Scene& scene) {
   core::SceneMesh m;
   m.rest_positions = Eigen::Map<const RowMatrix<double>>(model.rest.data(), V, 3).cast<float>();
   m.triangles = model.surface.cast<std::uint32_t>();
-  // Area-weighted vertex normals of the simulated surface (single-sided for now).
+  // Area-weighted vertex normals of the simulated surface (front side).
   RowMatrix<double> n = RowMatrix<double>::Zero(V, 3);
   for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
     const Eigen::Vector3d a = m.rest_positions.row(model.surface(t, 0)).cast<double>();
@@ -137,11 +188,22 @@ core::SceneMesh scene_mesh(const Scene& scene) {
       m.normals(i, k) = len > 0 ? static_cast<float>(n(i, k) / len) : (k == 2 ? 1.0f : 0.0f);
     }
   }
-  m.deformable.assign(static_cast<size_t>(V), 1);
+  add_back_side(m, model, back_side_vertices(model));
+  m.deformable.assign(static_cast<size_t>(m.rest_positions.rows()), 1);
   for (const auto& box : model.obstacles) add_box(m, box.min, box.max);
   m.deformable.resize(static_cast<size_t>(m.rest_positions.rows()), 0);
   m.attached.assign(static_cast<size_t>(m.rest_positions.rows()), 1);  // everything rides on the support
   return m;
+}
+
+std::vector<int> scene_point_vertices(const Scene& scene) {
+  const int V = scene.model.vertices();
+  std::vector<int> out(static_cast<size_t>(V));
+  for (int v = 0; v < V; ++v) out[static_cast<size_t>(v)] = v;
+  const auto back = back_side_vertices(scene.model);
+  out.insert(out.end(), back.begin(), back.end());
+  out.resize(out.size() + 24 * scene.model.obstacles.size(), -1);
+  return out;
 }
 
 void check_package_options(const PackageOptions& o) {
@@ -195,6 +257,14 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
   pkg.reduction.mean_shape.head(M) = basis.mean_shape;
   pkg.reduction.U_u = MatrixXfR::Zero(3 * S, r);
   pkg.reduction.U_u.topRows(M) = basis.U_u;
+  // Back-side points share the mean shape and U_u rows of the vertex they copy.
+  const auto point_vertex = scene_point_vertices(scene);
+  for (Eigen::Index point = M / 3; point < S; ++point) {
+    const int v = point_vertex[static_cast<size_t>(point)];
+    if (v < 0) continue;
+    pkg.reduction.mean_shape.segment(3 * point, 3) = basis.mean_shape.segment(3 * v, 3);
+    pkg.reduction.U_u.middleRows(3 * point, 3) = basis.U_u.middleRows(3 * v, 3);
+  }
   pkg.reduction.singular_values = basis.singular_values;
   pkg.reduction.rel_error = basis.rel_error;
   // Palette.

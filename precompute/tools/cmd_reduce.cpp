@@ -13,6 +13,7 @@ struct Options {
   std::string orbits;
   std::string output;
   phasecast::tools::ReduceArgs reduce;
+  phasecast::tools::AppearanceArgs appearance;
 };
 
 }  // namespace
@@ -20,13 +21,15 @@ struct Options {
 void add_reduce_command(CLI::App& app) {
   auto o = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
-      "reduce", "Reduce sampled orbits (randomized SVD, phase portrait, IRF cache) into a scene package.");
+      "reduce",
+      "Reduce sampled orbits (randomized SVD, phase portrait, IRF cache, appearance) into a scene package.");
   cmd->add_option("scene", o->scene, "scene file (.toml) the orbits were sampled from")->required();
   cmd->add_option("orbits", o->orbits, "orbit store (.h5) from 'sample' or 'simulate'")->required();
   cmd->add_option("-o,--output", o->output, "scene package to write (.h5)")->required();
   phasecast::tools::add_reduce_options(cmd, o->reduce);
+  phasecast::tools::add_appearance_options(cmd, o->appearance);
   cmd->callback([o] {
     const auto scene = phasecast::precompute::load_scene(o->scene);
-    phasecast::tools::run_reduce_stage(scene, o->reduce, o->orbits, o->output);
+    phasecast::tools::run_reduce_stage(scene, o->reduce, o->appearance, o->orbits, o->output);
   });
 }

@@ -1,4 +1,4 @@
-// phasecast-precompute run: sample -> reduce in one command (appearance joins later).
+// phasecast-precompute run: sample -> reduce -> appearance in one command.
 
 #include "commands.h"
 #include "pipeline.h"
@@ -13,6 +13,7 @@ struct Options {
   std::string output;
   phasecast::tools::SampleArgs sample;
   phasecast::tools::ReduceArgs reduce;
+  phasecast::tools::AppearanceArgs appearance;
 };
 
 }  // namespace
@@ -20,17 +21,21 @@ struct Options {
 void add_run_command(CLI::App& app) {
   auto o = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
-      "run", "Build a scene package from a scene file: sample IRFs, then reduce (resumable).");
+      "run",
+      "Build a scene package from a scene file: sample IRFs, reduce, then the appearance stage (resumable).");
   cmd->add_option("scene", o->scene, "scene file (.toml)")->required();
   cmd->add_option("-o,--output", o->output, "scene package to write (.h5)")->required();
   phasecast::tools::add_sample_options(cmd, o->sample);
   phasecast::tools::add_reduce_options(cmd, o->reduce);
+  phasecast::tools::add_appearance_options(cmd, o->appearance);
   cmd->callback([o] {
+    // Bad appearance options fail before the sampling hours, not after.
+    if (!o->appearance.skip) phasecast::precompute::check_appearance_stage_options(o->appearance.stage);
     const auto scene = phasecast::precompute::load_scene(o->scene);
     auto sample = o->sample;
     if (sample.work_dir.empty()) sample.work_dir = o->output + ".work";
     const std::filesystem::path orbits = std::filesystem::path(sample.work_dir) / "orbits.h5";
     phasecast::tools::run_sample_stage(scene, sample, orbits);
-    phasecast::tools::run_reduce_stage(scene, o->reduce, orbits, o->output);
+    phasecast::tools::run_reduce_stage(scene, o->reduce, o->appearance, orbits, o->output);
   });
 }

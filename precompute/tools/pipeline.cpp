@@ -82,6 +82,26 @@ void add_reduce_options(CLI::App* cmd, ReduceArgs& a) {
       ->capture_default_str();
 }
 
+void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
+  auto& s = a.stage;
+  cmd->add_option("--clusters", s.clusters, "N_a: state nodes (k-means of q_u) whose transfer is computed")
+      ->capture_default_str();
+  cmd->add_option("--cluster-seed", s.seed, "seed of the k-means++ clustering")->capture_default_str();
+  cmd->add_option("--rays", s.transfer.rays, "transfer directions of the fixed sphere set")
+      ->capture_default_str();
+  cmd->add_option("--bounces", s.transfer.bounces, "interreflection bounces (0: shadowed only)")
+      ->capture_default_str();
+  cmd->add_option("--eps-a", s.appearance.reduction.eps_a,
+                  "transfer rank tolerance: r_a = number of sigma_i >= eps_a sigma_1")
+      ->capture_default_str();
+  cmd->add_option("--rank-a", s.appearance.reduction.rank,
+                  "fixed rank r_a instead of --eps-a (0: use --eps-a)")
+      ->capture_default_str();
+  cmd->add_option("--transfer-threads", s.transfer.threads, "threads of the ray caster (0: all cores)")
+      ->capture_default_str();
+  cmd->add_flag("--no-appearance", a.skip, "skip the appearance stage (no /appearance, r_a = 0)");
+}
+
 void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::filesystem::path& orbits) {
   precompute::check_sampling_options(a.sampling);
   a.sampling.work_dir = a.work_dir.empty() ? std::filesystem::path(orbits.string() + ".work")
@@ -104,10 +124,11 @@ void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::f
   fmt::print("wrote {} ({} IRFs, {} state nodes)\n", orbits.string(), store.irf_start.size(), store.frames());
 }
 
-void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a,
+void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const AppearanceArgs& appearance,
                       const std::filesystem::path& orbits, const std::filesystem::path& package) {
   precompute::check_reduction_options(a.reduction);
   precompute::check_package_options(a.package);
+  if (!appearance.skip) precompute::check_appearance_stage_options(appearance.stage);
   const auto rules = precompute::make_palette_rules(scene);
   const auto index = precompute::read_orbit_index(orbits);
   precompute::ProgressBar mean_bar("mean shape");
@@ -119,15 +140,31 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a,
   options.progress = [&bar](int done, int total) { bar.update(done, total); };
   const auto basis = precompute::reduce_displacements(A, options);
   bar.finish();
-  const auto built = precompute::build_package(scene, rules, index, basis, a.package);
+  auto built = precompute::build_package(scene, rules, index, basis, a.package);
   for (const auto& line : built.filter.messages) fmt::print(stderr, "dropped {}\n", line);
-  core::write_package(built.package, package);
-  const auto& p = built.package;
+  auto& p = built.package;
+  if (!appearance.skip) {
+    precompute::ProgressBar transfer_bar("appearance transfer");
+    const auto report =
+        precompute::add_appearance(p, precompute::scene_point_vertices(scene), A,
+                                   precompute::package_node_frames(index.irfs, built.filter.kept),
+                                   appearance.stage, [&transfer_bar](const char*, long done, long total) {
+                                     transfer_bar.update(static_cast<int>(done), static_cast<int>(total));
+                                   });
+    transfer_bar.finish();
+    core::validate_package(p, scene.name);
+    fmt::print(
+        "appearance: N_a = {} clusters, {} scene points, r_a = {} (error {:.4f}), NRBF leave-one-out "
+        "{:.4f}\n",
+        p.appearance->clusters(), p.mesh.points(), p.rank_a(),
+        p.rank_a() > 0 ? p.appearance->rel_error[p.rank_a() - 1] : 0.0f, report.leave_one_out.relative);
+  }
+  core::write_package(p, package);
   fmt::print(
       "wrote {}: N = {} state nodes, {} IRFs ({} short and {} dead ends dropped), r_u = {} (error {:.4f}), "
-      "beta = {:.4g}\n",
+      "r_a = {}, beta = {:.4g}\n",
       package.string(), p.portrait.nodes(), p.portrait.irf_count(), built.filter.dropped_short,
-      built.filter.dropped_dead_end, p.rank_u(), core::displacement_error_at_rank(p, p.rank_u()),
+      built.filter.dropped_dead_end, p.rank_u(), core::displacement_error_at_rank(p, p.rank_u()), p.rank_a(),
       p.attributes.beta);
 }
 

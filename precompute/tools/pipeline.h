@@ -1,6 +1,7 @@
 #pragma once
 // Options and stages shared by the sample, reduce and run subcommands.
 
+#include "phasecast/precompute/appearance_stage.h"
 #include "phasecast/precompute/irf_sampler.h"
 #include "phasecast/precompute/package_builder.h"
 
@@ -21,14 +22,22 @@ struct ReduceArgs {
   precompute::PackageOptions package;
 };
 
+struct AppearanceArgs {
+  precompute::AppearanceStageOptions stage;
+  bool skip = false;  // --no-appearance: the package has no /appearance (r_a = 0)
+};
+
 void add_sample_options(CLI::App* cmd, SampleArgs& args);
 void add_reduce_options(CLI::App* cmd, ReduceArgs& args);
+void add_appearance_options(CLI::App* cmd, AppearanceArgs& args);
 
 // Samples IRFs of the scene and writes the concatenated orbit store to `orbits`.
 void run_sample_stage(const precompute::Scene& scene, SampleArgs args, const std::filesystem::path& orbits);
 
-// Reduces the orbit store and writes the package; prints r_u, its error and what the filter dropped.
+// Reduces the orbit store, runs the appearance stage on it (unless skipped)
+// and writes the package; prints r_u, r_a, their errors and what the filter dropped.
 void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& args,
-                      const std::filesystem::path& orbits, const std::filesystem::path& package);
+                      const AppearanceArgs& appearance, const std::filesystem::path& orbits,
+                      const std::filesystem::path& package);
 
 }  // namespace phasecast::tools

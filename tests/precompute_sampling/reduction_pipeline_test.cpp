@@ -166,8 +166,8 @@ TEST_F(Reduction, SampledOrbitsBecomeAValidPackage) {
   const auto& p = built.package;
   core::validate_package(p, "built");
   const int V = scene.model.vertices();
-  EXPECT_EQ(p.mesh.points(), V + 24);  // cloth + the door board as a box
-  EXPECT_EQ(std::count(p.mesh.deformable.begin(), p.mesh.deformable.end(), 1), V);
+  EXPECT_EQ(p.mesh.points(), 2 * V + 24);  // cloth front, cloth back, the door board as a box
+  EXPECT_EQ(std::count(p.mesh.deformable.begin(), p.mesh.deformable.end(), 1), 2 * V);
   EXPECT_EQ(p.reduction.U_u.bottomRows(3 * 24).norm(), 0.0f);
   EXPECT_EQ(p.rank_u(), basis.rank());
   EXPECT_EQ(p.attributes.blend_lambda, kDefaultBlendLambda);

@@ -30,10 +30,11 @@ class OrbitDisplacementSource final : public ColumnSource {
   Eigen::Index cols() const override { return frames_; }
   void read(Eigen::Index first, Eigen::Index count, Eigen::MatrixXf& block) const override;
   const Eigen::VectorXf& mean_shape() const { return mean_; }  // x-bar, 3V
+  // Frames [first, first + count) as rows (count x 3V), as stored (the appearance
+  // stage reads the unreduced meshes of its cluster nodes through this).
+  void read_frames(Eigen::Index first, Eigen::Index count, MatrixXfR& rows) const;
 
  private:
-  // Frames [first, first + count) as rows (count x 3V), as stored.
-  void read_frames(Eigen::Index first, Eigen::Index count, MatrixXfR& rows) const;
   struct Hdf5;
   std::unique_ptr<Hdf5> h5_;
   std::filesystem::path path_;
