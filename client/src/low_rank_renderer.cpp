@@ -321,6 +321,11 @@ struct LowRankRenderer::Impl {
     gl.glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     gl.glEnable(GL_DEPTH_TEST);
     gl.glDepthFunc(GL_LESS);
+    // Thin surfaces (cloth, leaves) are two coincident layers of scene points
+    // with opposite windings, each with its own transfer (§4.1): only the side
+    // facing the camera may be drawn (package triangles are counter-clockwise
+    // seen from their normal's side, docs/package-format.md).
+    gl.glEnable(GL_CULL_FACE);
   }
 
   void show() {

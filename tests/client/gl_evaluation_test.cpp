@@ -165,7 +165,8 @@ ClientBasis transfer_sphere(int rings, int segments, const std::array<double, 3>
       const auto a = static_cast<std::uint32_t>(i * segments + j);
       const auto bb = static_cast<std::uint32_t>(i * segments + (j + 1) % segments);
       const auto c = a + static_cast<std::uint32_t>(segments), d = bb + static_cast<std::uint32_t>(segments);
-      b.triangles.insert(b.triangles.end(), {a, c, bb, bb, c, d});
+      // Counter-clockwise seen from outside, as package triangles are (the renderer culls back faces).
+      b.triangles.insert(b.triangles.end(), {a, bb, c, bb, d, c});
     }
   }
   return b;
