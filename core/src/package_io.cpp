@@ -4,6 +4,7 @@
 // validate_package() so that the writer enforces the very same rules.
 
 #include "hdf5_file.h"
+#include "phasecast/core/kinematics_rows.h"
 #include "phasecast/core/package.h"
 
 #include <fmt/format.h>
@@ -12,9 +13,6 @@
 
 namespace phasecast::core {
 namespace {
-
-constexpr const char* kKinematicsColumnNames =
-    "axis_x,axis_y,axis_z,pivot_x,pivot_y,pivot_z,rotational,rate,range_min,range_max,pulse_tau";
 
 std::string describe_dims(const std::vector<std::uint64_t>& dims) {
   if (dims.empty()) return "a scalar";
@@ -150,17 +148,7 @@ ImpulsePalette read_palette(const Reader& r) {
     r.fail("/palette/kinematics", fmt::format("expected D x {} ({}), got {}x{}", kKinematicsColumns,
                                               kKinematicsColumnNames, k.rows(), k.cols()));
   }
-  for (Eigen::Index i = 0; i < k.rows(); ++i) {
-    SupportKinematics s;
-    s.axis = {k(i, 0), k(i, 1), k(i, 2)};
-    s.pivot = {k(i, 3), k(i, 4), k(i, 5)};
-    s.rotational = k(i, 6) != 0.0f;
-    s.rate = k(i, 7);
-    s.range_min = k(i, 8);
-    s.range_max = k(i, 9);
-    s.pulse_tau = k(i, 10);
-    p.kinematics.push_back(s);
-  }
+  p.kinematics = kinematics_from_rows(k);
   return p;
 }
 
@@ -236,16 +224,6 @@ void put(h5::File& f, const std::string& name, const VectorXf& v) {
   f.write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
 }
 
-MatrixXfR kinematics_matrix(const ImpulsePalette& p) {
-  MatrixXfR k(p.size(), kKinematicsColumns);
-  for (int i = 0; i < p.size(); ++i) {
-    const auto& s = p.kinematics[static_cast<size_t>(i)];
-    k.row(i) << s.axis[0], s.axis[1], s.axis[2], s.pivot[0], s.pivot[1], s.pivot[2],
-        s.rotational ? 1.0f : 0.0f, s.rate, s.range_min, s.range_max, s.pulse_tau;
-  }
-  return k;
-}
-
 void write_to(h5::File& f, const ScenePackage& pkg) {
   const auto& a = pkg.attributes;
   f.write_attribute("format_version", static_cast<std::int32_t>(kFormatVersion));
@@ -268,7 +246,7 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
   put(f, "/palette/alpha_forcing", pkg.palette.alpha_forcing);
   put(f, "/palette/transitions", pkg.palette.transitions);
   put(f, "/palette/on_end", pkg.palette.on_end);
-  put(f, "/palette/kinematics", kinematics_matrix(pkg.palette));
+  put(f, "/palette/kinematics", kinematics_to_rows(pkg.palette.kinematics));
   f.write_attribute_on("/palette/kinematics", "columns", kKinematicsColumnNames);
 
   put(f, "/reduction/mean_shape", pkg.reduction.mean_shape);
@@ -300,6 +278,32 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
 }
 
 }  // namespace
+
+MatrixXfR kinematics_to_rows(const std::vector<SupportKinematics>& kinematics) {
+  MatrixXfR k(static_cast<Eigen::Index>(kinematics.size()), kKinematicsColumns);
+  for (Eigen::Index i = 0; i < k.rows(); ++i) {
+    const auto& s = kinematics[static_cast<size_t>(i)];
+    k.row(i) << s.axis[0], s.axis[1], s.axis[2], s.pivot[0], s.pivot[1], s.pivot[2],
+        s.rotational ? 1.0f : 0.0f, s.rate, s.range_min, s.range_max, s.pulse_tau;
+  }
+  return k;
+}
+
+std::vector<SupportKinematics> kinematics_from_rows(const MatrixXfR& k) {
+  std::vector<SupportKinematics> out;
+  for (Eigen::Index i = 0; i < k.rows(); ++i) {
+    SupportKinematics s;
+    s.axis = {k(i, 0), k(i, 1), k(i, 2)};
+    s.pivot = {k(i, 3), k(i, 4), k(i, 5)};
+    s.rotational = k(i, 6) != 0.0f;
+    s.rate = k(i, 7);
+    s.range_min = k(i, 8);
+    s.range_max = k(i, 9);
+    s.pulse_tau = k(i, 10);
+    out.push_back(s);
+  }
+  return out;
+}
 
 ScenePackage read_package(const std::filesystem::path& path) {
   const std::string source = path.string();

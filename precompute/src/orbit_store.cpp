@@ -3,6 +3,8 @@
 
 #include "phasecast/precompute/orbit_store.h"
 
+#include "phasecast/core/kinematics_rows.h"
+
 #include "hdf5_file.h"
 
 #include <fmt/format.h>
@@ -67,32 +69,6 @@ void write_matrix(h5::File& f, const std::string& name, const RowMatrix<T>& m) {
 template <class T>
 void write_vector(h5::File& f, const std::string& name, const std::vector<T>& v) {
   f.write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
-}
-
-MatrixXfR kinematics_matrix(const std::vector<core::SupportKinematics>& ks) {
-  MatrixXfR k(static_cast<Eigen::Index>(ks.size()), core::kKinematicsColumns);
-  for (size_t i = 0; i < ks.size(); ++i) {
-    const auto& s = ks[i];
-    k.row(static_cast<Eigen::Index>(i)) << s.axis[0], s.axis[1], s.axis[2], s.pivot[0], s.pivot[1],
-        s.pivot[2], s.rotational ? 1.0f : 0.0f, s.rate, s.range_min, s.range_max, s.pulse_tau;
-  }
-  return k;
-}
-
-std::vector<core::SupportKinematics> kinematics_rows(const MatrixXfR& k) {
-  std::vector<core::SupportKinematics> out;
-  for (Eigen::Index i = 0; i < k.rows(); ++i) {
-    core::SupportKinematics s;
-    s.axis = {k(i, 0), k(i, 1), k(i, 2)};
-    s.pivot = {k(i, 3), k(i, 4), k(i, 5)};
-    s.rotational = k(i, 6) != 0.0f;
-    s.rate = k(i, 7);
-    s.range_min = k(i, 8);
-    s.range_max = k(i, 9);
-    s.pulse_tau = k(i, 10);
-    out.push_back(s);
-  }
-  return out;
 }
 
 }  // namespace
@@ -171,7 +147,7 @@ void write_orbit_store(const OrbitStore& s, const std::filesystem::path& path) {
       f.write_strings("/palette/names", s.palette_names);
       write_matrix(f, "/palette/alpha_impulse", s.alpha_impulse);
       write_matrix(f, "/palette/alpha_forcing", s.alpha_forcing);
-      write_matrix(f, "/palette/kinematics", kinematics_matrix(s.kinematics));
+      write_matrix(f, "/palette/kinematics", core::kinematics_to_rows(s.kinematics));
       write_matrix(f, "/frames/positions", s.positions);
       write_matrix(f, "/frames/velocities", s.velocities);
       write_vector(f, "/frames/palette", s.frame_palette);
@@ -210,7 +186,7 @@ OrbitStore read_orbit_store(const std::filesystem::path& path) {
     s.alpha_forcing = r.matrix<float>("/palette/alpha_forcing");
     const MatrixXfR k = r.matrix<float>("/palette/kinematics");
     if (k.cols() != core::kKinematicsColumns) r.fail("/palette/kinematics", "expected D x 11");
-    s.kinematics = kinematics_rows(k);
+    s.kinematics = core::kinematics_from_rows(k);
     s.positions = r.matrix<float>("/frames/positions");
     s.velocities = r.matrix<float>("/frames/velocities");
     s.frame_palette = r.vector<std::int32_t>("/frames/palette");
