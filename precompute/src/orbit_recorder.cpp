@@ -1,5 +1,7 @@
 #include "phasecast/precompute/orbit_recorder.h"
 
+#include "phasecast/precompute/scene_palette.h"
+
 #include <fmt/format.h>
 
 #include <charconv>
@@ -61,16 +63,11 @@ OrbitStore empty_orbit_store(const Scene& scene) {
         static_cast<std::uint32_t>(m.rod_stretch[e].b);
   }
   s.pinned = m.pinned;
-  const auto D = static_cast<Eigen::Index>(scene.palette.size());
-  s.alpha_impulse.resize(D, 3);
-  s.alpha_forcing.resize(D, 3);
-  for (Eigen::Index d = 0; d < D; ++d) {
-    const auto& e = scene.palette[static_cast<size_t>(d)];
-    s.palette_names.push_back(e.name);
-    s.alpha_impulse.row(d) = e.alpha_impulse.cast<float>().transpose();
-    s.alpha_forcing.row(d) = e.alpha_forcing.cast<float>().transpose();
-    s.kinematics.push_back(entry_kinematics(scene, static_cast<int>(d)));
-  }
+  auto palette = palette_arrays(scene);
+  s.palette_names = std::move(palette.names);
+  s.alpha_impulse = std::move(palette.alpha_impulse);
+  s.alpha_forcing = std::move(palette.alpha_forcing);
+  s.kinematics = std::move(palette.kinematics);
   s.support.resize(0, core::kSupportFloats);
   return s;
 }

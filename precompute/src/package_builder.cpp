@@ -1,5 +1,7 @@
 #include "phasecast/precompute/package_builder.h"
 
+#include "phasecast/precompute/scene_palette.h"
+
 #include "phasecast/precompute/orbit_store.h"
 #include "phasecast/precompute/phase_portrait.h"
 
@@ -269,16 +271,11 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
   pkg.reduction.rel_error = basis.rel_error;
   // Palette.
   auto& pal = pkg.palette;
-  const auto D = static_cast<Eigen::Index>(scene.palette.size());
-  pal.alpha_impulse.resize(D, 3);
-  pal.alpha_forcing.resize(D, 3);
-  for (Eigen::Index d = 0; d < D; ++d) {
-    const auto& e = scene.palette[static_cast<size_t>(d)];
-    pal.names.push_back(e.name);
-    pal.alpha_impulse.row(d) = e.alpha_impulse.cast<float>().transpose();
-    pal.alpha_forcing.row(d) = e.alpha_forcing.cast<float>().transpose();
-    pal.kinematics.push_back(entry_kinematics(scene, static_cast<int>(d)));
-  }
+  auto arrays = palette_arrays(scene);
+  pal.names = std::move(arrays.names);
+  pal.alpha_impulse = std::move(arrays.alpha_impulse);
+  pal.alpha_forcing = std::move(arrays.alpha_forcing);
+  pal.kinematics = std::move(arrays.kinematics);
   pal.transitions = rules.transitions;
   pal.on_end = rules.on_end;
   // Attributes.
