@@ -9,6 +9,7 @@
 #include "phasecast/client/network.h"
 
 #include <fmt/format.h>
+#include <google/protobuf/util/json_util.h>
 
 #include <atomic>
 #include <map>
@@ -93,6 +94,10 @@ void set_field(lua_State* L, const char* key, lua_Integer v) {
 }
 void set_field(lua_State* L, const char* key, double v) {
   lua_pushnumber(L, v);
+  lua_setfield(L, -2, key);
+}
+void set_field(lua_State* L, const char* key, bool v) {
+  lua_pushboolean(L, v ? 1 : 0);
   lua_setfield(L, -2, key);
 }
 void set_field(lua_State* L, const char* key, const std::string& v) {
@@ -311,13 +316,18 @@ int l_stats(lua_State* L) {
     v1::Request r;
     r.mutable_stats();
     const auto s = c.command.call(r, "stats()").stats();
-    lua_createtable(L, 0, 7);
+    lua_createtable(L, 0, 12);
     set_field(L, "ticks", static_cast<lua_Integer>(s.ticks()));
     set_field(L, "frames_published", static_cast<lua_Integer>(s.frames_published()));
     set_field(L, "late_ticks", static_cast<lua_Integer>(s.late_ticks()));
     set_field(L, "rate_hz", s.rate_hz());
     set_field(L, "requests", static_cast<lua_Integer>(s.requests()));
     set_field(L, "bad_requests", static_cast<lua_Integer>(s.bad_requests()));
+    set_field(L, "impulses_applied", static_cast<lua_Integer>(s.impulses_applied()));
+    set_field(L, "impulses_refused", static_cast<lua_Integer>(s.impulses_refused()));
+    set_field(L, "max_tick_seconds", s.max_tick_seconds());
+    set_field(L, "recording", s.recording());
+    set_field(L, "recording_error", s.recording_error());
     lua_createtable(L, s.instances_size(), 0);
     for (int i = 0; i < s.instances_size(); ++i) {
       push_instance(L, c, s.instances(i));
@@ -389,6 +399,19 @@ void Console::run_string(const std::string& code, const std::string& chunk_name)
 
 void Console::repl() {
   run_repl(impl_->L);
+}
+
+std::string Console::server_stats_json() {
+  v1::Request r;
+  r.mutable_stats();
+  const auto stats = impl_->command.call(r, "stats").stats();
+  google::protobuf::util::JsonPrintOptions options;
+  options.preserve_proto_field_names = true;
+  options.add_whitespace = true;
+  std::string json;
+  if (const auto status = google::protobuf::util::MessageToJsonString(stats, &json, options); !status.ok())
+    throw std::runtime_error(fmt::format("stats: cannot write JSON: {}", status.ToString()));
+  return json;
 }
 
 }  // namespace phasecast::client

@@ -7,6 +7,7 @@
 
 #include <unistd.h>
 #include <csignal>
+#include <fstream>
 #include <iostream>
 #include <iterator>
 
@@ -14,6 +15,12 @@ namespace {
 
 extern "C" void on_sigint(int) {
   phasecast::client::Console::interrupt();
+}
+
+void write_stats(phasecast::client::Console& console, const std::string& path) {
+  std::ofstream out(path);
+  out << console.server_stats_json() << '\n';
+  if (!out.flush()) throw std::runtime_error(fmt::format("--stats-out {}: cannot write the file", path));
 }
 
 }  // namespace
@@ -26,6 +33,7 @@ int main(int argc, char** argv) {
   phasecast::client::ConsoleOptions options;
   std::string script;
   std::vector<std::string> code;
+  std::string stats_out;
   int timeout_ms = 2000;
   app.add_option("--connect", options.endpoint, "server command endpoint")->capture_default_str();
   app.add_option("--timeout", timeout_ms, "milliseconds to wait for each reply before retrying")
@@ -34,7 +42,11 @@ int main(int argc, char** argv) {
   app.add_option("--attempts", options.attempts, "tries per request before giving up")
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
-  app.add_option("-e,--execute", code, "Lua code to run (repeatable, runs before the script)");
+  // One chunk per -e, so that `-e CODE script.lua` does not read the script path as code.
+  app.add_option("-e,--execute", code, "Lua code to run (repeatable, runs before the script)")
+      ->allow_extra_args(false);
+  app.add_option("--stats-out", stats_out,
+                 "after the script, write the server's stats as JSON to this file");
   app.add_option("script", script, "Lua script file")->check(CLI::ExistingFile);
   CLI11_PARSE(app, argc, argv);
   options.timeout = std::chrono::milliseconds(timeout_ms);
@@ -57,6 +69,7 @@ int main(int argc, char** argv) {
         console.run_string(input, "=stdin");
       }
     }
+    if (!stats_out.empty()) write_stats(console, stats_out);
   } catch (const std::exception& e) {
     fmt::print(stderr, "phasecast-console: {}\n", e.what());
     return 1;

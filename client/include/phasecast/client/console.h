@@ -39,6 +39,10 @@ class Console {
   // Returns at end of input (Ctrl-D).
   void repl();
 
+  // The server's Stats as JSON (proto field names), for scripted sessions
+  // that report figures (phasecast-console --stats-out).
+  std::string server_stats_json();
+
   // Async-signal-safe: makes a running wait()/wait_frames() raise "interrupted".
   static void interrupt();
 
