@@ -59,7 +59,7 @@ const char* console_help_text() {
   wait(seconds)                  sleep (Ctrl-C cancels)
   wait_frames(n [, id])          until instance id (default: the first) published n more frames
   record(path) / stop_record()   write the published stream to a file on the server
-  stats()                        ticks, frames published, late ticks, requests
+  stats()                        ticks, frames, late ticks, requests, impulses, longest tick
   show(value)                    pretty-print tables
   help()                         this text
 )";

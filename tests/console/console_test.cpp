@@ -133,6 +133,29 @@ TEST_F(ConsoleSession, ExampleDoorScriptRunsUnattended) {
   EXPECT_THAT(r.out, HasSubstr("door session done"));
 }
 
+// -e chunks run before the script file, each on its own (the file is not a chunk).
+TEST_F(ConsoleSession, CodeChunksRunBeforeTheScript) {
+  std::ofstream(dir_ / "after.lua") << "print('script', x)\n";
+  const auto r = console({"-e", "x = 1", "-e", "x = x + 1", (dir_ / "after.lua").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "script\t2\n");
+}
+
+// --stats-out: the server's figures after the script, as JSON with proto field names.
+TEST_F(ConsoleSession, StatsOutWritesTheServersStatsAsJson) {
+  const auto path = dir_ / "stats.json";
+  const auto r = console({"--stats-out", path.string(), "-e",
+                          "impulse(1, 'open')\nwait_frames(5, 1)\n"
+                          "local s = stats()\nprint(s.impulses_applied, s.recording)"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, "1\tfalse\n");
+  std::ifstream in(path);
+  const std::string json{std::istreambuf_iterator<char>(in), {}};
+  EXPECT_THAT(json, HasSubstr("\"impulses_applied\": \"1\""));
+  EXPECT_THAT(json, HasSubstr("\"frames_published\""));
+  EXPECT_THAT(json, HasSubstr("\"max_tick_seconds\""));
+}
+
 TEST_F(ConsoleSession, ScriptOnStandardInput) {
   std::ofstream(dir_ / "stdin.lua") << "print(scenes()[1].name, #scenes()[1].palette)\n";
   const std::string cmd =
