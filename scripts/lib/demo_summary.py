@@ -51,7 +51,7 @@ def main():
         ("bytes per frame (reduced state)", s["frame_state_bytes"]),
         ("bytes per frame (full vertex streaming)", s["full_vertex_frame_bytes"]),
         ("server tick rate", f"{rate:g} Hz"),
-        ("server frames published / late ticks (when the last impulse had passed)", f"{stats.get('frames_published', '?')} / {stats.get('late_ticks', 0 if stats else '?')}"),
+        ("server frames published / late ticks (when the script ended)", f"{stats.get('frames_published', '?')} / {stats.get('late_ticks', 0 if stats else '?')}"),
         ("impulses applied / refused by the palette",
          f"{stats.get('impulses_applied', 0 if stats else '?')} / {stats.get('impulses_refused', 0 if stats else '?')}"),
         ("server longest tick", f"{1e3 * float(stats.get('max_tick_seconds', 'nan')):.3g} ms"),
