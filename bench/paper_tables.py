@@ -1,0 +1,117 @@
+#!/usr/bin/python3
+"""Measures our rows of the paper's Tables 1 and 2 for the three scenes.
+
+For each scene: `phasecast-precompute run --no-appearance` (dynamics: IRF
+sampling and reduction, timed), then `run --resume` on the same checkpoints
+(the appearance stage, timed: the sampled chains are reused, only the
+reduction is redone), `phasecast-inspect --json` of both packages, and the
+render client playing IRF 0 of each package from disk (OSMesa, render-only
+frames/s): without /appearance ("Defo") and with it ("Defo + Trnsfr").
+
+  bench/paper_tables.py [--bin build/bin] [--work DIR] [--quick] [--size 512x512] [SCENE ...]
+
+--quick samples 2 chains x 6 IRFs (the demo preset) instead of
+phasecast-precompute's defaults. Prints a markdown table and writes
+DIR/paper_tables.json.
+"""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+
+SCENES = ["toy_dashboard", "cloth_door", "plant_pot"]   # the paper's order: dinosaur, cloth, plant
+PAPER = {  # Table 1 (F, V, r_u, relErr_u, N_a, r_a, relErr_a, N, #IRF) and Table 2 (times, SW fps)
+    "toy_dashboard": ("Dinosaur", 49376, 24690, 12, "0.5%", 50, 7, "4.4%", 20010, 260, "33h 21m", "74h", 173, 82),
+    "cloth_door": ("Cloth", 6365, 3310, 30, "1.5%", 200, 12, "15%", 8001, 171, "16h 46m", "71h 27m", 350, 149),
+    "plant_pot": ("Plant", 6304, 3750, 18, "2.0%", 100, 12, "6.2%", 6245, 150, "≈ 1 week", "11h 40m", 472, 200),
+}
+
+
+def timed(args, log):
+    start = time.monotonic()
+    with open(log, "w") as f:
+        subprocess.run(args, check=True, stdout=f, stderr=subprocess.STDOUT)
+    return time.monotonic() - start
+
+
+def inspect(bin_dir, package):
+    out = subprocess.run([os.path.join(bin_dir, "phasecast-inspect"), package, "--json"], check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def render_fps(bin_dir, package, size):
+    out = subprocess.run([os.path.join(bin_dir, "phasecast-render"), "--package", package, "--play-irf", "0",
+                          "--size", size, "--light", "grace"], check=True, capture_output=True, text=True)
+    m = re.search(r"(\d+) frames at \S+: ([\d.]+) frames/s render-only", out.stdout + out.stderr)
+    if not m:
+        raise RuntimeError(f"phasecast-render printed no frame rate for {package}")
+    return float(m.group(2))
+
+
+def measure(scene, args):
+    work = os.path.join(args.work, scene)
+    os.makedirs(work, exist_ok=True)
+    tool = os.path.join(args.bin, "phasecast-precompute")
+    scene_file = os.path.join(args.source, "scenes", scene + ".toml")
+    sampling = ["--chains", "2", "--irfs-per-chain", "6"] if args.quick else []
+    checkpoints = os.path.join(work, "checkpoints")
+    defo, full = os.path.join(work, "defo.h5"), os.path.join(work, "full.h5")
+    print(f"paper_tables: {scene}: dynamics...", file=sys.stderr, flush=True)
+    t_dyn = timed([tool, "run", scene_file, "-o", defo, "--work-dir", checkpoints, "--no-appearance", *sampling],
+                  os.path.join(work, "dynamics.log"))
+    print(f"paper_tables: {scene}: transfer...", file=sys.stderr, flush=True)
+    t_transfer = timed([tool, "run", scene_file, "-o", full, "--work-dir", checkpoints, "--resume", *sampling],
+                       os.path.join(work, "transfer.log"))
+    s = inspect(args.bin, full)
+    return {
+        "scene": scene, "F": s["F"], "S": s["S"], "r_u": s["r_u"], "rel_error_u": s["rel_error_u"],
+        "N_a": s.get("N_a", 0), "r_a": s["r_a"], "rel_error_a": s["rel_error_a"], "N": s["N"], "n_irf": s["n_irf"],
+        "dynamics_s": t_dyn, "transfer_s": t_transfer,
+        "fps_defo": render_fps(args.bin, defo, args.size), "fps_defo_transfer": render_fps(args.bin, full, args.size),
+        "frame_state_bytes": s["frame_state_bytes"], "full_vertex_frame_bytes": s["full_vertex_frame_bytes"],
+    }
+
+
+def pct(x):
+    return f"{100 * x:.2g}%"
+
+
+def table(rows, args):
+    print(f"| scene (paper) | F | V | r_u | relErr_u | N_a | r_a | relErr_a | N | #IRF | dynamics | transfer "
+          f"| fps Defo | fps Defo+Trnsfr | bytes/frame vs full vertices |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        p = PAPER[r["scene"]]
+        print(f"| {r['scene']} | {r['F']} | {r['S']} | {r['r_u']} | {pct(r['rel_error_u'])} | {r['N_a']} | {r['r_a']} "
+              f"| {pct(r['rel_error_a'])} | {r['N']} | {r['n_irf']} | {r['dynamics_s']:.0f} s | {r['transfer_s']:.0f} s "
+              f"| {r['fps_defo']:.0f} | {r['fps_defo_transfer']:.0f} "
+              f"| {r['frame_state_bytes']} B vs {r['full_vertex_frame_bytes']} B |")
+        print(f"| *{p[0]} (paper)* | {p[1]} | {p[2]} | {p[3]} | {p[4]} | {p[5]} | {p[6]} | {p[7]} | {p[8]} | {p[9]} "
+              f"| {p[10]} | {p[11]} | {p[12]} | {p[13]} | |")
+    print(f"\nfps: OSMesa llvmpipe, {args.size}, render-only, IRF 0 played from the package; "
+          f"{'quick sampling (2 x 6 IRFs)' if args.quick else 'phasecast-precompute defaults'}.")
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenes", nargs="*", default=SCENES, choices=SCENES + [[]], metavar="SCENE")
+    parser.add_argument("--bin", default=os.path.join(here, "..", "build", "bin"))
+    parser.add_argument("--work", default=os.path.join(here, "..", "out", "paper_tables"))
+    parser.add_argument("--quick", action="store_true", help="2 chains x 6 IRFs instead of the defaults")
+    parser.add_argument("--size", default="512x512", help="render size for the frame rates")
+    args = parser.parse_args()
+    args.source = os.path.join(here, "..")
+    rows = [measure(scene, args) for scene in (args.scenes or SCENES)]
+    os.makedirs(args.work, exist_ok=True)
+    with open(os.path.join(args.work, "paper_tables.json"), "w") as f:
+        json.dump(rows, f, indent=1)
+    table(rows, args)
+
+
+if __name__ == "__main__":
+    main()
