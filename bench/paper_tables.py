@@ -99,13 +99,16 @@ def table(rows, args):
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenes", nargs="*", default=SCENES, choices=SCENES + [[]], metavar="SCENE")
+    parser.add_argument("scenes", nargs="*", metavar="SCENE", help=f"scenes among {SCENES} (default: all)")
     parser.add_argument("--bin", default=os.path.join(here, "..", "build", "bin"))
     parser.add_argument("--work", default=os.path.join(here, "..", "out", "paper_tables"))
     parser.add_argument("--quick", action="store_true", help="2 chains x 6 IRFs instead of the defaults")
     parser.add_argument("--size", default="512x512", help="render size for the frame rates")
     args = parser.parse_args()
     args.source = os.path.join(here, "..")
+    unknown = [s for s in args.scenes if s not in SCENES]
+    if unknown:
+        parser.error(f"unknown scene {unknown[0]!r} (expected one of {', '.join(SCENES)})")
     rows = [measure(scene, args) for scene in (args.scenes or SCENES)]
     os.makedirs(args.work, exist_ok=True)
     with open(os.path.join(args.work, "paper_tables.json"), "w") as f:
