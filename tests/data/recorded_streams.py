@@ -183,34 +183,40 @@ class Commands:
         return next(i.frame for i in reply.instances.instances if i.instance == instance)
 
 
-def send_windows(frames, impulses):
-    """For each impulse, the first frame from which it may be sent: the server
-    checks a new impulse against the entry playing when it arrives, so it must
-    arrive after the last change of entry before its frame (an IRF ending into
-    its follow-up entry) and after the previous impulse has landed."""
+def send_windows(frames, impulses, transitions):
+    """For each impulse, the first frame from which it may be sent. The server
+    checks a new impulse against the entry playing when it arrives
+    (/palette/transitions: row 0 at rest, row i + 1 while entry i plays), so it
+    is sent inside the run of frames before its own, after the previous impulse
+    landed, in which every entry playing allows it."""
+    entry = {f.frame: f.palette_index for f in frames}
     windows = []
     for k, imp in enumerate(impulses):
-        earliest = impulses[k - 1].at_frame + 1 if k else 0
-        for a, b in zip(frames, frames[1:]):
-            if b.frame < imp.at_frame and a.palette_index != b.palette_index:
-                earliest = max(earliest, b.frame + 1)
-        windows.append(earliest)
+        earliest = impulses[k - 1].at_frame + 1 if k else frames[0].frame + 1
+        start = imp.at_frame
+        while start - 1 >= earliest and all(transitions[entry[g] + 1][imp.index] for g in (start - 2, start - 1)
+                                            if g in entry):
+            start -= 1
+        windows.append(start)
     return windows
 
 
 def replay_live(server_bin, recording, package, proto_dir, work):
     pb = load_pb(proto_dir)
     os.makedirs(work, exist_ok=True)
+    import h5py
     entries = read_recording(recording, pb)
     frames, impulses = frames_of(entries), impulses_of(entries)
     instance = entries[1].created.instance
-    windows = send_windows(frames, impulses)
+    with h5py.File(package, "r") as f:
+        transitions = f["palette/transitions"][:]
+    windows = send_windows(frames, impulses, transitions)
     for imp, start in zip(impulses, windows):
-        assert imp.at_frame - start >= 4, \
+        assert imp.at_frame - start >= 10, \
             f"impulse at frame {imp.at_frame} leaves only {imp.at_frame - start} frames to send it in (regenerate the data)"
     fresh = os.path.join(work, "fresh.phcrec")
-    # 30 Hz: wide enough send windows on a loaded machine, a few seconds per recording.
-    server = Server(server_bin, [package, "--instances", "1", "--rate", "30", "--record", fresh],
+    # 60 Hz: every send window is at least 10 frames (1/6 s), a few seconds per recording.
+    server = Server(server_bin, [package, "--instances", "1", "--rate", "60", "--record", fresh],
                     os.path.join(work, "server.log"))
     try:
         commands = Commands(pb, server.cmd)
