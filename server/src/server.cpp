@@ -51,7 +51,7 @@ struct Server::Impl {
     pub.set(zmq::sockopt::linger, 0);
     cmd_endpoint = bind(router, o.cmd_endpoint, "--cmd");
     pub_endpoint = bind(pub, o.pub_endpoint, "--pub");
-    service.set_pub_endpoint(pub_endpoint);
+    service.set_pub_endpoint(o.advertised_pub_endpoint.empty() ? pub_endpoint : o.advertised_pub_endpoint);
     if (o.record) service.start_recording(*o.record);
   }
 

@@ -95,6 +95,14 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--cmd", o.cmd_endpoint, "ROUTER command endpoint to bind")->capture_default_str();
   app.add_option("--pub", o.pub_endpoint, "PUB frame endpoint to bind")->capture_default_str();
+  app.add_option("--advertise-pub", o.advertised_pub_endpoint,
+                 "frame endpoint clients are told to subscribe to (default: the bound --pub), e.g. "
+                 "tcp://public-host:7556 behind NAT or remapped ports")
+      ->check([](const std::string& e) {
+        return e.rfind("tcp://", 0) == 0 || e.rfind("ipc://", 0) == 0 || e.rfind("inproc://", 0) == 0
+                   ? std::string()
+                   : "expected a ZeroMQ endpoint such as tcp://host:port, got '" + e + "'";
+      });
   app.add_option("--rate", o.rate_hz, "tick rate, Hz")->check(CLI::Range(1e-3, 1e4))->capture_default_str();
   app.add_option("--instances", o.instances_per_scene, "instances created per scene at start")
       ->check(CLI::Range(0, 1000000))

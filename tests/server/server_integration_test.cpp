@@ -100,6 +100,18 @@ TEST(ServerProcessTest, ImpulseFromAnotherClientChangesTheStreamWithinOneTick) {
   EXPECT_EQ(next->irf_t(), 1u);
 }
 
+// Behind NAT or remapped ports clients are told the public frame endpoint.
+TEST(ServerProcessTest, AdvertisedPubEndpointIsAnnounced) {
+  ServerProcess server({fixture("advertise").string(), "--advertise-pub", "tcp://frames.example:7556"});
+  zmq::context_t ctx;
+  CommandClient client(ctx, server.cmd());
+  v1::Request r;
+  r.mutable_list_scenes();
+  const auto reply = client.call(r);
+  ASSERT_TRUE(reply.ok()) << reply.error();
+  EXPECT_EQ(reply.scenes().pub_endpoint(), "tcp://frames.example:7556");
+}
+
 TEST(ServerProcessTest, ListScenesDescribesThePaletteAndBasisParts) {
   const auto pkg = fixture("list");
   ServerProcess server({pkg.string()});

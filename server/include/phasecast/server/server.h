@@ -20,6 +20,9 @@ struct ServerOptions {
   std::vector<std::filesystem::path> packages;
   std::string cmd_endpoint = "tcp://*:5555";
   std::string pub_endpoint = "tcp://*:5556";
+  // The frame endpoint announced to clients (list_scenes), when the bound one is
+  // not what they reach: NAT, remapped container ports. Empty: the bound endpoint.
+  std::string advertised_pub_endpoint;
   double rate_hz = 60;
   int instances_per_scene = 1;
   std::optional<std::filesystem::path> record;       // record from the start
