@@ -45,8 +45,7 @@ int main(int argc, char** argv) {
   // One chunk per -e, so that `-e CODE script.lua` does not read the script path as code.
   app.add_option("-e,--execute", code, "Lua code to run (repeatable, runs before the script)")
       ->allow_extra_args(false);
-  app.add_option("--stats-out", stats_out,
-                 "after the script, write the server's stats as JSON to this file");
+  app.add_option("--stats-out", stats_out, "after the script, write the server's stats as JSON to this file");
   app.add_option("script", script, "Lua script file")->check(CLI::ExistingFile);
   CLI11_PARSE(app, argc, argv);
   options.timeout = std::chrono::milliseconds(timeout_ms);

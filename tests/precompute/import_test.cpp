@@ -98,13 +98,10 @@ TEST(Import, CliWritesTheStore) {
   EXPECT_EQ(read_orbit_store(out).frames(), 6);
 }
 
-// The route for another simulator's orbits (README, docs/simulator.md): import, then
-// reduce with a scene file that describes the same mesh, palette names and frame
-// spacing (its physics is not used: nothing is simulated).
-TEST(Import, ImportedOrbitsReduceIntoAServablePackage) {
-  const auto manifest = make_fixture("import_reduce");
-  const auto dir = manifest.parent_path();
-  std::ofstream(dir / "sheet.toml") << R"(name = "external_sheet"
+// A scene file of the imported sheet: a membrane with the given mesh line and
+// the manifest's palette names and frame spacing.
+std::string sheet_scene(const std::string& name, const std::string& mesh) {
+  return "name = \"" + name + R"("
 [simulation]
 frame_dt = 0.1
 [support]
@@ -116,7 +113,8 @@ name = "sheet"
 energies = ["membrane"]
 density = 0.2
 young = 100
-obj = { path = "open_0/f0.obj" }
+)" + mesh +
+         R"(
 pin = { min = [-0.01, -0.01, -0.01], max = [0.01, 0.01, 0.01] }
 [[palette]]
 name = "open"
@@ -127,6 +125,15 @@ name = "stop"
 alpha_impulse = [0, 0, 0]
 alpha_forcing = [0, 0, 0]
 )";
+}
+
+// The route for another simulator's orbits (README, docs/simulator.md): import, then
+// reduce with a scene file that describes the same mesh, palette names and frame
+// spacing (its physics is not used: nothing is simulated).
+TEST(Import, ImportedOrbitsReduceIntoAServablePackage) {
+  const auto manifest = make_fixture("import_reduce");
+  const auto dir = manifest.parent_path();
+  std::ofstream(dir / "sheet.toml") << sheet_scene("external_sheet", R"(obj = { path = "open_0/f0.obj" })");
   const auto orbits = (dir / "orbits.h5").string(), package = (dir / "sheet.h5").string();
   auto r = testing::run_tool("phasecast-precompute", {"import", manifest.string(), "-o", orbits});
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -139,29 +146,10 @@ alpha_forcing = [0, 0, 0]
   EXPECT_NE(r.out.find("0: open (1 IRFs), 1: stop (1 IRFs)"), std::string::npos) << r.out;
 
   // A scene file of another mesh is refused with what does not match.
-  std::ofstream(dir / "other.toml") << R"(name = "other"
-[simulation]
-frame_dt = 0.1
-[support]
-motion = "rotational"
-axis = [0, 1, 0]
-[[body]]
-name = "sheet"
-energies = ["membrane"]
-density = 0.2
-young = 100
-grid = { origin = [0, 0, 0], u = [1, 0, 0], v = [0, 1, 0], cells = [2, 2] }
-pin = { min = [-0.01, -0.01, -0.01], max = [0.01, 0.01, 0.01] }
-[[palette]]
-name = "open"
-alpha_impulse = [0, 1, 0]
-alpha_forcing = [0, 1, 0]
-[[palette]]
-name = "stop"
-alpha_impulse = [0, 0, 0]
-alpha_forcing = [0, 0, 0]
-)";
-  r = testing::run_tool("phasecast-precompute", {"reduce", (dir / "other.toml").string(), orbits, "-o", package});
+  std::ofstream(dir / "other.toml") << sheet_scene(
+      "other", "grid = { origin = [0, 0, 0], u = [1, 0, 0], v = [0, 1, 0], cells = [2, 2] }");
+  r = testing::run_tool("phasecast-precompute",
+                        {"reduce", (dir / "other.toml").string(), orbits, "-o", package});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("does not belong to scene 'other' (9 vertices"), std::string::npos) << r.err;
 }
