@@ -5,10 +5,11 @@ For each scene: `phasecast-precompute run --no-appearance` (dynamics: IRF
 sampling and reduction, timed), then `run --resume` on the same checkpoints
 (the appearance stage, timed: the sampled chains are reused, only the
 reduction is redone), `phasecast-inspect --json` of both packages, and the
-render client playing IRF 0 of each package from disk (OSMesa, render-only
-frames/s): without /appearance ("Defo") and with it ("Defo + Trnsfr").
+render client playing the first 8 IRFs of each package from disk (OSMesa, render-only
+frames/s): without /appearance ("Defo") and with it
+("Defo + Trnsfr").
 
-  bench/paper_tables.py [--bin build/bin] [--work DIR] [--quick] [--size 512x512] [SCENE ...]
+  bench/paper_tables.py [--bin build/bin] [--work DIR] [--quick] [--reuse] [--size 512x512] [SCENE ...]
 
 --quick samples 2 chains x 6 IRFs (the demo preset) instead of
 phasecast-precompute's defaults. Prints a markdown table and writes
@@ -43,13 +44,19 @@ def inspect(bin_dir, package):
     return json.loads(out)
 
 
-def render_fps(bin_dir, package, size):
-    out = subprocess.run([os.path.join(bin_dir, "phasecast-render"), "--package", package, "--play-irf", "0",
-                          "--size", size, "--light", "grace"], check=True, capture_output=True, text=True)
-    m = re.search(r"(\d+) frames at \S+: ([\d.]+) frames/s render-only", out.stdout + out.stderr)
-    if not m:
-        raise RuntimeError(f"phasecast-render printed no frame rate for {package}")
-    return float(m.group(2))
+def render_fps(bin_dir, package, size, irfs):
+    """Render-only frames/s over the first IRFs of the package (each a short
+    play), weighted by their frames."""
+    frames = seconds = 0.0
+    for irf in range(irfs):
+        out = subprocess.run([os.path.join(bin_dir, "phasecast-render"), "--package", package, "--play-irf", str(irf),
+                              "--size", size, "--light", "grace"], check=True, capture_output=True, text=True)
+        m = re.search(r"(\d+) frames at \S+: ([\d.]+) frames/s render-only", out.stdout + out.stderr)
+        if not m:
+            raise RuntimeError(f"phasecast-render printed no frame rate for {package}")
+        frames += int(m.group(1))
+        seconds += int(m.group(1)) / float(m.group(2))
+    return frames / seconds
 
 
 def measure(scene, args):
@@ -60,18 +67,26 @@ def measure(scene, args):
     sampling = ["--chains", "2", "--irfs-per-chain", "6"] if args.quick else []
     checkpoints = os.path.join(work, "checkpoints")
     defo, full = os.path.join(work, "defo.h5"), os.path.join(work, "full.h5")
-    print(f"paper_tables: {scene}: dynamics...", file=sys.stderr, flush=True)
-    t_dyn = timed([tool, "run", scene_file, "-o", defo, "--work-dir", checkpoints, "--no-appearance", *sampling],
-                  os.path.join(work, "dynamics.log"))
-    print(f"paper_tables: {scene}: transfer...", file=sys.stderr, flush=True)
-    t_transfer = timed([tool, "run", scene_file, "-o", full, "--work-dir", checkpoints, "--resume", *sampling],
-                       os.path.join(work, "transfer.log"))
+    times = os.path.join(work, "times.json")
+    if args.reuse and os.path.exists(times):
+        t_dyn, t_transfer = json.load(open(times))
+    else:
+        print(f"paper_tables: {scene}: dynamics...", file=sys.stderr, flush=True)
+        t_dyn = timed([tool, "run", scene_file, "-o", defo, "--work-dir", checkpoints, "--no-appearance", *sampling],
+                      os.path.join(work, "dynamics.log"))
+        print(f"paper_tables: {scene}: transfer...", file=sys.stderr, flush=True)
+        t_transfer = timed([tool, "run", scene_file, "-o", full, "--work-dir", checkpoints, "--resume", *sampling],
+                           os.path.join(work, "transfer.log"))
+        json.dump([t_dyn, t_transfer], open(times, "w"))
     s = inspect(args.bin, full)
+    print(f"paper_tables: {scene}: frame rates...", file=sys.stderr, flush=True)
+    irfs = min(s["n_irf"], 8)
     return {
         "scene": scene, "F": s["F"], "S": s["S"], "r_u": s["r_u"], "rel_error_u": s["rel_error_u"],
         "N_a": s.get("N_a", 0), "r_a": s["r_a"], "rel_error_a": s["rel_error_a"], "N": s["N"], "n_irf": s["n_irf"],
         "dynamics_s": t_dyn, "transfer_s": t_transfer,
-        "fps_defo": render_fps(args.bin, defo, args.size), "fps_defo_transfer": render_fps(args.bin, full, args.size),
+        "fps_defo": render_fps(args.bin, defo, args.size, irfs),
+        "fps_defo_transfer": render_fps(args.bin, full, args.size, irfs),
         "frame_state_bytes": s["frame_state_bytes"], "full_vertex_frame_bytes": s["full_vertex_frame_bytes"],
     }
 
@@ -92,7 +107,7 @@ def table(rows, args):
               f"| {r['frame_state_bytes']} B vs {r['full_vertex_frame_bytes']} B |")
         print(f"| *{p[0]} (paper)* | {p[1]} | {p[2]} | {p[3]} | {p[4]} | {p[5]} | {p[6]} | {p[7]} | {p[8]} | {p[9]} "
               f"| {p[10]} | {p[11]} | {p[12]} | {p[13]} | |")
-    print(f"\nfps: OSMesa llvmpipe, {args.size}, render-only, IRF 0 played from the package; "
+    print(f"\nfps: OSMesa llvmpipe, {args.size}, render-only, the first 8 IRFs played from the package; "
           f"{'quick sampling (2 x 6 IRFs)' if args.quick else 'phasecast-precompute defaults'}.")
 
 
@@ -104,6 +119,8 @@ def main():
     parser.add_argument("--work", default=os.path.join(here, "..", "out", "paper_tables"))
     parser.add_argument("--quick", action="store_true", help="2 chains x 6 IRFs instead of the defaults")
     parser.add_argument("--size", default="512x512", help="render size for the frame rates")
+    parser.add_argument("--reuse", action="store_true",
+                        help="keep the packages and times of an earlier run in --work; measure the frame rates again")
     args = parser.parse_args()
     args.source = os.path.join(here, "..")
     unknown = [s for s in args.scenes if s not in SCENES]
