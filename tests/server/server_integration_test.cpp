@@ -100,14 +100,19 @@ TEST(ServerProcessTest, ImpulseFromAnotherClientChangesTheStreamWithinOneTick) {
   EXPECT_EQ(next->irf_t(), 1u);
 }
 
-// Behind NAT or remapped ports clients are told the public frame endpoint.
-TEST(ServerProcessTest, AdvertisedPubEndpointIsAnnounced) {
-  ServerProcess server({fixture("advertise").string(), "--advertise-pub", "tcp://frames.example:7556"});
+// The reply to list_scenes, from a fresh DEALER.
+v1::Reply list_scenes(const ServerProcess& server) {
   zmq::context_t ctx;
   CommandClient client(ctx, server.cmd());
   v1::Request r;
   r.mutable_list_scenes();
-  const auto reply = client.call(r);
+  return client.call(r);
+}
+
+// Behind NAT or remapped ports clients are told the public frame endpoint.
+TEST(ServerProcessTest, AdvertisedPubEndpointIsAnnounced) {
+  ServerProcess server({fixture("advertise").string(), "--advertise-pub", "tcp://frames.example:7556"});
+  const auto reply = list_scenes(server);
   ASSERT_TRUE(reply.ok()) << reply.error();
   EXPECT_EQ(reply.scenes().pub_endpoint(), "tcp://frames.example:7556");
 }
@@ -115,11 +120,7 @@ TEST(ServerProcessTest, AdvertisedPubEndpointIsAnnounced) {
 TEST(ServerProcessTest, ListScenesDescribesThePaletteAndBasisParts) {
   const auto pkg = fixture("list");
   ServerProcess server({pkg.string()});
-  zmq::context_t ctx;
-  CommandClient client(ctx, server.cmd());
-  v1::Request r;
-  r.mutable_list_scenes();
-  const auto reply = client.call(r);
+  const auto reply = list_scenes(server);
   ASSERT_TRUE(reply.ok()) << reply.error();
   const auto& list = reply.scenes();
   EXPECT_EQ(list.pub_endpoint(), server.pub());
