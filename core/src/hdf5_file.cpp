@@ -1,4 +1,4 @@
-#include "hdf5_file.h"
+#include "phasecast/core/hdf5_file.h"
 
 #include <fmt/format.h>
 

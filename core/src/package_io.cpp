@@ -3,7 +3,7 @@
 // cross-dataset consistency, indices and finiteness are checked by
 // validate_package() so that the writer enforces the very same rules.
 
-#include "hdf5_file.h"
+#include "phasecast/core/hdf5_file.h"
 #include "phasecast/core/kinematics_rows.h"
 #include "phasecast/core/package.h"
 

@@ -1,8 +1,8 @@
 // phasecast-precompute import: orbits from an external simulator into an orbit store.
 
 #include "commands.h"
-#include "phasecast/precompute/orbit_import.h"
-#include "phasecast/precompute/progress.h"
+#include "phasecast/precompute/sampling/orbit_import.h"
+#include "phasecast/core/progress.h"
 
 #include <fmt/format.h>
 
@@ -18,7 +18,7 @@ struct ImportOptions {
 
 void run_import(const ImportOptions& o) {
   using namespace phasecast::precompute;
-  ProgressBar bar("import");
+  phasecast::core::ProgressBar bar("import");
   const OrbitStore store = import_orbits(o.manifest, [&](int done, int total) { bar.update(done, total); });
   bar.finish();
   write_orbit_store(store, o.output);

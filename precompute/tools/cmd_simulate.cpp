@@ -1,10 +1,10 @@
 // phasecast-precompute simulate: run a scene through a schedule of palette entries.
 
 #include "commands.h"
-#include "phasecast/precompute/obj_frames.h"
-#include "phasecast/precompute/orbit_recorder.h"
-#include "phasecast/precompute/progress.h"
-#include "phasecast/precompute/scene.h"
+#include "phasecast/precompute/sampling/obj_frames.h"
+#include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "phasecast/core/progress.h"
+#include "phasecast/precompute/simulation/scene.h"
 
 #include <fmt/format.h>
 
@@ -26,14 +26,14 @@ void run_simulate(const SimulateOptions& o) {
   const auto schedule = parse_schedule(o.schedule, scene);
   fmt::print(stderr, "{}: {} vertices, {} palette entries, {} IRFs\n", scene.name, scene.model.vertices(),
              scene.palette.size(), schedule.size());
-  ProgressBar bar("simulate");
+  phasecast::core::ProgressBar bar("simulate");
   const OrbitStore store =
       simulate_schedule(scene, schedule, [&](int done, int total) { bar.update(done, total); });
   bar.finish();
   write_orbit_store(store, o.output);
   fmt::print("wrote {} ({} frames, {} IRFs)\n", o.output, store.frames(), store.irf_start.size());
   if (!o.obj_dir.empty()) {
-    ProgressBar obj_bar("obj frames");
+    phasecast::core::ProgressBar obj_bar("obj frames");
     const int n = write_obj_frames(store, scene.model.obstacles, o.obj_dir,
                                    [&](int done, int total) { obj_bar.update(done, total); });
     obj_bar.finish();

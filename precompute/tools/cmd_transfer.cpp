@@ -2,8 +2,8 @@
 // transfer file (docs/transfer.md).
 
 #include "commands.h"
-#include "phasecast/precompute/transfer.h"
-#include "phasecast/precompute/transfer_file.h"
+#include "phasecast/precompute/appearance/transfer.h"
+#include "phasecast/precompute/appearance/transfer_file.h"
 
 #include <fmt/format.h>
 

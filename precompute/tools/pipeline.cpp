@@ -1,8 +1,8 @@
 #include "pipeline.h"
 
 #include "phasecast/core/package.h"
-#include "phasecast/precompute/displacement_reduction.h"
-#include "phasecast/precompute/progress.h"
+#include "phasecast/precompute/reduction/displacement_reduction.h"
+#include "phasecast/core/progress.h"
 
 #include <fmt/format.h>
 
@@ -131,11 +131,11 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
   if (!appearance.skip) precompute::check_appearance_stage_options(appearance.stage);
   const auto rules = precompute::make_palette_rules(scene);
   const auto index = precompute::read_orbit_index(orbits);
-  precompute::ProgressBar mean_bar("mean shape");
+  core::ProgressBar mean_bar("mean shape");
   const precompute::OrbitDisplacementSource A(orbits);
   mean_bar.update(1, 1);
   mean_bar.finish();
-  precompute::ProgressBar bar("randomized SVD");
+  core::ProgressBar bar("randomized SVD");
   auto options = a.reduction;
   options.progress = [&bar](int done, int total) { bar.update(done, total); };
   const auto basis = precompute::reduce_displacements(A, options);
@@ -144,7 +144,7 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
   for (const auto& line : built.filter.messages) fmt::print(stderr, "dropped {}\n", line);
   auto& p = built.package;
   if (!appearance.skip) {
-    precompute::ProgressBar transfer_bar("appearance transfer");
+    core::ProgressBar transfer_bar("appearance transfer");
     const auto report =
         precompute::add_appearance(p, precompute::scene_point_vertices(scene), A,
                                    precompute::package_node_frames(index.irfs, built.filter.kept),

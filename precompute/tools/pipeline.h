@@ -1,9 +1,9 @@
 #pragma once
 // Options and stages shared by the sample, reduce and run subcommands.
 
-#include "phasecast/precompute/appearance_stage.h"
-#include "phasecast/precompute/irf_sampler.h"
-#include "phasecast/precompute/package_builder.h"
+#include "phasecast/precompute/appearance/appearance_stage.h"
+#include "phasecast/precompute/sampling/irf_sampler.h"
+#include "phasecast/precompute/package/package_builder.h"
 
 #include <CLI/CLI.hpp>
 

@@ -1,6 +1,6 @@
 // Every rejection path of the package reader, each with its one-line message.
 
-#include "hdf5_file.h"
+#include "phasecast/core/hdf5_file.h"
 #include "phasecast/core/package.h"
 #include "run_tool.h"
 #include "synthetic_package.h"

@@ -1,0 +1,70 @@
+// bench_precompute: what the paper is about, in one ratio. One frame of the
+// implicit simulator (Newton + sparse Cholesky, contact) against a rank-r
+// reconstruction u = U_u q_u of the same mesh, which is what a thin client
+// evaluates per frame once the IRFs are precomputed (the server's own
+// synthesis step is O(r) and lives in server/).
+
+#include "phasecast/precompute/simulation/scene.h"
+
+#include <benchmark/benchmark.h>
+
+#include <random>
+
+namespace {
+
+using phasecast::precompute::load_scene;
+
+const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+
+// Frames of `scene` under palette entry `entry` (impulse once, then forcing).
+void simulate_frames(benchmark::State& state, const char* scene_name, const char* entry) {
+  const auto scene = load_scene(kScenes / (std::string(scene_name) + ".toml"));
+  const auto& e = scene.palette.at(static_cast<size_t>(scene.palette_index(entry)));
+  auto sim = make_simulator(scene);
+  sim->impulse(e.alpha_impulse);
+  for (auto _ : state) {
+    sim->step(e.alpha_forcing);
+    benchmark::DoNotOptimize(sim->state().x.data());
+  }
+  state.counters["vertices"] = scene.model.vertices();
+  state.counters["frames_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["sim_s_per_wall_s"] = benchmark::Counter(
+      static_cast<double>(state.iterations()) * scene.simulation.frame_dt, benchmark::Counter::kIsRate);
+}
+
+void BM_ClothDoorFrame(benchmark::State& s) {
+  simulate_frames(s, "cloth_door", "open");
+}
+void BM_PlantPotFrame(benchmark::State& s) {
+  simulate_frames(s, "plant_pot", "right");
+}
+void BM_ToyDashboardFrame(benchmark::State& s) {
+  simulate_frames(s, "toy_dashboard", "forward");
+}
+BENCHMARK(BM_ClothDoorFrame)->Unit(benchmark::kMillisecond)->Iterations(40);
+BENCHMARK(BM_PlantPotFrame)->Unit(benchmark::kMillisecond)->Iterations(100);
+BENCHMARK(BM_ToyDashboardFrame)->Unit(benchmark::kMillisecond)->Iterations(20);
+
+// u = U_u q_u for the cloth_door mesh at rank r (float, as on the client).
+void BM_ClothDoorReducedReconstruction(benchmark::State& state) {
+  const auto scene = load_scene(kScenes / "cloth_door.toml");
+  const auto rows = 3 * scene.model.vertices();
+  const auto r = static_cast<Eigen::Index>(state.range(0));
+  std::mt19937 rng(1);
+  std::normal_distribution<float> n(0, 1);
+  Eigen::MatrixXf U(rows, r);
+  Eigen::VectorXf q(r);
+  for (Eigen::Index i = 0; i < U.size(); ++i) U.data()[i] = n(rng);
+  for (Eigen::Index i = 0; i < r; ++i) q[i] = n(rng);
+  Eigen::VectorXf u(rows);
+  for (auto _ : state) {
+    u.noalias() = U * q;
+    benchmark::DoNotOptimize(u.data());
+  }
+}
+BENCHMARK(BM_ClothDoorReducedReconstruction)->Arg(20)->Arg(64)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

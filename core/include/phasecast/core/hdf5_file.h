@@ -1,0 +1,126 @@
+#pragma once
+// A small RAII layer over the HDF5 C API, shared by every file format. It turns
+// every HDF5 failure into an exception (never an HDF5 error-stack dump) and
+// checks dtypes exactly, because the package format promises exact dtypes.
+
+#include <hdf5.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace phasecast::core::h5 {
+
+// Raised by this layer; the package code rethrows it as PackageError with the file name.
+class Failure : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+enum class Dtype { f32, f64, u8, u32, i32, string, other };
+const char* dtype_name(Dtype d);
+
+template <class T>
+constexpr Dtype dtype_of();
+template <>
+constexpr Dtype dtype_of<float>() {
+  return Dtype::f32;
+}
+template <>
+constexpr Dtype dtype_of<double>() {
+  return Dtype::f64;
+}
+template <>
+constexpr Dtype dtype_of<std::uint8_t>() {
+  return Dtype::u8;
+}
+template <>
+constexpr Dtype dtype_of<std::uint32_t>() {
+  return Dtype::u32;
+}
+template <>
+constexpr Dtype dtype_of<std::int32_t>() {
+  return Dtype::i32;
+}
+
+// Owns one hid_t and closes it with the matching H5*close.
+class Handle {
+ public:
+  using Closer = herr_t (*)(hid_t);
+  Handle() = default;
+  Handle(hid_t id, Closer closer) : id_(id), closer_(closer) {}
+  Handle(Handle&& o) noexcept : id_(o.id_), closer_(o.closer_) { o.id_ = H5I_INVALID_HID; }
+  Handle& operator=(Handle&& o) noexcept;
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle();
+  hid_t get() const { return id_; }
+
+ private:
+  hid_t id_ = H5I_INVALID_HID;
+  Closer closer_ = nullptr;
+};
+
+struct DatasetInfo {
+  std::vector<std::uint64_t> dims;
+  Dtype dtype = Dtype::other;
+};
+
+class File {
+ public:
+  static File create(const std::filesystem::path& path);
+  static File open_read(const std::filesystem::path& path);
+  static File open_write(const std::filesystem::path& path);  // existing file, read-write
+
+  void remove(const std::string& name);
+  void remove_attribute(const std::string& name);
+  bool exists(const std::string& name) const;
+  DatasetInfo info(const std::string& name) const;
+
+  // Reads the whole dataset into `out` (sized by the caller from info()).
+  template <class T>
+  void read(const std::string& name, T* out) const {
+    read_raw(name, dtype_of<T>(), out);
+  }
+  std::vector<std::string> read_strings(const std::string& name) const;
+
+  template <class T>
+  void write(const std::string& name, const T* data, const std::vector<std::uint64_t>& dims) {
+    write_raw(name, dtype_of<T>(), data, dims);
+  }
+  void write_strings(const std::string& name, const std::vector<std::string>& values);
+
+  bool has_attribute(const std::string& name) const;
+  Dtype attribute_dtype(const std::string& name) const;
+  double read_attribute_number(const std::string& name) const;
+  std::string read_attribute_string(const std::string& name) const;
+  std::vector<float> read_attribute_floats(const std::string& name) const;
+  void write_attribute(const std::string& name, double value);
+  void write_attribute(const std::string& name, std::int32_t value);
+  void write_attribute(const std::string& name, const std::string& value);
+  void write_attribute(const std::string& name, const std::vector<float>& values);
+  // Attribute on a dataset or group rather than the root.
+  void write_attribute_on(const std::string& object, const std::string& name, const std::string& value);
+
+  void flush();
+
+ private:
+  explicit File(Handle file) : file_(std::move(file)) {}
+  void read_raw(const std::string& name, Dtype dtype, void* out) const;
+  void write_raw(const std::string& name, Dtype dtype, const void* data,
+                 const std::vector<std::uint64_t>& dims);
+  Handle open_dataset(const std::string& name) const;
+  void ensure_parent_groups(const std::string& name);
+  Handle file_;
+};
+
+// Writes a new HDF5 file atomically: `fill` writes into a temporary file in
+// the same folder, which is flushed and then renamed over `path`, so an
+// interrupted write never leaves a partial file under the final name. Any
+// failure removes the temporary file and throws Failure with the reason.
+void write_atomically(const std::filesystem::path& path, const std::function<void(File&)>& fill);
+
+}  // namespace phasecast::core::h5

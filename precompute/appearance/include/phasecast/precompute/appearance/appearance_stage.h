@@ -1,0 +1,77 @@
+#pragma once
+// The appearance stage of the precompute pipeline (§4): k-means of the state
+// nodes in q_u, diffuse transfer on the UNREDUCED deformed mesh of each
+// cluster's representative node (read from the orbit store, not U_u q_u), then
+// the reduced transfer basis U_a and the NRBF q_a of every node
+// (build_appearance). Fills /appearance, /portrait/q_a and eps_a of a package.
+
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/reduction/displacement_reduction.h"
+#include "phasecast/precompute/sampling/orbit_filter.h"
+#include "phasecast/precompute/appearance/transfer.h"
+#include "phasecast/precompute/appearance/transfer_appearance.h"
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace phasecast::precompute {
+
+struct AppearanceStageOptions {
+  int clusters = 16;       // N_a: state nodes whose transfer is computed (k-means of q_u, §4.3)
+  std::uint64_t seed = 1;  // k-means++ seeding
+  TransferOptions transfer = default_stage_transfer();
+  AppearanceOptions appearance;  // eps_a or fixed r_a, NRBF regularization
+
+  // Interreflected, 1024 directions, 2 bounces (the transfer command's defaults):
+  // about 0.1 s per cluster node on the 1242 points of cloth_door (docs/performance-transfer.md).
+  static TransferOptions default_stage_transfer() {
+    TransferOptions t;
+    t.mode = TransferMode::interreflected;
+    t.rays = 1024;
+    t.bounces = 2;
+    return t;
+  }
+};
+
+// Throws std::invalid_argument naming --clusters, --rays, --bounces, --eps-a or --rank-a.
+void check_appearance_stage_options(const AppearanceStageOptions& options);
+
+// The orbit-store frame of every package state node: the kept IRFs of the
+// store, renumbered into consecutive rows as build_package does.
+std::vector<std::int64_t> package_node_frames(const IrfList& store_irfs, const std::vector<int>& kept);
+
+// Scene points of the package mesh at one orbit-store frame: deformable points
+// at the simulated positions of their vertex (`point_vertex`, from
+// scene_point_vertices), static points at rest. All in the support frame.
+//   @param[in] frame  3V positions of the frame, as stored
+MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const std::vector<int>& point_vertex,
+                                const Eigen::Ref<const Eigen::RowVectorXf>& frame);
+
+// Transfer (S x 48) of the package's scene points at one orbit-store frame:
+// normals of the deformed mesh (angle-weighted; the back side of a sheet has
+// reversed triangles, hence flipped normals), then compute_transfer.
+MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>& point_vertex,
+                            const Eigen::Ref<const Eigen::RowVectorXf>& frame,
+                            const TransferOptions& options);
+
+struct AppearanceStageReport {
+  KMeansResult clusters;
+  LeaveOneOut leave_one_out;  // NRBF on the N_a samples (empty when N_a == 1)
+};
+
+// Runs the stage on `package` (its portrait q_u and mesh must be final) and
+// stores the model in package.appearance, package.portrait.q_a and
+// package.attributes.eps_a. `progress(stage, done, total)` is called as the
+// representatives' transfers complete.
+//   @param[in] orbits       the store the package was reduced from
+//   @param[in] node_frames  package_node_frames(...) of that reduction
+// Throws std::invalid_argument for bad options (N_a above the node count
+// included) and OrbitStoreError when a frame cannot be read.
+AppearanceStageReport add_appearance(core::ScenePackage& package, const std::vector<int>& point_vertex,
+                                     const OrbitDisplacementSource& orbits,
+                                     const std::vector<std::int64_t>& node_frames,
+                                     const AppearanceStageOptions& options,
+                                     const std::function<void(const char*, long, long)>& progress = {});
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,106 @@
+#include "phasecast/precompute/appearance/appearance_stage.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace phasecast::precompute {
+
+void check_appearance_stage_options(const AppearanceStageOptions& o) {
+  if (o.clusters < 1)
+    throw std::invalid_argument(fmt::format("appearance: expected --clusters >= 1, got {}", o.clusters));
+  if (o.transfer.rays < 1 || o.transfer.rays > (1 << 20))
+    throw std::invalid_argument(
+        fmt::format("appearance: expected --rays in 1..1048576, got {}", o.transfer.rays));
+  if (o.transfer.bounces < 0)
+    throw std::invalid_argument(
+        fmt::format("appearance: expected --bounces >= 0, got {}", o.transfer.bounces));
+  const double eps = o.appearance.reduction.eps_a;
+  if (!(std::isfinite(eps) && eps > 0 && eps < 1))
+    throw std::invalid_argument(fmt::format("appearance: expected --eps-a in (0, 1), got {}", eps));
+  if (o.appearance.reduction.rank < 0)
+    throw std::invalid_argument(fmt::format("appearance: expected --rank-a >= 0 (0: use --eps-a), got {}",
+                                            o.appearance.reduction.rank));
+  validate_transfer_options(o.transfer);
+}
+
+std::vector<std::int64_t> package_node_frames(const IrfList& irfs, const std::vector<int>& kept) {
+  std::vector<std::int64_t> frames;
+  for (int i : kept) {
+    const auto k = static_cast<size_t>(i);
+    for (std::int32_t f = 0; f < irfs.length[k]; ++f) frames.push_back(irfs.start[k] + f);
+  }
+  return frames;
+}
+
+MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const std::vector<int>& point_vertex,
+                                const Eigen::Ref<const Eigen::RowVectorXf>& frame) {
+  if (static_cast<Eigen::Index>(point_vertex.size()) != mesh.points()) {
+    throw std::invalid_argument(
+        fmt::format("appearance: point-to-vertex map has {} entries, mesh has {} points", point_vertex.size(),
+                    mesh.points()));
+  }
+  MatrixXfR x = mesh.rest_positions;
+  for (Eigen::Index p = 0; p < x.rows(); ++p) {
+    const int v = point_vertex[static_cast<size_t>(p)];
+    if (v < 0 || !mesh.deformable[static_cast<size_t>(p)]) continue;
+    if (3 * static_cast<Eigen::Index>(v) + 2 >= frame.size()) {
+      throw std::invalid_argument(
+          fmt::format("appearance: scene point {} moves with vertex {}, but a frame has {} vertices", p, v,
+                      frame.size() / 3));
+    }
+    for (int k = 0; k < 3; ++k) x(p, k) = frame(3 * v + k);
+  }
+  return x;
+}
+
+MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>& point_vertex,
+                            const Eigen::Ref<const Eigen::RowVectorXf>& frame,
+                            const TransferOptions& options) {
+  const MatrixXfR x = deformed_scene_points(mesh, point_vertex, frame);
+  const MatrixXfR n = vertex_normals(x, mesh.triangles);
+  return compute_transfer(x, mesh.triangles, n, options);  // §4.1, on the unreduced mesh
+}
+
+AppearanceStageReport add_appearance(core::ScenePackage& pkg, const std::vector<int>& point_vertex,
+                                     const OrbitDisplacementSource& orbits,
+                                     const std::vector<std::int64_t>& node_frames,
+                                     const AppearanceStageOptions& o,
+                                     const std::function<void(const char*, long, long)>& progress) {
+  check_appearance_stage_options(o);
+  const MatrixXfR& q_u = pkg.portrait.q_u;
+  const Eigen::Index N = q_u.rows();
+  if (static_cast<Eigen::Index>(node_frames.size()) != N) {
+    throw std::invalid_argument(
+        fmt::format("appearance: {} node frames for {} state nodes", node_frames.size(), N));
+  }
+  if (o.clusters > N) {
+    throw std::invalid_argument(fmt::format(
+        "appearance: expected --clusters in 1..{} (the state nodes of the package), got {}", N, o.clusters));
+  }
+  AppearanceStageReport report;
+  report.clusters = kmeans(q_u, {o.clusters, o.seed, 100});  // §4.3: N_a clusters of the nodes
+  const auto Na = static_cast<long>(report.clusters.representatives.size());
+  const Eigen::Index S = pkg.mesh.points();
+  MatrixXfR fields(Na, 48 * S);
+  TransferOptions transfer = o.transfer;
+  transfer.progress = nullptr;  // one tick per representative is the stage's progress
+  if (progress) progress("appearance transfer", 0, Na);
+  for (long j = 0; j < Na; ++j) {
+    const auto node = static_cast<size_t>(report.clusters.representatives[static_cast<size_t>(j)]);
+    MatrixXfR frame;
+    orbits.read_frames(node_frames[node], 1, frame);
+    const MatrixXfR T = transfer_at_frame(pkg.mesh, point_vertex, frame.row(0), transfer);
+    fields.row(j) = Eigen::Map<const Eigen::RowVectorXf>(T.data(), T.size());  // S x 48 row-major = 48S
+    if (progress) progress("appearance transfer", j + 1, Na);
+  }
+  AppearanceModel model = build_appearance(q_u, report.clusters, fields, o.appearance);  // §4.2, §4.3
+  report.leave_one_out = model.leave_one_out;
+  pkg.appearance = std::move(model.appearance);
+  pkg.portrait.q_a = std::move(model.q_a);
+  pkg.attributes.eps_a = o.appearance.reduction.rank > 0 ? 0.0 : o.appearance.reduction.eps_a;
+  return report;
+}
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,111 @@
+#include "phasecast/precompute/appearance/transfer_reduction.h"
+
+#include <fmt/format.h>
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace phasecast::precompute {
+namespace {
+
+constexpr Eigen::Index kBlock = 4096;  // columns of A_a^T converted to double at a time
+constexpr double kResolvable = 1e-6;   // sigma below this fraction of sigma_1: Gram round-off
+
+void check(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions& o) {
+  if (X.rows() == 0 || X.cols() == 0 || X.cols() % 48 != 0) {
+    throw std::invalid_argument(fmt::format(
+        "reduce_transfer: fields must be N_a x 48S with N_a, S >= 1, got {} x {}", X.rows(), X.cols()));
+  }
+  if (!(o.eps_a >= 0 && o.eps_a <= 1)) {
+    throw std::invalid_argument(fmt::format("reduce_transfer: eps_a must be in [0, 1], got {}", o.eps_a));
+  }
+  if (o.rank < 0)
+    throw std::invalid_argument(fmt::format("reduce_transfer: rank must be >= 0, got {}", o.rank));
+  for (Eigen::Index j = 0; j < X.rows(); ++j) {
+    if (!X.row(j).allFinite()) {
+      throw std::invalid_argument(fmt::format("reduce_transfer: field {} has a non-finite value", j));
+    }
+  }
+}
+
+// Centred block of A_a^T in double: rows are fields, columns [begin, begin + width).
+Eigen::MatrixXd centred_block(const Eigen::Ref<const MatrixXfR>& X, const Eigen::VectorXd& mean,
+                              Eigen::Index begin, Eigen::Index width) {
+  Eigen::MatrixXd B = X.middleCols(begin, width).cast<double>();
+  B.rowwise() -= mean.segment(begin, width).transpose();
+  return B;
+}
+
+template <class Body>
+void for_blocks(Eigen::Index n, Body body) {
+  for (Eigen::Index b = 0; b < n; b += kBlock) body(b, std::min(kBlock, n - b));
+}
+
+}  // namespace
+
+TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions& o) {
+  check(X, o);
+  const Eigen::Index Na = X.rows(), n = X.cols();
+  Eigen::VectorXd mean(n);
+  for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
+    mean.segment(b, w) = X.middleCols(b, w).cast<double>().colwise().mean().transpose();
+  });
+
+  // A_a^T A_a = sum over column blocks; its eigenpairs give sigma^2 and V.
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(Na, Na);
+  for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
+    const Eigen::MatrixXd B = centred_block(X, mean, b, w);
+    gram.noalias() += B * B.transpose();
+  });
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
+  const Eigen::VectorXd lambda = eig.eigenvalues().reverse();
+  const Eigen::MatrixXd V = eig.eigenvectors().rowwise().reverse();
+  const Eigen::VectorXd sigma = lambda.cwiseMax(0).cwiseSqrt();
+
+  TransferReduction r;
+  r.mean_transfer = mean.cast<float>();
+  r.singular_values = sigma.cast<float>();
+  r.rel_error.resize(Na);
+  const double total = sigma.squaredNorm();
+  for (Eigen::Index i = 0; i < Na; ++i) {
+    const double rest = sigma.tail(Na - i - 1).squaredNorm();
+    r.rel_error[i] = static_cast<float>(total > 0 ? std::sqrt(rest / total) : 0.0);
+  }
+
+  int resolvable = 0, by_eps = 0;
+  for (Eigen::Index i = 0; i < Na && sigma[0] > 0; ++i) {
+    if (sigma[i] > kResolvable * sigma[0]) ++resolvable;
+    if (sigma[i] >= o.eps_a * sigma[0]) ++by_eps;
+  }
+  const int rank = std::min(o.rank > 0 ? o.rank : by_eps, resolvable);
+
+  // U_a = A_a V Sigma^-1, then one Cholesky QR step against Gram round-off.
+  Eigen::MatrixXd C = V.leftCols(rank);
+  for (int i = 0; i < rank; ++i) {
+    Eigen::Index big = 0;
+    C.col(i).cwiseAbs().maxCoeff(&big);
+    if (C(big, i) < 0) C.col(i) = -C.col(i);  // sign convention: largest entry of v_i positive
+    C.col(i) /= sigma[i];
+  }
+  Eigen::MatrixXd U(n, rank);
+  for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
+    U.middleRows(b, w).noalias() = centred_block(X, mean, b, w).transpose() * C;
+  });
+  if (rank > 0) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(U.transpose() * U);
+    U = llt.matrixU().solve<Eigen::OnTheRight>(U);  // U R^-1 with U^T U = R^T R
+  }
+  // Q_a = U_a^T A_a: the projection of each centred field.
+  Eigen::MatrixXd Q = Eigen::MatrixXd::Zero(rank, Na);
+  for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
+    Q.noalias() += U.middleRows(b, w).transpose() * centred_block(X, mean, b, w).transpose();
+  });
+  r.U_a = U.cast<float>();
+  r.Q_a = Q.cast<float>();
+  return r;
+}
+
+}  // namespace phasecast::precompute

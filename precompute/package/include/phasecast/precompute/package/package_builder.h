@@ -1,0 +1,67 @@
+#pragma once
+// Assembles the scene package (docs/package-format.md) from a scene, its
+// palette rules, the sampled orbit store and its displacement reduction:
+// scene mesh, palette, reduction, and the reduced phase portrait with
+// velocities (eq. 8), beta (§2.3.2), orbit filtering and the IRF cache (§5.2).
+
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/reduction/displacement_reduction.h"
+#include "phasecast/precompute/sampling/orbit_filter.h"
+#include "phasecast/precompute/sampling/palette_rules.h"
+#include "phasecast/precompute/simulation/scene.h"
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace phasecast::precompute {
+
+// Everything of an orbit store except its frames (read without loading them).
+struct OrbitIndex {
+  std::string scene;
+  double dt = 0;
+  int vertices = 0;
+  std::vector<std::string> palette_names;
+  IrfList irfs;
+  MatrixXfR support;  // N x 12
+};
+
+// Throws OrbitStoreError naming the file and dataset.
+OrbitIndex read_orbit_index(const std::filesystem::path& store);
+
+inline constexpr double kDefaultBlendLambda = 4.0;  // 1/s: an IRF blend offset halves in ~0.17 s (eq. 12)
+
+struct PackageOptions {
+  double beta = 0;  // <= 0: default beta (§2.3.2)
+  double blend_lambda = kDefaultBlendLambda;
+  OrbitFilterOptions filter;
+};
+
+struct PackageBuild {
+  core::ScenePackage package;
+  OrbitFilterResult filter;  // what was dropped and why
+};
+
+// Scene points: the simulated (deformable) vertices first (front side), then
+// the back side of the thin sheets (a copy of every vertex of a sheet
+// triangle, flipped normal, reversed triangles, moved by the same U_u rows),
+// then every box obstacle as 24 static points (4 per face, single-sided,
+// outward normals). Sheet triangles are the surface triangles none of whose
+// vertices belongs to a tetrahedron (cloth, leaves); a solid's boundary stays
+// single-sided. Both sides get their own transfer (§4.1).
+core::SceneMesh scene_mesh(const Scene& scene);
+
+// The simulated vertex that moves each scene point of scene_mesh(scene), -1
+// for static points. Front points map to themselves, back points to the
+// vertex they copy.
+std::vector<int> scene_point_vertices(const Scene& scene);
+
+// Throws std::invalid_argument naming --beta, --blend-lambda, --dead-end-fraction, --min-irf-frames.
+void check_package_options(const PackageOptions& options);
+
+// Throws std::invalid_argument if the orbit store does not belong to the scene
+// (vertex count, palette names, dt), naming both.
+PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const OrbitIndex& orbits,
+                           const DisplacementBasis& basis, const PackageOptions& options);
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,292 @@
+#include "phasecast/precompute/package/package_builder.h"
+
+#include "phasecast/precompute/sampling/scene_palette.h"
+
+#include "phasecast/precompute/sampling/orbit_store.h"
+#include "phasecast/precompute/reduction/phase_portrait.h"
+
+#include "phasecast/core/hdf5_file.h"
+
+#include <fmt/format.h>
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace phasecast::precompute {
+namespace {
+
+namespace h5 = core::h5;
+
+template <class T>
+std::vector<T> read_vector(const h5::File& f, const std::filesystem::path& path, const std::string& name) {
+  if (!f.exists(name)) throw OrbitStoreError(fmt::format("{}: {}: missing dataset", path.string(), name));
+  const auto info = f.info(name);
+  if (info.dims.size() != 1 || info.dtype != h5::dtype_of<T>())
+    throw OrbitStoreError(fmt::format("{}: {}: expected a 1-D {} dataset", path.string(), name,
+                                      h5::dtype_name(h5::dtype_of<T>())));
+  std::vector<T> v(static_cast<size_t>(info.dims[0]));
+  if (!v.empty()) f.read(name, v.data());
+  return v;
+}
+
+// Appends one axis-aligned box as 6 quads with outward normals. Plain scalar
+// writes: fixed-size Eigen temporaries here trip GCC 12's -Warray-bounds.
+void add_box(core::SceneMesh& m, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  const Eigen::Index base = m.rest_positions.rows();
+  m.rest_positions.conservativeResize(base + 24, 3);
+  m.normals.conservativeResize(base + 24, 3);
+  m.triangles.conservativeResize(m.triangles.rows() + 12, 3);
+  Eigen::Index point = base, tri = m.triangles.rows() - 12;
+  const int corner[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  for (int axis = 0; axis < 3; ++axis) {
+    for (int side = 0; side < 2; ++side) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      const auto first = static_cast<std::uint32_t>(point);
+      for (const auto& c : corner) {
+        m.rest_positions(point, axis) = static_cast<float>(side ? hi(axis) : lo(axis));
+        m.rest_positions(point, u) = static_cast<float>(c[0] ? hi(u) : lo(u));
+        m.rest_positions(point, v) = static_cast<float>(c[1] ? hi(v) : lo(v));
+        for (int k = 0; k < 3; ++k) m.normals(point, k) = k == axis ? (side ? 1.0f : -1.0f) : 0.0f;
+        ++point;
+      }
+      // (u, v, axis) is right-handed: counter-clockwise seen from +axis; reversed on the -axis face.
+      const std::uint32_t quad[2][3] = {{first, first + 1, first + 2}, {first, first + 2, first + 3}};
+      for (const auto& t : quad) {
+        m.triangles(tri, 0) = t[0];
+        m.triangles(tri, 1) = side ? t[1] : t[2];
+        m.triangles(tri, 2) = side ? t[2] : t[1];
+        ++tri;
+      }
+    }
+  }
+}
+
+// Vertices that get a back-side copy, ascending: those of sheet triangles
+// (surface triangles with no vertex in a tetrahedron).
+std::vector<int> back_side_vertices(const DeformableModel& model) {
+  const auto V = static_cast<size_t>(model.vertices());
+  std::vector<std::uint8_t> in_tet(V, 0), sheet(V, 0);
+  for (const auto& t : model.tets)
+    for (int v : t.v) in_tet[static_cast<size_t>(v)] = 1;
+  for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
+    const bool thin = !in_tet[static_cast<size_t>(model.surface(t, 0))] &&
+                      !in_tet[static_cast<size_t>(model.surface(t, 1))] &&
+                      !in_tet[static_cast<size_t>(model.surface(t, 2))];
+    if (thin)
+      for (int k = 0; k < 3; ++k) sheet[static_cast<size_t>(model.surface(t, k))] = 1;
+  }
+  std::vector<int> out;
+  for (size_t v = 0; v < V; ++v)
+    if (sheet[v]) out.push_back(static_cast<int>(v));
+  return out;
+}
+
+// Appends the back side of the sheets: copied points with flipped normals and
+// the sheet triangles with reversed winding over them.
+void add_back_side(core::SceneMesh& m, const DeformableModel& model, const std::vector<int>& back) {
+  const Eigen::Index V = model.vertices(), B = static_cast<Eigen::Index>(back.size());
+  std::vector<std::int64_t> copy_of(static_cast<size_t>(V), -1);
+  m.rest_positions.conservativeResize(V + B, 3);
+  m.normals.conservativeResize(V + B, 3);
+  for (Eigen::Index i = 0; i < B; ++i) {
+    const int v = back[static_cast<size_t>(i)];
+    copy_of[static_cast<size_t>(v)] = V + i;
+    for (int k = 0; k < 3; ++k) {
+      m.rest_positions(V + i, k) = m.rest_positions(v, k);
+      m.normals(V + i, k) = -m.normals(v, k);
+    }
+  }
+  std::vector<std::uint32_t> tris;
+  for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
+    const auto a = copy_of[static_cast<size_t>(model.surface(t, 0))];
+    const auto b = copy_of[static_cast<size_t>(model.surface(t, 1))];
+    const auto c = copy_of[static_cast<size_t>(model.surface(t, 2))];
+    if (a < 0 || b < 0 || c < 0) continue;
+    // Sheet triangle: same vertices, reversed winding, so its front faces the other way.
+    tris.insert(tris.end(), {static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(c),
+                             static_cast<std::uint32_t>(b)});
+  }
+  const Eigen::Index F = m.triangles.rows(), added = static_cast<Eigen::Index>(tris.size() / 3);
+  m.triangles.conservativeResize(F + added, 3);
+  for (Eigen::Index t = 0; t < added; ++t)
+    for (int k = 0; k < 3; ++k) m.triangles(F + t, k) = tris[static_cast<size_t>(3 * t + k)];
+}
+
+void check_matches(const Scene& scene, const OrbitIndex& o) {
+  std::vector<std::string> names;
+  for (const auto& e : scene.palette) names.push_back(e.name);
+  if (o.vertices != scene.model.vertices() || names != o.palette_names ||
+      std::abs(o.dt - scene.simulation.frame_dt) > 1e-12) {
+    throw std::invalid_argument(
+        fmt::format("orbit store of scene '{}' ({} vertices, {} palette entries, dt {}) does not belong to "
+                    "scene '{}' ({} "
+                    "vertices, {} palette entries, dt {})",
+                    o.scene, o.vertices, o.palette_names.size(), o.dt, scene.name, scene.model.vertices(),
+                    names.size(), scene.simulation.frame_dt));
+  }
+}
+
+}  // namespace
+
+OrbitIndex read_orbit_index(const std::filesystem::path& path) {
+  if (!std::filesystem::exists(path)) throw OrbitStoreError(fmt::format("{}: no such file", path.string()));
+  try {
+    const h5::File f = h5::File::open_read(path);
+    OrbitIndex o;
+    o.scene = f.read_attribute_string("scene");
+    o.dt = f.read_attribute_number("dt");
+    o.palette_names = f.read_strings("/palette/names");
+    const auto rest = f.info("/mesh/rest_positions");
+    o.vertices = rest.dims.empty() ? 0 : static_cast<int>(rest.dims[0]);
+    o.irfs.start = read_vector<std::int32_t>(f, path, "/irfs/start");
+    o.irfs.length = read_vector<std::int32_t>(f, path, "/irfs/length");
+    o.irfs.palette = read_vector<std::int32_t>(f, path, "/irfs/palette");
+    const auto support = f.info("/frames/support");
+    if (support.dims.size() != 2 || support.dims[1] != core::kSupportFloats ||
+        support.dtype != h5::Dtype::f32)
+      throw OrbitStoreError(fmt::format("{}: /frames/support: expected N x 12 float32", path.string()));
+    o.support.resize(static_cast<Eigen::Index>(support.dims[0]), core::kSupportFloats);
+    if (o.support.size() > 0) f.read("/frames/support", o.support.data());
+    // IRFs must tile the frames in order (as validate_orbit_store checks for a loaded store).
+    std::int64_t next = 0;
+    for (size_t i = 0; i < o.irfs.size(); ++i) {
+      if (i >= o.irfs.length.size() || i >= o.irfs.palette.size() || o.irfs.start[i] != next ||
+          o.irfs.length[i] < 1 || o.irfs.palette[i] < 0 ||
+          o.irfs.palette[i] >= static_cast<std::int32_t>(o.palette_names.size())) {
+        throw OrbitStoreError(
+            fmt::format("{}: /irfs: IRF {} does not continue the frames in order", path.string(), i));
+      }
+      next += o.irfs.length[i];
+    }
+    if (o.irfs.size() == 0 || next != o.support.rows())
+      throw OrbitStoreError(
+          fmt::format("{}: /irfs: IRFs cover {} frames, expected {}", path.string(), next, o.support.rows()));
+    return o;
+  } catch (const h5::Failure& e) {
+    throw OrbitStoreError(fmt::format("{}: {}", path.string(), e.what()));
+  }
+}
+
+core::SceneMesh scene_mesh(const Scene& scene) {
+  const auto& model = scene.model;
+  const Eigen::Index V = model.vertices();
+  core::SceneMesh m;
+  m.rest_positions = Eigen::Map<const RowMatrix<double>>(model.rest.data(), V, 3).cast<float>();
+  m.triangles = model.surface.cast<std::uint32_t>();
+  // Area-weighted vertex normals of the simulated surface (front side).
+  RowMatrix<double> n = RowMatrix<double>::Zero(V, 3);
+  for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
+    const Eigen::Vector3d a = m.rest_positions.row(model.surface(t, 0)).cast<double>();
+    const Eigen::Vector3d b = m.rest_positions.row(model.surface(t, 1)).cast<double>();
+    const Eigen::Vector3d c = m.rest_positions.row(model.surface(t, 2)).cast<double>();
+    const Eigen::RowVector3d face = (b - a).cross(c - a).transpose();
+    for (int k = 0; k < 3; ++k) n.row(model.surface(t, k)) += face;
+  }
+  m.normals.resize(V, 3);
+  for (Eigen::Index i = 0; i < V; ++i) {
+    const double len = n.row(i).norm();
+    for (int k = 0; k < 3; ++k) {
+      m.normals(i, k) = len > 0 ? static_cast<float>(n(i, k) / len) : (k == 2 ? 1.0f : 0.0f);
+    }
+  }
+  add_back_side(m, model, back_side_vertices(model));
+  m.deformable.assign(static_cast<size_t>(m.rest_positions.rows()), 1);
+  for (const auto& box : model.obstacles) add_box(m, box.min, box.max);
+  m.deformable.resize(static_cast<size_t>(m.rest_positions.rows()), 0);
+  m.attached.assign(static_cast<size_t>(m.rest_positions.rows()), 1);  // everything rides on the support
+  return m;
+}
+
+std::vector<int> scene_point_vertices(const Scene& scene) {
+  const int V = scene.model.vertices();
+  std::vector<int> out(static_cast<size_t>(V));
+  for (int v = 0; v < V; ++v) out[static_cast<size_t>(v)] = v;
+  const auto back = back_side_vertices(scene.model);
+  out.insert(out.end(), back.begin(), back.end());
+  out.resize(out.size() + 24 * scene.model.obstacles.size(), -1);
+  return out;
+}
+
+void check_package_options(const PackageOptions& o) {
+  if (!(std::isfinite(o.beta) && o.beta >= 0) || !(std::isfinite(o.blend_lambda) && o.blend_lambda > 0) ||
+      !(std::isfinite(o.filter.dead_end_fraction) && o.filter.dead_end_fraction >= 0) ||
+      o.filter.min_frames < 1) {
+    throw std::invalid_argument(
+        fmt::format("package options: expected --beta >= 0, --blend-lambda > 0, --dead-end-fraction >= 0 and "
+                    "--min-irf-frames >= 1, got {}, {}, {}, {}",
+                    o.beta, o.blend_lambda, o.filter.dead_end_fraction, o.filter.min_frames));
+  }
+}
+
+PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const OrbitIndex& orbits,
+                           const DisplacementBasis& basis, const PackageOptions& o) {
+  check_package_options(o);
+  check_matches(scene, orbits);
+  PackageBuild out;
+  core::ScenePackage& pkg = out.package;
+  // Eq. 8 and beta over every sampled node, then filtering in that metric.
+  const MatrixXfR qdot_all = reduced_velocities(basis.q_u, orbits.irfs.start, orbits.irfs.length, orbits.dt);
+  const double beta_all = o.beta > 0 ? o.beta : default_beta(basis.q_u, qdot_all);
+  out.filter = filter_orbits(basis.q_u, qdot_all, beta_all, orbits.irfs, o.filter);
+  // Kept IRFs, renumbered: their nodes become consecutive rows.
+  auto& p = pkg.portrait;
+  Eigen::Index nodes = 0;
+  for (int i : out.filter.kept) nodes += orbits.irfs.length[static_cast<size_t>(i)];
+  const int r = basis.rank();
+  p.q_u.resize(nodes, r);
+  p.qdot_u.resize(nodes, r);
+  p.q_a.resize(nodes, 0);
+  p.support.resize(nodes, core::kSupportFloats);
+  Eigen::Index row = 0;
+  for (int i : out.filter.kept) {
+    const auto k = static_cast<size_t>(i);
+    const std::int32_t first = orbits.irfs.start[k], len = orbits.irfs.length[k];
+    p.irf_start.push_back(static_cast<std::int32_t>(row));
+    p.irf_length.push_back(len);
+    p.irf_palette.push_back(orbits.irfs.palette[k]);
+    p.q_u.middleRows(row, len) = basis.q_u.middleRows(first, len);
+    p.qdot_u.middleRows(row, len) = qdot_all.middleRows(first, len);
+    p.support.middleRows(row, len) = orbits.support.middleRows(first, len);
+    row += len;
+  }
+  const double beta = o.beta > 0 ? o.beta : default_beta(p.q_u, p.qdot_u);
+  p.nearest_irf = nearest_irf_cache(p.q_u, p.qdot_u, beta, p.irf_start, p.irf_palette, rules.size());
+  // Mesh and reduction: static points keep their rest position and zero rows of U_u.
+  pkg.mesh = scene_mesh(scene);
+  const Eigen::Index S = pkg.mesh.points(), M = basis.mean_shape.size();
+  pkg.reduction.mean_shape = Eigen::Map<const VectorXf>(pkg.mesh.rest_positions.data(), 3 * S);
+  pkg.reduction.mean_shape.head(M) = basis.mean_shape;
+  pkg.reduction.U_u = MatrixXfR::Zero(3 * S, r);
+  pkg.reduction.U_u.topRows(M) = basis.U_u;
+  // Back-side points share the mean shape and U_u rows of the vertex they copy.
+  const auto point_vertex = scene_point_vertices(scene);
+  for (Eigen::Index point = M / 3; point < S; ++point) {
+    const int v = point_vertex[static_cast<size_t>(point)];
+    if (v < 0) continue;
+    pkg.reduction.mean_shape.segment(3 * point, 3) = basis.mean_shape.segment(3 * v, 3);
+    pkg.reduction.U_u.middleRows(3 * point, 3) = basis.U_u.middleRows(3 * v, 3);
+  }
+  pkg.reduction.singular_values = basis.singular_values;
+  pkg.reduction.rel_error = basis.rel_error;
+  // Palette.
+  auto& pal = pkg.palette;
+  auto arrays = palette_arrays(scene);
+  pal.names = std::move(arrays.names);
+  pal.alpha_impulse = std::move(arrays.alpha_impulse);
+  pal.alpha_forcing = std::move(arrays.alpha_forcing);
+  pal.kinematics = std::move(arrays.kinematics);
+  pal.transitions = rules.transitions;
+  pal.on_end = rules.on_end;
+  // Attributes.
+  auto& a = pkg.attributes;
+  a.scene = scene.name;
+  a.dt = orbits.dt;
+  a.beta = beta;
+  a.blend_lambda = o.blend_lambda;
+  a.eps_u = basis.eps_u;
+  core::validate_package(pkg, scene.name);
+  return out;
+}
+
+}  // namespace phasecast::precompute

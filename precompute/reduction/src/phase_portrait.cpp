@@ -1,0 +1,84 @@
+#include "phasecast/precompute/reduction/phase_portrait.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace phasecast::precompute {
+
+MatrixXfR reduced_velocities(const MatrixXfR& q_u, const std::vector<std::int32_t>& irf_start,
+                             const std::vector<std::int32_t>& irf_length, double dt) {
+  if (!(dt > 0)) throw std::invalid_argument("reduced_velocities: dt must be positive");
+  if (irf_start.size() != irf_length.size()) {
+    throw std::invalid_argument("reduced_velocities: irf_start and irf_length differ in length");
+  }
+  const auto inv_dt = static_cast<float>(1.0 / dt);
+  MatrixXfR qdot = MatrixXfR::Zero(q_u.rows(), q_u.cols());
+  for (size_t i = 0; i < irf_start.size(); ++i) {
+    const Eigen::Index s = irf_start[i], n = irf_length[i];
+    if (s < 0 || n < 1 || s + n > q_u.rows()) {
+      throw std::invalid_argument("reduced_velocities: IRF " + std::to_string(i) + " lies outside q_u");
+    }
+    if (n == 1) continue;
+    qdot.middleRows(s, n - 1) = (q_u.middleRows(s + 1, n - 1) - q_u.middleRows(s, n - 1)) * inv_dt;
+    qdot.row(s + n - 1) = (q_u.row(s + n - 1) - q_u.row(s + n - 2)) * inv_dt;
+  }
+  return qdot;
+}
+
+double default_beta(const MatrixXfR& q_u, const MatrixXfR& qdot_u) {
+  if (q_u.rows() == 0) return 1.0;
+  const double max_q = q_u.rowwise().squaredNorm().maxCoeff();
+  const double max_v = qdot_u.rowwise().squaredNorm().maxCoeff();
+  return max_v > 0 ? max_q / max_v : 1.0;
+}
+
+namespace {
+
+// Phase-space points [q, sqrt(beta) qdot]: eq. 9 becomes a Euclidean distance.
+Eigen::MatrixXf phase_points(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta) {
+  Eigen::MatrixXf x(q_u.rows(), 2 * q_u.cols());
+  x.leftCols(q_u.cols()) = q_u;
+  x.rightCols(q_u.cols()) = qdot_u * static_cast<float>(std::sqrt(beta));
+  return x;
+}
+
+}  // namespace
+
+MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
+                            const std::vector<std::int32_t>& irf_start,
+                            const std::vector<std::int32_t>& irf_palette, int palette_size) {
+  const Eigen::Index N = q_u.rows();
+  const Eigen::MatrixXf x = phase_points(q_u, qdot_u, beta);
+  MatrixXiR cache = MatrixXiR::Constant(N, palette_size, -1);
+  constexpr Eigen::Index kBlock = 1024;
+
+  for (int d = 0; d < palette_size; ++d) {
+    std::vector<std::int32_t> irfs;
+    for (size_t i = 0; i < irf_palette.size(); ++i) {
+      if (irf_palette[i] == d) irfs.push_back(static_cast<std::int32_t>(i));
+    }
+    if (irfs.empty()) continue;
+    Eigen::MatrixXf starts(static_cast<Eigen::Index>(irfs.size()), x.cols());
+    for (size_t k = 0; k < irfs.size(); ++k)
+      starts.row(static_cast<Eigen::Index>(k)) = x.row(irf_start[static_cast<size_t>(irfs[k])]);
+    const Eigen::VectorXf s_norm = starts.rowwise().squaredNorm();
+
+    // |a - b|^2 = |a|^2 + |b|^2 - 2 a.b; |a|^2 is constant per row, so the
+    // argmin needs only |b|^2 - 2 a.b.
+    for (Eigen::Index first = 0; first < N; first += kBlock) {
+      const Eigen::Index count = std::min(kBlock, N - first);
+      Eigen::MatrixXf score = -2.0f * (x.middleRows(first, count) * starts.transpose());
+      score.rowwise() += s_norm.transpose();
+      for (Eigen::Index j = 0; j < count; ++j) {
+        Eigen::Index best = 0;
+        score.row(j).minCoeff(&best);
+        cache(first + j, d) = irfs[static_cast<size_t>(best)];
+      }
+    }
+  }
+  return cache;
+}
+
+}  // namespace phasecast::precompute

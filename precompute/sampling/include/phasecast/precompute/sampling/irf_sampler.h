@@ -1,0 +1,60 @@
+#pragma once
+// Random IRF sampling (§3.4): independent chains of palette entries obeying
+// the palette rules, each IRF integrated for a random T in (t_min, t_max).
+// Each chain checkpoints after every IRF into the work folder (its orbit store
+// chain-<k>.h5 and the exact simulator state chain-<k>.state.h5), so that a
+// resumed run continues bit-identically without losing or duplicating orbits.
+
+#include "phasecast/precompute/sampling/orbit_store.h"
+#include "phasecast/precompute/sampling/palette_rules.h"
+#include "phasecast/precompute/simulation/scene.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <stdexcept>
+#include <vector>
+
+namespace phasecast::precompute {
+
+// A run stopped on purpose (--stop-after-irfs) or a checkpoint that cannot be resumed.
+class SamplingError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct SamplingProgress {
+  int irfs_done = 0;
+  int irfs_total = 0;
+  long long nodes = 0;  // state nodes (frames) recorded so far, all chains
+};
+
+struct SamplingOptions {
+  int chains = 4;           // independent work units
+  int irfs_per_chain = 16;  // IRFs sampled by each chain
+  std::uint64_t seed = 1;   // same seed => bit-identical orbits
+  int jobs = 2;             // chains simulated at once (threads)
+  std::filesystem::path work_dir;
+  bool resume = false;      // continue from the checkpoints in work_dir
+  int stop_after_irfs = 0;  // > 0: stop (SamplingError) once this many new IRFs are checkpointed (tests)
+  std::function<void(const SamplingProgress&)> progress;
+};
+
+// The chain-th chain's decision for its `irf`-th IRF given its history (the
+// entries since it last left rest, oldest first): the entry and its length in
+// frames. A pure function of (seed, chain, irf, history), so resumes replay it exactly.
+struct IrfDraw {
+  int entry = 0;
+  int frames = 1;
+  bool from_rest = false;  // no entry may follow `previous`: the chain restarts from the rest state
+};
+IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
+                 const std::vector<int>& history);
+
+// Throws SamplingError naming the bad option (chains, IRFs per chain, jobs >= 1).
+void check_sampling_options(const SamplingOptions& options);
+
+// Runs (or resumes) every chain and returns their orbits concatenated in chain order.
+OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& options);
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,307 @@
+#include "phasecast/precompute/sampling/irf_sampler.h"
+
+#include "phasecast/precompute/sampling/orbit_recorder.h"
+
+#include "phasecast/core/hdf5_file.h"
+
+#include <fmt/format.h>
+
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+namespace phasecast::precompute {
+namespace {
+
+namespace h5 = core::h5;
+
+// SplitMix64: decorrelates (seed, chain, irf) into independent random words.
+std::uint64_t splitmix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+std::filesystem::path chain_store(const std::filesystem::path& dir, int chain) {
+  return dir / fmt::format("chain-{:03d}.h5", chain);
+}
+
+std::filesystem::path chain_state(const std::filesystem::path& dir, int chain) {
+  return dir / fmt::format("chain-{:03d}.state.h5", chain);
+}
+
+// The exact (double) simulator state after a chain's last checkpointed IRF.
+struct Checkpoint {
+  int irfs = 0;
+  int previous = -1;
+  SimState state;
+};
+
+void write_vec(h5::File& f, const std::string& name, const Eigen::VectorXd& v) {
+  f.write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
+}
+
+Eigen::VectorXd read_vec(const h5::File& f, const std::string& name, Eigen::Index n,
+                         const std::string& source) {
+  const auto info = f.info(name);
+  if (info.dtype != h5::Dtype::f64 || info.dims.size() != 1 ||
+      info.dims[0] != static_cast<std::uint64_t>(n)) {
+    throw SamplingError(fmt::format("{}: {}: expected {} float64 values", source, name, n));
+  }
+  Eigen::VectorXd v(n);
+  f.read(name, v.data());
+  return v;
+}
+
+void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c, const SamplingOptions& o,
+                      int chain) {
+  try {
+    h5::write_atomically(path, [&c, &o, chain](h5::File& f) {
+      f.write_attribute("seed", std::to_string(o.seed));
+      f.write_attribute("chain", std::int32_t{chain});
+      f.write_attribute("irfs", std::int32_t{c.irfs});
+      f.write_attribute("previous", std::int32_t{c.previous});
+      f.write_attribute("time", c.state.time);
+      write_vec(f, "/x", c.state.x);
+      write_vec(f, "/v", c.state.v);
+      const auto& s = c.state.support;
+      Eigen::VectorXd support(10);
+      support << s.held, s.pulse, s.pulse_time, s.coordinate;
+      write_vec(f, "/support", support);
+    });
+  } catch (const h5::Failure& e) {
+    throw SamplingError(fmt::format("{}: cannot write the checkpoint: {}", path.string(), e.what()));
+  }
+}
+
+Checkpoint read_checkpoint(const std::filesystem::path& path, const SamplingOptions& o, int chain,
+                           Eigen::Index n) {
+  const std::string src = path.string();
+  try {
+    const h5::File f = h5::File::open_read(path);
+    if (f.read_attribute_string("seed") != std::to_string(o.seed) ||
+        static_cast<int>(f.read_attribute_number("chain")) != chain) {
+      throw SamplingError(
+          fmt::format("{}: checkpoint of seed {} chain {}, expected seed {} chain {} (--resume with "
+                      "the same --seed)",
+                      src, f.read_attribute_string("seed"), f.read_attribute_number("chain"), o.seed, chain));
+    }
+    Checkpoint c;
+    c.irfs = static_cast<int>(f.read_attribute_number("irfs"));
+    c.previous = static_cast<int>(f.read_attribute_number("previous"));
+    c.state.time = f.read_attribute_number("time");
+    c.state.x = read_vec(f, "/x", n, src);
+    c.state.v = read_vec(f, "/v", n, src);
+    const Eigen::VectorXd s = read_vec(f, "/support", 10, src);
+    c.state.support.held = s.segment<3>(0);
+    c.state.support.pulse = s.segment<3>(3);
+    c.state.support.pulse_time = s(6);
+    c.state.support.coordinate = s.segment<3>(7);
+    return c;
+  } catch (const h5::Failure& e) {
+    throw SamplingError(fmt::format("{}: unreadable checkpoint: {}", src, e.what()));
+  }
+}
+
+// Drops IRFs beyond the first `irfs` (a store written just before a crash
+// that kept its state file from being updated).
+void truncate_store(OrbitStore& s, int irfs) {
+  const auto n = static_cast<size_t>(irfs);
+  const std::int32_t frames = irfs == 0 ? 0 : s.irf_start[n - 1] + s.irf_length[n - 1];
+  s.irf_start.resize(n);
+  s.irf_length.resize(n);
+  s.irf_palette.resize(n);
+  s.frame_palette.resize(static_cast<size_t>(frames));
+  s.positions.conservativeResize(frames, Eigen::NoChange);
+  s.velocities.conservativeResize(frames, Eigen::NoChange);
+  s.support.conservativeResize(frames, Eigen::NoChange);
+}
+
+struct Shared {
+  std::mutex mutex;
+  SamplingProgress progress;
+  std::atomic<int> new_irfs{0};
+  std::atomic<bool> stop{false};
+};
+
+OrbitStore resume_chain(const Scene& scene, const SamplingOptions& o, int chain, Checkpoint& c,
+                        Simulator& sim) {
+  OrbitStore store = empty_orbit_store(scene);
+  const auto store_path = chain_store(o.work_dir, chain), state_path = chain_state(o.work_dir, chain);
+  if (!o.resume || !std::filesystem::exists(store_path)) return store;
+  if (!std::filesystem::exists(state_path)) return store;  // crashed before the first state was written
+  c = read_checkpoint(state_path, o, chain, 3 * static_cast<Eigen::Index>(sim.vertices()));
+  store = read_orbit_store(store_path);
+  const int stored = static_cast<int>(store.irf_start.size());
+  if (stored != c.irfs && stored != c.irfs + 1) {
+    throw SamplingError(fmt::format("{}: holds {} IRFs but its state file {} records {}", store_path.string(),
+                                    stored, state_path.string(), c.irfs));
+  }
+  if (c.irfs > o.irfs_per_chain) {
+    throw SamplingError(fmt::format("{}: checkpoint holds {} IRFs, more than --irfs-per-chain {}",
+                                    state_path.string(), c.irfs, o.irfs_per_chain));
+  }
+  truncate_store(store, c.irfs);
+  sim.reset(c.state);
+  return store;
+}
+
+// The chain's history after its first `irfs` IRFs, by replaying the draws;
+// they must reproduce the checkpointed entries (else the scene's rules changed).
+std::vector<int> replay_history(const PaletteRules& rules, const SamplingOptions& o, int chain,
+                                const OrbitStore& store, int irfs) {
+  std::vector<int> history;
+  for (int i = 0; i < irfs; ++i) {
+    const IrfDraw d = draw_irf(rules, o.seed, chain, i, history);
+    if (d.entry != store.irf_palette[static_cast<size_t>(i)]) {
+      throw SamplingError(fmt::format(
+          "{}: checkpointed IRF {} is entry {} but the palette rules now draw {} (was the "
+          "scene changed?)",
+          chain_store(o.work_dir, chain).string(), i, store.irf_palette[static_cast<size_t>(i)], d.entry));
+    }
+    if (d.from_rest) history.clear();
+    history.push_back(d.entry);
+  }
+  return history;
+}
+
+OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o, int chain,
+                     Shared& sh) {
+  auto sim = make_simulator(scene);
+  Checkpoint c;
+  c.state = sim->rest_state();
+  sim->reset(c.state);
+  OrbitStore store = resume_chain(scene, o, chain, c, *sim);
+  {
+    std::lock_guard lock(sh.mutex);
+    sh.progress.irfs_done += c.irfs;
+    sh.progress.nodes += store.frames();
+    if (o.progress) o.progress(sh.progress);
+  }
+  std::vector<int> history = replay_history(rules, o, chain, store, c.irfs);
+  for (int i = c.irfs; i < o.irfs_per_chain; ++i) {
+    if (sh.stop) break;
+    const IrfDraw draw = draw_irf(rules, o.seed, chain, i, history);
+    if (draw.from_rest) {
+      sim->reset(sim->rest_state());
+      history.clear();
+    }
+    history.push_back(draw.entry);
+    record_irf(*sim, scene, draw.entry, draw.frames, store);
+    c.irfs = i + 1;
+    c.previous = draw.entry;
+    c.state = sim->state();
+    // Store first, then state: a crash in between leaves one extra IRF that resume drops.
+    write_orbit_store(store, chain_store(o.work_dir, chain));
+    write_checkpoint(chain_state(o.work_dir, chain), c, o, chain);
+    std::lock_guard lock(sh.mutex);
+    sh.progress.irfs_done += 1;
+    sh.progress.nodes += draw.frames;
+    if (o.progress) o.progress(sh.progress);
+    if (o.stop_after_irfs > 0 && ++sh.new_irfs >= o.stop_after_irfs) sh.stop = true;
+  }
+  return store;
+}
+
+void append_store(OrbitStore& all, const OrbitStore& s) {
+  const Eigen::Index first = all.frames(), n = s.frames();
+  for (size_t i = 0; i < s.irf_start.size(); ++i) {
+    all.irf_start.push_back(static_cast<std::int32_t>(first) + s.irf_start[i]);
+    all.irf_length.push_back(s.irf_length[i]);
+    all.irf_palette.push_back(s.irf_palette[i]);
+  }
+  all.frame_palette.insert(all.frame_palette.end(), s.frame_palette.begin(), s.frame_palette.end());
+  all.positions.conservativeResize(first + n, s.positions.cols());
+  all.positions.bottomRows(n) = s.positions;
+  all.velocities.conservativeResize(first + n, s.velocities.cols());
+  all.velocities.bottomRows(n) = s.velocities;
+  all.support.conservativeResize(first + n, Eigen::NoChange);
+  all.support.bottomRows(n) = s.support;
+}
+
+}  // namespace
+
+IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
+                 const std::vector<int>& history) {
+  std::uint64_t word = splitmix(splitmix(splitmix(seed) ^ static_cast<std::uint64_t>(chain)) ^
+                                static_cast<std::uint64_t>(irf));
+  IrfDraw d;
+  const int previous = history.empty() ? -1 : history.back();
+  const int follow_up = previous >= 0 ? rules.on_end[static_cast<size_t>(previous)] : core::kEndRest;
+  if (follow_up >= 0 && rules.allowed_after(history, follow_up)) {
+    d.entry = follow_up;  // the named follow-up
+  } else {
+    std::vector<int> next;
+    for (int e = 0; e < rules.size(); ++e) {
+      if (rules.allowed_after(history, e)) next.push_back(e);
+    }
+    if (next.empty()) {  // nothing may follow: back to rest
+      d.from_rest = true;
+      next = rules.successors(-1);
+      if (next.empty())
+        throw SamplingError("palette rules: no entry may start from rest (add \"rest\" to an 'after')");
+    }
+    d.entry = next[word % next.size()];
+  }
+  word = splitmix(word);
+  const auto e = static_cast<size_t>(d.entry);
+  d.frames =
+      rules.min_frames[e] +
+      static_cast<int>(word % static_cast<std::uint64_t>(rules.max_frames[e] - rules.min_frames[e] + 1));
+  return d;
+}
+
+void check_sampling_options(const SamplingOptions& o) {
+  if (o.chains < 1 || o.irfs_per_chain < 1 || o.jobs < 1)
+    throw SamplingError(fmt::format("sampling: expected chains, IRFs per chain and jobs >= 1, got {}, {}, {}",
+                                    o.chains, o.irfs_per_chain, o.jobs));
+}
+
+OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
+  check_sampling_options(o);
+  std::error_code error;
+  std::filesystem::create_directories(o.work_dir, error);
+  if (error || !std::filesystem::is_directory(o.work_dir)) {
+    throw SamplingError(fmt::format("work folder {}: cannot create it ({})", o.work_dir.string(),
+                                    error ? error.message() : "not a folder"));
+  }
+  Shared sh;
+  sh.progress.irfs_total = o.chains * o.irfs_per_chain;
+  std::vector<OrbitStore> chains(static_cast<size_t>(o.chains));
+  std::vector<std::exception_ptr> errors(static_cast<size_t>(o.chains));
+  std::atomic<int> next{0};
+  const auto worker = [&] {
+    for (int k = next++; k < o.chains; k = next++) {
+      try {
+        chains[static_cast<size_t>(k)] = run_chain(scene, rules, o, k, sh);
+      } catch (...) {
+        errors[static_cast<size_t>(k)] = std::current_exception();
+        sh.stop = true;
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int j = 0; j < std::min(o.jobs, o.chains); ++j) threads.emplace_back(worker);
+  for (auto& t : threads) t.join();
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  bool complete = true;
+  for (const auto& c : chains)
+    complete = complete && static_cast<int>(c.irf_start.size()) == o.irfs_per_chain;
+  if (!complete) {
+    throw SamplingError(fmt::format(
+        "sampling stopped after {} new IRFs (--stop-after-irfs); rerun with --resume", sh.new_irfs.load()));
+  }
+  OrbitStore all = empty_orbit_store(scene);
+  // One chain at a time, freed once copied, so the frames are not held twice.
+  for (auto& c : chains) {
+    append_store(all, c);
+    c = OrbitStore{};
+  }
+  return all;
+}
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,77 @@
+#include "phasecast/precompute/sampling/orbit_filter.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace phasecast::precompute {
+namespace {
+
+// Eq. 9: D(i, j)^2 = ||q_i - q_j||^2 + beta ||qdot_i - qdot_j||^2.
+double distance_squared(const MatrixXfR& q, const MatrixXfR& qd, double beta, Eigen::Index i,
+                        Eigen::Index j) {
+  return (q.row(i) - q.row(j)).cast<double>().squaredNorm() +
+         beta * (qd.row(i) - qd.row(j)).cast<double>().squaredNorm();
+}
+
+}  // namespace
+
+double portrait_radius(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta) {
+  double r2 = 0;
+  for (Eigen::Index j = 0; j < q_u.rows(); ++j) {
+    r2 = std::max(
+        r2, q_u.row(j).cast<double>().squaredNorm() + beta * qdot_u.row(j).cast<double>().squaredNorm());
+  }
+  return std::sqrt(r2);
+}
+
+OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
+                                const IrfList& irfs, const OrbitFilterOptions& o) {
+  OrbitFilterResult r;
+  std::vector<char> alive(irfs.size(), 1);
+  for (size_t i = 0; i < irfs.size(); ++i) {
+    if (irfs.length[i] < o.min_frames) {
+      alive[i] = 0;
+      ++r.dropped_short;
+      r.messages.push_back(fmt::format("IRF {} (entry {}): {} nodes, shorter than the minimum {}", i,
+                                       irfs.palette[i], irfs.length[i], o.min_frames));
+    }
+  }
+  if (o.dead_end_fraction > 0) {
+    const double threshold = o.dead_end_fraction * portrait_radius(q_u, qdot_u, beta);
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (size_t i = 0; i < irfs.size(); ++i) {
+        if (!alive[i]) continue;
+        const Eigen::Index end = irfs.start[i] + irfs.length[i] - 1;
+        double nearest = std::numeric_limits<double>::infinity();
+        for (size_t k = 0; k < irfs.size(); ++k) {
+          if (alive[k]) nearest = std::min(nearest, distance_squared(q_u, qdot_u, beta, end, irfs.start[k]));
+        }
+        if (std::sqrt(nearest) > threshold) {
+          alive[i] = 0;
+          changed = true;
+          ++r.dropped_dead_end;
+          r.messages.push_back(
+              fmt::format("IRF {} (entry {}): dead end, last node {:.4g} from the nearest IRF start "
+                          "(threshold {:.4g}, eq. 9)",
+                          i, irfs.palette[i], std::sqrt(nearest), threshold));
+        }
+      }
+    }
+  }
+  for (size_t i = 0; i < irfs.size(); ++i) {
+    if (alive[i]) r.kept.push_back(static_cast<int>(i));
+  }
+  if (r.kept.empty()) {
+    throw std::invalid_argument(
+        fmt::format("orbit filter: all {} IRFs dropped ({} short, {} dead ends); lower "
+                    "--min-irf-frames or raise --dead-end-fraction",
+                    irfs.size(), r.dropped_short, r.dropped_dead_end));
+  }
+  return r;
+}
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,71 @@
+#pragma once
+// Scene files (TOML, docs/scenes.md): bodies with their meshes, energies and
+// materials, rigid obstacles, the moving support, simulation settings and the
+// impulse palette (§3.3) with the support kinematics each entry implies.
+
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/simulation/deformable_model.h"
+#include "phasecast/precompute/simulation/simulator.h"
+#include "phasecast/precompute/simulation/support_motion.h"
+
+#include <Eigen/Core>
+
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace phasecast::precompute {
+
+// Every invalid scene file: one line naming the file and the field.
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// One named palette entry: alpha_I and alpha_F (support velocities, see support_motion.h).
+struct PaletteEntry {
+  std::string name;
+  Eigen::Vector3d alpha_impulse = Eigen::Vector3d::Zero();
+  Eigen::Vector3d alpha_forcing = Eigen::Vector3d::Zero();
+  // Sampling rules (docs/sampling.md; checked by make_palette_rules in palette_rules.h).
+  std::vector<std::string> after;  // entries ("rest" = from rest) this one may follow; empty: any
+  double t_min = 0.1;              // s: shortest IRF the sampler draws
+  double t_max = 1.0;              // s: longest IRF the sampler draws
+  std::string on_end = "rest";     // "rest", "hold" or the name of a follow-up entry
+  std::string group;               // entries of one group count together for max_in_a_row ("": own name)
+  int max_in_a_row = 0;            // at most this many IRFs of the group in a row (0: unlimited)
+};
+
+// The vertices a body owns in the assembled model (welded vertices included).
+struct BodyInfo {
+  std::string name;
+  std::vector<int> vertices;
+  int first_surface_triangle = 0;
+  int surface_triangles = 0;
+};
+
+struct Scene {
+  std::string name;
+  std::filesystem::path source;
+  SimulationSettings simulation;
+  SupportSettings support;
+  DeformableModel model;
+  std::vector<BodyInfo> bodies;
+  std::vector<PaletteEntry> palette;
+
+  // Index of the palette entry `name`; throws SceneError listing the known names.
+  int palette_index(const std::string& entry) const;
+};
+
+// Parses and validates a scene file and assembles its DeformableModel.
+Scene load_scene(const std::filesystem::path& path);
+
+// The rigid-support motion palette entry `entry` implies, in the package's terms.
+core::SupportKinematics entry_kinematics(const Scene& scene, int entry);
+
+// The scene's implicit simulator.
+std::unique_ptr<Simulator> make_simulator(const Scene& scene);
+
+}  // namespace phasecast::precompute

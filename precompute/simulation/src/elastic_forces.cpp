@@ -1,0 +1,211 @@
+#include "phasecast/precompute/simulation/elastic_forces.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+
+#include <cmath>
+
+namespace phasecast::precompute {
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+
+Vector3d point(const Eigen::VectorXd& x, int i) {
+  return x.segment<3>(3 * i);
+}
+
+void add_force(ElasticEvaluation& out, int i, const Vector3d& f) {
+  out.force.segment<3>(3 * i) += f;
+}
+
+void add_block(ElasticEvaluation& out, int a, int b, const Matrix3d& block) {
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out.stiffness.emplace_back(3 * a + r, 3 * b + c, block(r, c));
+  }
+}
+
+// A degenerate element still emits its (zero) blocks: the implicit solver
+// relies on a constant sparsity pattern from step to step.
+template <size_t N>
+void add_zero_blocks(ElasticEvaluation& out, const std::array<int, N>& v, bool with_stiffness) {
+  if (!with_stiffness) return;
+  for (int a : v)
+    for (int b : v) add_block(out, a, b, Matrix3d::Zero());
+}
+
+// Rotation part of the polar decomposition F = R S (3 x D, D = 2 or 3).
+// For tets a reflection is removed by flipping the weakest singular direction,
+// which makes inverted elements push back towards their rest orientation.
+template <int D>
+Eigen::Matrix<double, 3, D> polar_rotation(const Eigen::Matrix<double, 3, D>& F) {
+  Eigen::JacobiSVD<Eigen::Matrix<double, 3, D>> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Matrix3d U = svd.matrixU();
+  Eigen::Matrix<double, D, D> V = svd.matrixV();
+  if constexpr (D == 3) {
+    if ((U * V.transpose()).determinant() < 0) U.col(2) = -U.col(2);
+  }
+  return U.template leftCols<D>() * V.transpose();
+}
+
+// Co-rotational linear element: Psi = mu |F - R|^2 + lambda/2 (tr(R^T F) - D)^2, F = X G with X the
+// 3 x (D+1) corner positions and G the shape-function gradients. The stiffness is the warped linear one
+// (Mueller et al. 2002): the Hessian of mu |sym(R^T F) - I|^2 + lambda/2 tr(R^T F - I)^2 at fixed R. It
+// does not resist infinitesimal rotations, so Newton converges on bending-dominated motion.
+template <int D>
+void corotational(const std::array<int, D + 1>& v, const Eigen::Matrix<double, D, D>& Dm_inv, double measure,
+                  const Lame& lame, const Eigen::VectorXd& x, bool with_stiffness, ElasticEvaluation& out) {
+  Eigen::Matrix<double, D + 1, D> G;
+  G.template bottomRows<D>() = Dm_inv;
+  G.row(0) = -Dm_inv.colwise().sum();
+  Eigen::Matrix<double, 3, D + 1> X;
+  for (int a = 0; a <= D; ++a) X.col(a) = point(x, v[static_cast<size_t>(a)]);
+  const Eigen::Matrix<double, 3, D> F = X * G;
+  const Eigen::Matrix<double, 3, D> R = polar_rotation<D>(F);
+  const double volumetric = (R.transpose() * F).trace() - D;
+  out.energy += measure * (lame.mu * (F - R).squaredNorm() + 0.5 * lame.lambda * volumetric * volumetric);
+  const Eigen::Matrix<double, 3, D> P = 2 * lame.mu * (F - R) + lame.lambda * volumetric * R;
+  const Eigen::Matrix<double, 3, D + 1> forces = -measure * P * G.transpose();
+  for (int a = 0; a <= D; ++a) add_force(out, v[static_cast<size_t>(a)], forces.col(a));
+  if (!with_stiffness) return;
+  const Eigen::Matrix<double, D + 1, D + 1> GG = G * G.transpose();
+  const Eigen::Matrix<double, 3, D + 1> W = R * G.transpose();
+  const Matrix3d RRt = R * R.transpose();
+  for (int a = 0; a <= D; ++a) {
+    for (int b = 0; b <= D; ++b) {
+      const Matrix3d block = measure * (lame.mu * GG(a, b) * RRt + lame.mu * W.col(b) * W.col(a).transpose() +
+                                        lame.lambda * W.col(a) * W.col(b).transpose());
+      add_block(out, v[static_cast<size_t>(a)], v[static_cast<size_t>(b)], block);
+    }
+  }
+}
+
+// Gradient of the dihedral angle (Bridson et al. 2003, bending modes u1..u4).
+std::array<Vector3d, 4> dihedral_gradient(const std::array<Vector3d, 4>& p) {
+  const Vector3d e = p[1] - p[0];
+  const double len = e.norm();
+  const Vector3d e_hat = e / len;
+  const Vector3d nA = e.cross(p[2] - p[0]);
+  const Vector3d nB = (p[3] - p[0]).cross(e);
+  const Vector3d a = nA / nA.squaredNorm();
+  const Vector3d b = nB / nB.squaredNorm();
+  return {-((p[2] - p[1]).dot(e_hat) * a + (p[3] - p[1]).dot(e_hat) * b),
+          (p[2] - p[0]).dot(e_hat) * a + (p[3] - p[0]).dot(e_hat) * b, -len * a, -len * b};
+}
+
+void hinge(const HingeElement& h, const Eigen::VectorXd& x, bool with_stiffness, ElasticEvaluation& out) {
+  std::array<Vector3d, 4> p;
+  for (int k = 0; k < 4; ++k) p[static_cast<size_t>(k)] = point(x, h.v[static_cast<size_t>(k)]);
+  const Vector3d nA = (p[1] - p[0]).cross(p[2] - p[0]);
+  const Vector3d nB = (p[3] - p[0]).cross(p[1] - p[0]);
+  if (nA.squaredNorm() < 1e-24 || nB.squaredNorm() < 1e-24) {  // collapsed: no defined angle
+    add_zero_blocks(out, h.v, with_stiffness);
+    return;
+  }
+  const double delta = dihedral_angle(p[0], p[1], p[2], p[3]) - h.rest_angle;
+  const double wrapped = std::remainder(delta, 2 * M_PI);
+  out.energy += 0.5 * h.stiffness * wrapped * wrapped;
+  const auto grad = dihedral_gradient(p);
+  for (int k = 0; k < 4; ++k)
+    add_force(out, h.v[static_cast<size_t>(k)], -h.stiffness * wrapped * grad[static_cast<size_t>(k)]);
+  if (!with_stiffness) return;
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 4; ++b) {
+      add_block(out, h.v[static_cast<size_t>(a)], h.v[static_cast<size_t>(b)],
+                h.stiffness * grad[static_cast<size_t>(a)] * grad[static_cast<size_t>(b)].transpose());
+    }
+  }
+}
+
+void rod_stretch(const RodStretchElement& r, const Eigen::VectorXd& x, bool with_stiffness,
+                 ElasticEvaluation& out) {
+  const Vector3d d = point(x, r.b) - point(x, r.a);
+  const double l = d.norm();
+  if (l < 1e-12) {
+    add_zero_blocks(out, std::array<int, 2>{r.a, r.b}, with_stiffness);
+    return;
+  }
+  const Vector3d dir = d / l;
+  out.energy += 0.5 * r.stiffness * (l - r.rest_length) * (l - r.rest_length);
+  const Vector3d f = r.stiffness * (l - r.rest_length) * dir;
+  add_force(out, r.a, f);
+  add_force(out, r.b, -f);
+  if (!with_stiffness) return;
+  // Transverse term only when stretched, which keeps the block positive semi-definite.
+  const double transverse = std::max(0.0, 1.0 - r.rest_length / l);
+  const Matrix3d K =
+      r.stiffness * (dir * dir.transpose() + transverse * (Matrix3d::Identity() - dir * dir.transpose()));
+  add_block(out, r.a, r.a, K);
+  add_block(out, r.b, r.b, K);
+  add_block(out, r.a, r.b, -K);
+  add_block(out, r.b, r.a, -K);
+}
+
+void rod_bend(const RodBendElement& r, const Eigen::VectorXd& x, bool with_stiffness,
+              ElasticEvaluation& out) {
+  const Vector3d e1 = point(x, r.b) - point(x, r.a);
+  const Vector3d e2 = point(x, r.c) - point(x, r.b);
+  const double l1 = e1.norm(), l2 = e2.norm();
+  if (l1 < 1e-12 || l2 < 1e-12) {
+    add_zero_blocks(out, std::array<int, 3>{r.a, r.b, r.c}, with_stiffness);
+    return;
+  }
+  const Vector3d t1 = e1 / l1, t2 = e2 / l2;
+  const Vector3d d = t2 - t1;  // discrete curvature vector, |d| = 2 sin(theta / 2)
+  const Matrix3d P1 = (Matrix3d::Identity() - t1 * t1.transpose()) / l1;
+  const Matrix3d P2 = (Matrix3d::Identity() - t2 * t2.transpose()) / l2;
+  const std::array<Matrix3d, 3> J = {P1, Matrix3d(-P1 - P2), P2};  // dd/dx_a, dd/dx_b, dd/dx_c
+  const std::array<int, 3> idx = {r.a, r.b, r.c};
+  // E = 1/2 k (|d| - c0)^2; with a straight rest shape (c0 = 0) this is 1/2 k |d|^2, smooth at d = 0.
+  Vector3d residual = d;
+  Matrix3d weight = Matrix3d::Identity();
+  if (r.rest_turning > 1e-9) {
+    const double dn = d.norm();
+    if (dn < 1e-12) {
+      add_zero_blocks(out, idx, with_stiffness);
+      return;
+    }
+    residual = (dn - r.rest_turning) * d / dn;
+    weight = d * d.transpose() / (dn * dn);
+  }
+  out.energy += 0.5 * r.stiffness * residual.squaredNorm();
+  for (int k = 0; k < 3; ++k)
+    add_force(out, idx[static_cast<size_t>(k)],
+              -r.stiffness * J[static_cast<size_t>(k)].transpose() * residual);
+  if (!with_stiffness) return;
+  for (int a = 0; a < 3; ++a) {
+    for (int b = 0; b < 3; ++b) {
+      add_block(out, idx[static_cast<size_t>(a)], idx[static_cast<size_t>(b)],
+                r.stiffness * J[static_cast<size_t>(a)].transpose() * weight * J[static_cast<size_t>(b)]);
+    }
+  }
+}
+
+}  // namespace
+
+double dihedral_angle(const Vector3d& x0, const Vector3d& x1, const Vector3d& x2, const Vector3d& x3) {
+  const Vector3d e = x1 - x0;
+  const Vector3d nA = e.cross(x2 - x0);
+  const Vector3d nB = (x3 - x0).cross(e);
+  return std::atan2(nA.cross(nB).dot(e.normalized()), nA.dot(nB));
+}
+
+ElasticEvaluation evaluate_elastic(const DeformableModel& model, const Eigen::VectorXd& x,
+                                   bool with_stiffness) {
+  ElasticEvaluation out;
+  out.force = Eigen::VectorXd::Zero(x.size());
+  if (with_stiffness) {
+    out.stiffness.reserve(9 * (9 * model.membranes.size() + 16 * model.hinges.size() +
+                               4 * model.rod_stretch.size() + 9 * model.rod_bend.size() +
+                               16 * model.tets.size()));
+  }
+  for (const auto& m : model.membranes)
+    corotational<2>(m.v, m.Dm_inv, m.area, m.lame, x, with_stiffness, out);
+  for (const auto& h : model.hinges) hinge(h, x, with_stiffness, out);
+  for (const auto& r : model.rod_stretch) rod_stretch(r, x, with_stiffness, out);
+  for (const auto& r : model.rod_bend) rod_bend(r, x, with_stiffness, out);
+  for (const auto& t : model.tets) corotational<3>(t.v, t.Dm_inv, t.volume, t.lame, x, with_stiffness, out);
+  return out;
+}
+
+}  // namespace phasecast::precompute

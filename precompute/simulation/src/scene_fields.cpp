@@ -1,0 +1,179 @@
+#include "phasecast/precompute/simulation/scene_fields.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <sstream>
+
+namespace phasecast::precompute::detail {
+namespace {
+
+std::string describe(const toml::node& n) {
+  switch (n.type()) {
+    case toml::node_type::string:
+      return fmt::format("string \"{}\"", n.as_string()->get());
+    case toml::node_type::integer:
+      return fmt::format("integer {}", n.as_integer()->get());
+    case toml::node_type::floating_point:
+      return fmt::format("number {}", n.as_floating_point()->get());
+    case toml::node_type::boolean:
+      return fmt::format("boolean {}", n.as_boolean()->get());
+    case toml::node_type::array:
+      return fmt::format("array of {}", n.as_array()->size());
+    case toml::node_type::table:
+      return "table";
+    default:
+      return "a date/time";
+  }
+}
+
+std::optional<double> as_number(const toml::node& n) {
+  if (const auto* i = n.as_integer()) return static_cast<double>(i->get());
+  if (const auto* f = n.as_floating_point()) return f->get();
+  return std::nullopt;
+}
+
+}  // namespace
+
+Fields::Fields(const toml::table& table, std::string file, std::string prefix)
+    : table_(&table), file_(std::move(file)), prefix_(std::move(prefix)) {}
+
+bool Fields::has(const std::string& key) const {
+  return table_->contains(key);
+}
+
+std::string Fields::got(const std::string& key) const {
+  const toml::node* n = table_->get(key);
+  return n ? describe(*n) : "nothing (missing)";
+}
+
+void Fields::fail(const std::string& key, const std::string& expected) const {
+  throw SceneError(fmt::format("{}: field '{}': expected {}, got {}", file_, path(key), expected, got(key)));
+}
+
+const toml::node* Fields::node(const std::string& key) {
+  used_.insert(key);
+  return table_->get(key);
+}
+
+std::string Fields::string(const std::string& key) {
+  const toml::node* n = node(key);
+  if (!n || !n->is_string()) fail(key, "a string");
+  return n->as_string()->get();
+}
+
+std::optional<std::string> Fields::optional_string(const std::string& key) {
+  if (!has(key)) return std::nullopt;
+  return string(key);
+}
+
+double Fields::number(const std::string& key) {
+  const toml::node* n = node(key);
+  const auto v = n ? as_number(*n) : std::nullopt;
+  if (!v || !std::isfinite(*v)) fail(key, "a finite number");
+  return *v;
+}
+
+double Fields::number(const std::string& key, double fallback) {
+  return has(key) ? number(key) : fallback;
+}
+
+double Fields::positive(const std::string& key) {
+  const toml::node* n = node(key);
+  const auto v = n ? as_number(*n) : std::nullopt;
+  if (!v || !(*v > 0) || !std::isfinite(*v)) fail(key, "a positive number");
+  return *v;
+}
+
+double Fields::positive(const std::string& key, double fallback) {
+  return has(key) ? positive(key) : fallback;
+}
+
+int Fields::positive_integer(const std::string& key, int fallback) {
+  if (!has(key)) return fallback;
+  const toml::node* n = node(key);
+  if (!n->is_integer() || n->as_integer()->get() < 1 || n->as_integer()->get() > 1'000'000) {
+    fail(key, "a positive integer");
+  }
+  return static_cast<int>(n->as_integer()->get());
+}
+
+std::vector<double> Fields::numbers(const std::string& key, size_t count) {
+  const toml::node* n = node(key);
+  const std::string expected = fmt::format("an array of {} finite numbers", count);
+  if (!n || !n->is_array() || n->as_array()->size() != count) fail(key, expected);
+  std::vector<double> out;
+  for (const auto& e : *n->as_array()) {
+    const auto v = as_number(e);
+    if (!v || !std::isfinite(*v)) fail(key, expected);
+    out.push_back(*v);
+  }
+  return out;
+}
+
+Eigen::Vector3d Fields::vec3(const std::string& key) {
+  const auto v = numbers(key, 3);
+  return {v[0], v[1], v[2]};
+}
+
+Eigen::Vector3d Fields::vec3(const std::string& key, const Eigen::Vector3d& fallback) {
+  return has(key) ? vec3(key) : fallback;
+}
+
+std::vector<std::string> Fields::strings(const std::string& key) {
+  const toml::node* n = node(key);
+  if (!n || !n->is_array()) fail(key, "an array of strings");
+  std::vector<std::string> out;
+  for (const auto& e : *n->as_array()) {
+    if (!e.is_string()) fail(key, "an array of strings");
+    out.push_back(e.as_string()->get());
+  }
+  return out;
+}
+
+std::vector<Eigen::Vector3d> Fields::points(const std::string& key) {
+  const toml::node* n = node(key);
+  const char* expected = "an array of [x, y, z] points";
+  if (!n || !n->is_array()) fail(key, expected);
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& e : *n->as_array()) {
+    const auto* p = e.as_array();
+    if (!p || p->size() != 3) fail(key, expected);
+    Eigen::Vector3d v;
+    for (int k = 0; k < 3; ++k) {
+      const auto c = as_number(*p->get(static_cast<size_t>(k)));
+      if (!c || !std::isfinite(*c)) fail(key, expected);
+      v[k] = *c;
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
+Fields Fields::table(const std::string& key) {
+  const toml::node* n = node(key);
+  if (!n || !n->is_table()) fail(key, "a table");
+  return Fields(*n->as_table(), file_, path(key) + ".");
+}
+
+std::vector<Fields> Fields::tables(const std::string& key) {
+  std::vector<Fields> out;
+  if (!has(key)) return out;
+  const toml::node* n = node(key);
+  if (!n->is_array_of_tables()) fail(key, fmt::format("an array of tables ([[{}]])", key));
+  size_t i = 0;
+  for (const auto& e : *n->as_array())
+    out.emplace_back(*e.as_table(), file_, fmt::format("{}[{}].", path(key), i++));
+  return out;
+}
+
+void Fields::finish() const {
+  for (const auto& [key, value] : *table_) {
+    if (!used_.count(std::string(key.str()))) {
+      throw SceneError(
+          fmt::format("{}: field '{}': unknown field (misspelt?)", file_, path(std::string(key.str()))));
+    }
+  }
+}
+
+}  // namespace phasecast::precompute::detail

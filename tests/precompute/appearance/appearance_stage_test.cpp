@@ -1,0 +1,260 @@
+// The appearance stage (§4) as phasecast-precompute run/reduce perform it on
+// the tiny cloth_door: a package with /appearance that validates and that
+// inspect reports, transfer taken on the unreduced orbit-store meshes of the
+// cluster nodes, both sides of the cloth, determinism and one-line errors.
+
+#include "phasecast/precompute/appearance/appearance_stage.h"
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/sampling/orbit_store.h"
+#include "phasecast/precompute/package/package_builder.h"
+#include "phasecast/precompute/simulation/scene.h"
+#include "phasecast/precompute/appearance/transfer.h"
+#include "run_tool.h"
+#include "scene_files.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+namespace phasecast {
+namespace {
+
+using testing::run_tool;
+using testing::scratch_dir;
+using testing::tiny_scene_path;
+
+// Small sampling, every IRF kept (so package node n is orbit-store frame n),
+// 4 clusters, a coarse direction set: seconds on 2 cores.
+const std::vector<std::string> kSample = {"--chains", "2", "--irfs-per-chain", "3", "--seed", "4"};
+const std::vector<std::string> kReduce = {"--max-rank", "20", "--dead-end-fraction", "0", "--clusters", "4",
+                                          "--rays",     "64", "--bounces",           "1"};
+
+// `head`, then the sampling options (run only) and the reduce/appearance
+// options, where `overrides` (flag, value pairs) replace or extend them.
+std::vector<std::string> args(std::vector<std::string> head, std::vector<std::string> overrides = {}) {
+  const bool run = head.front() == "run";
+  if (run) head.insert(head.end(), kSample.begin(), kSample.end());
+  std::vector<std::string> tail = kReduce;
+  for (size_t i = 0; i + 1 < overrides.size(); i += 2) {
+    auto at = std::find(tail.begin(), tail.end(), overrides[i]);
+    if (at != tail.end()) {
+      *(at + 1) = overrides[i + 1];
+    } else {
+      tail.push_back(overrides[i]);
+      tail.push_back(overrides[i + 1]);
+    }
+  }
+  if (overrides.size() % 2 == 1) tail.push_back(overrides.back());  // a trailing flag
+  head.insert(head.end(), tail.begin(), tail.end());
+  return head;
+}
+
+bool one_line(const std::string& s) {
+  return !s.empty() && s.find('\n') == s.size() - 1;
+}
+
+// The last line of a tool's stderr (earlier lines are stage progress).
+std::string last_line(const std::string& s) {
+  const auto end = s.empty() || s.back() != '\n' ? s.size() : s.size() - 1;
+  const auto begin = s.rfind('\n', end == 0 ? 0 : end - 1);
+  return s.substr(begin == std::string::npos ? 0 : begin + 1,
+                  end - (begin == std::string::npos ? 0 : begin + 1));
+}
+
+// Runs `run` on the tiny scene into dir/name.h5 and returns the package path.
+std::string run_tiny(const std::string& dir_name, const std::vector<std::string>& extra = {}) {
+  const auto dir = scratch_dir(dir_name);
+  const auto pkg = (dir / "tiny.h5").string();
+  const auto r =
+      run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}, extra));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return pkg;
+}
+
+TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
+  const auto dir = scratch_dir("appearance_run");
+  const auto pkg = (dir / "tiny.h5").string();
+  const auto r = run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("appearance transfer: 4/4"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("appearance: N_a = 4 clusters"), std::string::npos) << r.out;
+  const auto p = core::read_package(pkg);  // validates
+  ASSERT_TRUE(p.appearance.has_value());
+  EXPECT_GE(p.rank_a(), 1);
+  EXPECT_LE(p.rank_a(), 3);  // at most N_a - 1 centred fields
+  EXPECT_EQ(p.appearance->clusters(), 4);
+  EXPECT_EQ(p.portrait.q_a.rows(), p.portrait.nodes());
+  EXPECT_EQ(p.portrait.q_a.cols(), p.rank_a());
+  EXPECT_EQ(p.appearance->mean_transfer.size(), 48 * p.mesh.points());
+  EXPECT_TRUE(p.portrait.q_a.allFinite());
+  EXPECT_GT(p.attributes.eps_a, 0.0);
+  const auto inspect = run_tool("phasecast-inspect", {pkg});
+  ASSERT_EQ(inspect.exit_code, 0) << inspect.err;
+  EXPECT_NE(inspect.out.find(
+                fmt::format("appearance   r_a = {}, N_a = 4 clusters, relative error at r_a = ", p.rank_a())),
+            std::string::npos)
+      << inspect.out;
+}
+
+TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
+  // Full rank (r_a = N_a - 1) so every cluster field lies in mean + span(U_a).
+  const auto pkg_path = run_tiny("appearance_unreduced", {"--eps-a", "1e-7"});
+  const auto p = core::read_package(pkg_path);
+  ASSERT_TRUE(p.appearance.has_value());
+  const auto store = precompute::read_orbit_store(pkg_path + ".work/orbits.h5");
+  ASSERT_EQ(p.portrait.nodes(), store.frames());  // nothing dropped: node n is frame n
+  const auto scene = precompute::load_scene(tiny_scene_path());
+  const int V = scene.model.vertices();
+  ASSERT_EQ(p.mesh.points(), 2 * V + 24);
+
+  precompute::TransferOptions options;
+  options.mode = precompute::TransferMode::interreflected;
+  options.rays = 64;
+  options.bounces = 1;
+  const auto& a = *p.appearance;
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(a.mean_transfer.size());
+  for (int node : a.cluster_nodes) {
+    // The mesh built here by hand from the stored frame, not from U_u q_u: front
+    // cloth at the simulated positions, back cloth at the same, board at rest.
+    MatrixXfR x = p.mesh.rest_positions;
+    for (int v = 0; v < V; ++v) {
+      for (int k = 0; k < 3; ++k) x(v, k) = x(V + v, k) = store.positions(node, 3 * v + k);
+    }
+    const MatrixXfR direct = precompute::compute_transfer(
+        x, p.mesh.triangles, precompute::vertex_normals(x, p.mesh.triangles), options);
+    const MatrixXfR staged = precompute::transfer_at_frame(p.mesh, precompute::scene_point_vertices(scene),
+                                                           store.positions.row(node), options);
+    EXPECT_TRUE(direct == staged) << "node " << node;
+    const Eigen::VectorXf field = Eigen::Map<const Eigen::VectorXf>(direct.data(), direct.size());
+    mean += field.cast<double>();
+    // Reconstructed by the package basis: M^j = M-bar + U_a U_a^T (M^j - M-bar) (§4.2, full rank).
+    const Eigen::VectorXf centred = field - a.mean_transfer;
+    const Eigen::VectorXf residual = centred - a.U_a * (a.U_a.transpose() * centred);
+    EXPECT_LT(residual.norm(), 1e-3 * centred.norm() + 1e-6f) << "node " << node;
+  }
+  mean /= static_cast<double>(a.cluster_nodes.size());
+  EXPECT_LT((mean.cast<float>() - a.mean_transfer).norm(), 1e-5 * a.mean_transfer.norm());
+
+  // The reduced mesh of a cluster node is not the stored one (r_u truncates), so
+  // the check above distinguishes the two.
+  const int node = a.cluster_nodes[0];
+  const Eigen::VectorXf reduced =
+      p.reduction.mean_shape + p.reduction.U_u * p.portrait.q_u.row(node).transpose();
+  const Eigen::VectorXf stored = store.positions.row(node).transpose();
+  EXPECT_GT((reduced.head(3 * V) - stored).norm(), 0.0f);
+}
+
+TEST(AppearanceStage, ClothHasTwoSidesSharingTheirVertexRows) {
+  const auto scene = precompute::load_scene(tiny_scene_path());
+  const int V = scene.model.vertices();
+  const auto F = scene.model.surface.rows();
+  const auto m = precompute::scene_mesh(scene);
+  ASSERT_EQ(m.points(), 2 * V + 24);
+  ASSERT_EQ(m.triangles.rows(), 2 * F + 12);
+  for (int v = 0; v < V; ++v) {
+    EXPECT_TRUE(m.rest_positions.row(V + v) == m.rest_positions.row(v));
+    EXPECT_TRUE(m.normals.row(V + v) == -m.normals.row(v));
+    EXPECT_EQ(m.deformable[static_cast<size_t>(V + v)], 1);
+  }
+  for (Eigen::Index t = 0; t < F; ++t) {  // reversed winding over the copies
+    EXPECT_EQ(m.triangles(F + t, 0), m.triangles(t, 0) + V);
+    EXPECT_EQ(m.triangles(F + t, 1), m.triangles(t, 2) + V);
+    EXPECT_EQ(m.triangles(F + t, 2), m.triangles(t, 1) + V);
+  }
+  const auto map = precompute::scene_point_vertices(scene);
+  ASSERT_EQ(static_cast<int>(map.size()), m.points());
+  EXPECT_EQ(map[static_cast<size_t>(V + 3)], 3);
+  EXPECT_EQ(map.back(), -1);
+
+  const auto p = core::read_package(run_tiny("appearance_two_sides"));
+  const auto& U = p.reduction.U_u;
+  EXPECT_TRUE(U.middleRows(3 * V, 3 * V) == U.topRows(3 * V));
+  EXPECT_TRUE(p.reduction.mean_shape.segment(3 * V, 3 * V) == p.reduction.mean_shape.head(3 * V));
+  // The side of the cloth facing the door board (normal towards -z, the board
+  // lies behind at z <= 0) sees less sky than the side facing the room.
+  double board_side = 0, room_side = 0;
+  for (int v = 0; v < V; ++v) {
+    const bool front_faces_board = m.normals(v, 2) < 0;
+    const double front = p.appearance->mean_transfer[48 * v],
+                 back = p.appearance->mean_transfer[48 * (V + v)];
+    board_side += front_faces_board ? front : back;
+    room_side += front_faces_board ? back : front;
+  }
+  EXPECT_LT(board_side, 0.9 * room_side);
+}
+
+TEST(AppearanceStage, SameSeedGivesTheSameAppearanceAndNoAppearanceSkipsIt) {
+  const auto pkg = run_tiny("appearance_determinism");
+  const auto dir = scratch_dir("appearance_determinism_reduce");
+  const auto again = (dir / "again.h5").string(), none = (dir / "none.h5").string();
+  const auto orbits = pkg + ".work/orbits.h5";
+  const auto r =
+      run_tool("phasecast-precompute", args({"reduce", tiny_scene_path().string(), orbits, "-o", again}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto a = core::read_package(pkg), b = core::read_package(again);
+  ASSERT_TRUE(a.appearance && b.appearance);
+  EXPECT_TRUE(a.appearance->mean_transfer == b.appearance->mean_transfer);
+  EXPECT_TRUE(a.appearance->U_a == b.appearance->U_a);
+  EXPECT_TRUE(a.appearance->singular_values == b.appearance->singular_values);
+  EXPECT_EQ(a.appearance->cluster_nodes, b.appearance->cluster_nodes);
+  EXPECT_TRUE(a.appearance->nrbf_weights == b.appearance->nrbf_weights);
+  EXPECT_TRUE(a.appearance->nrbf_widths == b.appearance->nrbf_widths);
+  EXPECT_TRUE(a.portrait.q_a == b.portrait.q_a);
+
+  const auto skipped =
+      run_tool("phasecast-precompute",
+               args({"reduce", tiny_scene_path().string(), orbits, "-o", none}, {"--no-appearance"}));
+  ASSERT_EQ(skipped.exit_code, 0) << skipped.err;
+  const auto c = core::read_package(none);
+  EXPECT_FALSE(c.appearance.has_value());
+  EXPECT_EQ(c.rank_a(), 0);
+  EXPECT_TRUE(c.reduction.U_u == a.reduction.U_u);
+}
+
+struct BadOption {
+  std::vector<std::string> args;
+  std::string message;
+};
+
+TEST(AppearanceStage, BadOptionsAreOneLineErrorsBeforeSampling) {
+  const auto dir = scratch_dir("appearance_bad");
+  const auto pkg = (dir / "bad.h5").string();
+  const std::vector<BadOption> cases = {
+      {{"--clusters", "0"}, "appearance: expected --clusters >= 1, got 0"},
+      {{"--rays", "0"}, "appearance: expected --rays in 1..1048576, got 0"},
+      {{"--bounces", "-1"}, "appearance: expected --bounces >= 0, got -1"},
+      {{"--eps-a", "1.5"}, "appearance: expected --eps-a in (0, 1), got 1.5"},
+      {{"--rank-a", "-2"}, "appearance: expected --rank-a >= 0 (0: use --eps-a), got -2"},
+  };
+  for (const auto& c : cases) {
+    const auto r =
+        run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}, c.args));
+    EXPECT_NE(r.exit_code, 0) << c.message;
+    EXPECT_TRUE(one_line(r.err)) << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(pkg + ".work")) << c.message;  // failed before sampling
+  }
+}
+
+TEST(AppearanceStage, MoreClustersThanStateNodesIsAOneLineError) {
+  const auto pkg = run_tiny("appearance_clusters_ok");  // leaves the orbits
+  const auto out = (scratch_dir("appearance_too_many") / "x.h5").string();
+  const auto r = run_tool("phasecast-precompute",
+                          args({"reduce", tiny_scene_path().string(), pkg + ".work/orbits.h5", "-o", out},
+                               {"--clusters", "100000"}));
+  EXPECT_NE(r.exit_code, 0);
+  const auto n = core::read_package(pkg).portrait.nodes();
+  EXPECT_EQ(
+      last_line(r.err),
+      fmt::format("phasecast-precompute: appearance: expected --clusters in 1..{} (the state nodes of the "
+                  "package), got 100000",
+                  n))
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+}  // namespace
+}  // namespace phasecast

@@ -1,0 +1,114 @@
+// Transfer SVD (§4.2) on fields of known rank, against Eigen's dense SVD.
+
+#include "phasecast/precompute/appearance/transfer_reduction.h"
+
+#include <gtest/gtest.h>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+
+#include <random>
+
+namespace phasecast {
+namespace {
+
+using precompute::reduce_transfer;
+using precompute::TransferReductionOptions;
+
+// N_a = 12 fields over S = 5 points: a mean plus 3 fixed directions with
+// integer entries and integer amplitudes, so the float data are exact and the
+// rank is exactly 3.
+MatrixXfR rank3_fields() {
+  std::mt19937_64 rng(9);
+  auto integer = [&](int half) {
+    return static_cast<int>(rng() % static_cast<std::uint64_t>(2 * half + 1)) - half;
+  };
+  const int n = 48 * 5, Na = 12;
+  Eigen::MatrixXd B(n, 3);
+  Eigen::VectorXd mean(n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < 3; ++j) B(i, j) = integer(3);
+    mean[i] = integer(8);
+  }
+  MatrixXfR X(Na, n);
+  for (int j = 0; j < Na; ++j) {
+    const Eigen::VectorXd f = mean + B * Eigen::Vector3d(8 * integer(5), 3 * integer(5), integer(5));
+    X.row(j) = f.transpose().cast<float>();
+  }
+  return X;
+}
+
+// Singular values of the centred data matrix A_a (48S x N_a) by a dense SVD.
+Eigen::VectorXd dense_sigma(const MatrixXfR& X) {
+  const Eigen::MatrixXd A = (X.rowwise() - X.colwise().mean()).transpose().cast<double>();
+  return Eigen::JacobiSVD<Eigen::MatrixXd>(A).singularValues();
+}
+
+TEST(TransferReduction, KnownRankAndSingularValues) {
+  const MatrixXfR X = rank3_fields();
+  const auto r = reduce_transfer(X, {.eps_a = 1e-3});
+  ASSERT_EQ(r.rank(), 3);
+  ASSERT_EQ(r.U_a.rows(), X.cols());
+  ASSERT_EQ(r.Q_a.rows(), 3);
+  ASSERT_EQ(r.Q_a.cols(), X.rows());
+  EXPECT_LT((r.mean_transfer.transpose() - X.colwise().mean()).norm(), 1e-5f);
+  const Eigen::VectorXd sigma = dense_sigma(X);
+  ASSERT_EQ(r.singular_values.size(), 12);
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(r.singular_values[i], sigma[i], 1e-5 * sigma[0]);
+  for (int i = 3; i < 12; ++i) EXPECT_LT(r.singular_values[i], 1e-6 * sigma[0]);
+  // Orthonormal basis and exact reconstruction M^j = M-bar + U_a q_a^j.
+  EXPECT_LT((r.U_a.transpose() * r.U_a - Eigen::MatrixXf::Identity(3, 3)).cwiseAbs().maxCoeff(), 1e-5f);
+  const MatrixXfR rebuilt = (r.U_a * r.Q_a).transpose().rowwise() + r.mean_transfer.transpose();
+  EXPECT_LT((rebuilt - X).cwiseAbs().maxCoeff(), 1e-3f);  // entries up to ~100
+  EXPECT_LT(r.rel_error[2], 1e-3f);
+  const double total = r.singular_values.cast<double>().squaredNorm();
+  EXPECT_NEAR(r.rel_error[0], std::sqrt(r.singular_values.cast<double>().tail(11).squaredNorm() / total),
+              1e-6);
+}
+
+TEST(TransferReduction, FixedRankMatchesTheErrorCurve) {
+  const MatrixXfR X = rank3_fields();
+  const auto r = reduce_transfer(X, {.eps_a = 0, .rank = 2});
+  ASSERT_EQ(r.rank(), 2);
+  const Eigen::MatrixXd centred = (X.rowwise() - r.mean_transfer.transpose()).cast<double>();
+  const Eigen::MatrixXd residual = centred - (r.U_a * r.Q_a).transpose().cast<double>();
+  EXPECT_NEAR(residual.norm() / centred.norm(), r.rel_error[1], 1e-5);
+  EXPECT_EQ(reduce_transfer(X, {.eps_a = 0, .rank = 10}).rank(), 3);  // beyond the resolvable rank
+  const Eigen::VectorXd sigma = dense_sigma(X);
+  const double eps = (sigma[1] / sigma[0] + sigma[2] / sigma[0]) / 2;  // between sigma_2 and sigma_3
+  EXPECT_EQ(reduce_transfer(X, {.eps_a = eps}).rank(), 2);
+}
+
+TEST(TransferReduction, IdenticalFieldsHaveRankZero) {
+  const MatrixXfR X = MatrixXfR::Constant(4, 96, 0.25f);
+  const auto r = reduce_transfer(X, {});
+  EXPECT_EQ(r.rank(), 0);
+  EXPECT_EQ(r.Q_a.rows(), 0);
+  EXPECT_EQ(r.Q_a.cols(), 4);
+  EXPECT_EQ(r.singular_values.cwiseAbs().maxCoeff(), 0.0f);
+  EXPECT_EQ(r.rel_error.cwiseAbs().maxCoeff(), 0.0f);
+  EXPECT_EQ(r.mean_transfer, X.row(0).transpose());
+}
+
+std::string failure_of(const MatrixXfR& X, TransferReductionOptions o) {
+  try {
+    reduce_transfer(X, o);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "no exception";
+}
+
+TEST(TransferReductionRejects, BadInput) {
+  EXPECT_EQ(failure_of(MatrixXfR::Zero(3, 50), {}),
+            "reduce_transfer: fields must be N_a x 48S with N_a, S >= 1, got 3 x 50");
+  EXPECT_EQ(failure_of(MatrixXfR::Zero(3, 48), {.eps_a = 2}),
+            "reduce_transfer: eps_a must be in [0, 1], got 2");
+  EXPECT_EQ(failure_of(MatrixXfR::Zero(3, 48), {.eps_a = 0, .rank = -1}),
+            "reduce_transfer: rank must be >= 0, got -1");
+  MatrixXfR X = MatrixXfR::Zero(3, 48);
+  X(1, 7) = INFINITY;
+  EXPECT_EQ(failure_of(X, {}), "reduce_transfer: field 1 has a non-finite value");
+}
+
+}  // namespace
+}  // namespace phasecast

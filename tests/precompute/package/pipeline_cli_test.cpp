@@ -1,0 +1,201 @@
+// phasecast-precompute run / sample / reduce as a user runs them: the tiny
+// scene end to end, inspect accepting the package, a stopped run resumed into
+// the same package bytes, and one-line errors.
+
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/sampling/orbit_store.h"
+#include "run_tool.h"
+#include "scene_files.h"
+
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <chrono>
+#include <csignal>
+#include <thread>
+
+namespace phasecast {
+namespace {
+
+using testing::run_tool;
+using testing::scratch_dir;
+using testing::tiny_scene_path;
+
+const std::vector<std::string> kSmall = {"--chains", "2", "--irfs-per-chain", "3",
+                                         "--seed",   "4", "--max-rank",       "20"};
+
+std::vector<std::string> args(std::vector<std::string> head, const std::vector<std::string>& tail = kSmall) {
+  head.insert(head.end(), tail.begin(), tail.end());
+  return head;
+}
+
+bool one_line(const std::string& s) {
+  return !s.empty() && s.find('\n') == s.size() - 1;
+}
+
+TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
+  const auto dir = scratch_dir("cli_run");
+  const auto pkg = (dir / "tiny.h5").string();
+  const auto r = run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("r_u = "), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("sample: IRFs 6/6"), std::string::npos) << r.err;
+  const auto inspect = run_tool("phasecast-inspect", {pkg});
+  ASSERT_EQ(inspect.exit_code, 0) << inspect.err;
+  EXPECT_NE(inspect.out.find("n_irf = 6 IRFs"), std::string::npos) << inspect.out;
+  EXPECT_NE(inspect.out.find("displacement r_u = "), std::string::npos) << inspect.out;
+  const auto p = core::read_package(pkg);
+  EXPECT_EQ(p.portrait.irf_count(), 6);
+}
+
+TEST(PipelineCli, KilledRunResumesToTheSamePackageBytes) {
+  const auto dir = scratch_dir("cli_resume");
+  const auto straight = (dir / "straight.h5").string(), resumed = (dir / "resumed.h5").string();
+  ASSERT_EQ(
+      run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", straight})).exit_code,
+      0);
+  const auto stopped =
+      run_tool("phasecast-precompute",
+               args({"run", tiny_scene_path().string(), "-o", resumed, "--stop-after-irfs", "2"}));
+  EXPECT_EQ(stopped.exit_code, 1);
+  EXPECT_NE(stopped.err.find("phasecast-precompute: sampling stopped after "), std::string::npos)
+      << stopped.err;
+  EXPECT_FALSE(std::filesystem::exists(resumed));
+  const auto again =
+      run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", resumed, "--resume"}));
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_NE(again.err.find("(resuming)"), std::string::npos);
+  // Same orbits and same package contents, bit for bit. (Not file bytes: core's HDF5 layer
+  // still stamps modification times on string datasets and the root group.)
+  const auto a = precompute::read_orbit_store(straight + ".work/orbits.h5");
+  const auto b = precompute::read_orbit_store(resumed + ".work/orbits.h5");
+  EXPECT_EQ(a.irf_palette, b.irf_palette);
+  EXPECT_EQ(a.irf_length, b.irf_length);
+  EXPECT_TRUE(a.positions == b.positions);
+  EXPECT_TRUE(a.velocities == b.velocities);
+  const auto p = core::read_package(straight), q = core::read_package(resumed);
+  EXPECT_TRUE(p.reduction.mean_shape == q.reduction.mean_shape);
+  EXPECT_TRUE(p.reduction.U_u == q.reduction.U_u);
+  EXPECT_TRUE(p.reduction.singular_values == q.reduction.singular_values);
+  EXPECT_TRUE(p.portrait.q_u == q.portrait.q_u);
+  EXPECT_TRUE(p.portrait.qdot_u == q.portrait.qdot_u);
+  EXPECT_TRUE(p.portrait.nearest_irf == q.portrait.nearest_irf);
+  EXPECT_TRUE(p.portrait.support == q.portrait.support);
+  EXPECT_EQ(p.portrait.irf_start, q.portrait.irf_start);
+  EXPECT_EQ(p.attributes.beta, q.attributes.beta);
+}
+
+// SIGKILL mid-run (after the first checkpoint), then --resume: the orbits equal an uninterrupted run's.
+TEST(PipelineCli, SigkilledRunResumesWithNoLostOrDuplicatedOrbit) {
+  const auto dir = scratch_dir("cli_sigkill");
+  const std::string killed = (dir / "killed.h5").string(), straight = (dir / "straight.h5").string();
+  const std::vector<std::string> opts = {"--chains", "2", "--irfs-per-chain", "12",
+                                         "-j",       "1", "--max-rank",       "20"};
+  std::vector<std::string> argv_s = args(
+      {testing::tool_path("phasecast-precompute").string(), "run", tiny_scene_path().string(), "-o", killed},
+      opts);
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  const auto first_checkpoint = std::filesystem::path(killed + ".work") / "chain-000.state.h5";
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!std::filesystem::exists(first_checkpoint) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the run ended before it could be killed";
+  EXPECT_FALSE(std::filesystem::exists(killed));
+  const auto resumed = run_tool("phasecast-precompute",
+                                args({"run", tiny_scene_path().string(), "-o", killed, "--resume"}, opts));
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  ASSERT_EQ(run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", straight}, opts))
+                .exit_code,
+            0);
+  const auto a = precompute::read_orbit_store(straight + ".work/orbits.h5");
+  const auto b = precompute::read_orbit_store(killed + ".work/orbits.h5");
+  ASSERT_EQ(a.irf_start.size(), 24u);
+  EXPECT_EQ(a.irf_palette, b.irf_palette);
+  EXPECT_EQ(a.irf_length, b.irf_length);
+  EXPECT_TRUE(a.positions == b.positions);
+  EXPECT_TRUE(a.velocities == b.velocities);
+  EXPECT_TRUE(core::read_package(straight).portrait.q_u == core::read_package(killed).portrait.q_u);
+}
+
+TEST(PipelineCli, SampleThenReduceMatchesRun) {
+  const auto dir = scratch_dir("cli_stages");
+  const auto scene = tiny_scene_path().string();
+  const auto orbits = (dir / "orbits.h5").string(), staged = (dir / "staged.h5").string(),
+             whole = (dir / "whole.h5").string();
+  const auto s = run_tool("phasecast-precompute", {"sample", scene, "-o", orbits, "--chains", "2",
+                                                   "--irfs-per-chain", "3", "--seed", "4"});
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  const auto r =
+      run_tool("phasecast-precompute", {"reduce", scene, orbits, "-o", staged, "--max-rank", "20"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(run_tool("phasecast-precompute", args({"run", scene, "-o", whole})).exit_code, 0);
+  const auto a = core::read_package(staged), b = core::read_package(whole);
+  EXPECT_TRUE(a.portrait.q_u == b.portrait.q_u);
+  EXPECT_TRUE(a.reduction.U_u == b.reduction.U_u);
+}
+
+TEST(PipelineCli, MissingOrbitStoreIsOneLine) {
+  const auto dir = scratch_dir("cli_missing");
+  const auto missing = (dir / "nope.h5").string();
+  const auto r = run_tool("phasecast-precompute",
+                          {"reduce", tiny_scene_path().string(), missing, "-o", (dir / "p.h5").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "phasecast-precompute: " + missing + ": no such file\n");
+}
+
+TEST(PipelineCli, BadRuleInSceneIsOneLine) {
+  const auto dir = scratch_dir("cli_bad_rule");
+  const auto scene = testing::edited_tiny_scene(dir, "on_end = \"rest\"", "on_end = \"halt\"").string();
+  const auto r = run_tool("phasecast-precompute", args({"run", scene, "-o", (dir / "p.h5").string()}));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_TRUE(one_line(r.err)) << r.err;
+  EXPECT_NE(r.err.find("field 'on_end': unknown name 'halt'"), std::string::npos) << r.err;
+}
+
+TEST(PipelineCli, BadNumbersAreOneLine) {
+  const auto dir = scratch_dir("cli_bad_numbers");
+  const auto scene = tiny_scene_path().string();
+  const auto orbits = (dir / "orbits.h5").string(), pkg = (dir / "p.h5").string();
+  ASSERT_EQ(run_tool("phasecast-precompute",
+                     {"sample", scene, "-o", orbits, "--chains", "1", "--irfs-per-chain", "1"})
+                .exit_code,
+            0);
+  const auto eps = run_tool("phasecast-precompute", {"reduce", scene, orbits, "-o", pkg, "--eps-u", "nan"});
+  EXPECT_EQ(eps.exit_code, 1);
+  EXPECT_TRUE(one_line(eps.err)) << eps.err;
+  EXPECT_NE(eps.err.find("--eps-u in [0, 1), got 0, 60, nan"), std::string::npos) << eps.err;
+  const auto lambda = run_tool("phasecast-precompute", {"reduce", scene, orbits, "-o", pkg, "--max-rank", "5",
+                                                        "--blend-lambda", "-1"});
+  EXPECT_EQ(lambda.exit_code, 1);
+  EXPECT_TRUE(one_line(lambda.err)) << lambda.err;
+  EXPECT_NE(lambda.err.find("--blend-lambda > 0"), std::string::npos) << lambda.err;
+  EXPECT_NE(lambda.err.find("got 0, -1, 0, 1"), std::string::npos) << lambda.err;
+  const auto chains = run_tool("phasecast-precompute", {"sample", scene, "-o", orbits, "--chains", "0"});
+  EXPECT_EQ(chains.exit_code, 1);
+  EXPECT_TRUE(one_line(chains.err)) << chains.err;
+  EXPECT_NE(chains.err.find("expected chains, IRFs per chain and jobs >= 1, got 0, 16, 2"), std::string::npos)
+      << chains.err;
+}
+
+TEST(PipelineCli, HelpListsTheSubcommands) {
+  const auto r = run_tool("phasecast-precompute", {"--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* cmd : {"sample", "reduce", "run"}) EXPECT_NE(r.out.find(cmd), std::string::npos) << cmd;
+}
+
+}  // namespace
+}  // namespace phasecast

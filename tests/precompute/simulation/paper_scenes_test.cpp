@@ -1,0 +1,178 @@
+// The paper's three scenes load in their tiny sizes, their palettes map onto
+// the package kinematics, and short runs move plausibly and stay finite.
+
+#include "phasecast/precompute/sampling/obj_frames.h"
+#include "phasecast/precompute/simulation/obj_mesh.h"
+#include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "phasecast/precompute/simulation/scene.h"
+#include "run_tool.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <fstream>
+#include <iterator>
+
+namespace phasecast::precompute {
+namespace {
+
+const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+
+TEST(PaperScenes, EveryShippedSceneLoads) {
+  for (const char* name : {"cloth_door", "plant_pot", "toy_dashboard"}) {
+    for (const auto& dir : {kScenes, kScenes / "tiny"}) {
+      const auto path = dir / (std::string(name) + ".toml");
+      EXPECT_NO_THROW(load_scene(path)) << path;
+    }
+  }
+}
+
+TEST(PaperScenes, PlantLeavesAreWeldedToTheStem) {
+  const Scene s = load_scene(kScenes / "tiny/plant_pot.toml");
+  ASSERT_EQ(s.bodies.size(), 3u);
+  const auto& stem = s.bodies[0].vertices;
+  EXPECT_EQ(stem.size(), 8u);
+  EXPECT_EQ(s.model.vertices(), 8 + 2 * (3 * 2 - 2));  // each leaf pair shares its middle column
+  for (size_t b = 1; b < 3; ++b) {
+    int shared = 0;
+    for (int v : s.bodies[b].vertices) shared += std::count(stem.begin(), stem.end(), v);
+    EXPECT_EQ(shared, 2) << s.bodies[b].name;
+  }
+  EXPECT_EQ(s.model.rod_stretch.size(), 7u);
+  EXPECT_EQ(s.model.rod_bend.size(), 6u);
+  EXPECT_TRUE(s.model.self_collision);
+  const auto right = entry_kinematics(s, s.palette_index("right"));
+  EXPECT_FALSE(right.rotational);
+  EXPECT_FLOAT_EQ(right.rate, 0.5f);
+  EXPECT_FLOAT_EQ(right.range_max, 0.3f);
+}
+
+TEST(PaperScenes, PushedPotSwaysThePlant) {
+  const Scene s = load_scene(kScenes / "tiny/plant_pot.toml");
+  const OrbitStore o = simulate_schedule(s, parse_schedule("right 0.4; stop 0.4", s));
+  ASSERT_TRUE(o.positions.allFinite());
+  const int top = s.bodies[0].vertices.back();
+  double sway = 0;
+  for (int f = 0; f < o.frames(); ++f) sway = std::max(sway, std::abs(double(o.positions(f, 3 * top))));
+  EXPECT_GT(sway, 0.005);  // the top lags the pot by more than 5 mm
+  EXPECT_LT(sway, 0.2);
+  EXPECT_NEAR(o.support(o.frames() - 1, 3), 0.2, 1e-6);  // the pot moved 0.4 s at 0.5 m/s
+}
+
+double enclosed_volume(const ObjMesh& m) {
+  double v = 0;
+  for (Eigen::Index t = 0; t < m.triangles.rows(); ++t) {
+    const Eigen::Vector3d a = m.vertices.row(m.triangles(t, 0)), b = m.vertices.row(m.triangles(t, 1)),
+                          c = m.vertices.row(m.triangles(t, 2));
+    v += a.dot(b.cross(c)) / 6;
+  }
+  return v;
+}
+
+TEST(PaperScenes, ToyIsTetMeshedByTetGenFillingTheBunny) {
+  const Scene s = load_scene(kScenes / "tiny/toy_dashboard.toml");
+  ASSERT_GT(s.model.tets.size(), 60u);
+  double volume = 0;
+  for (const auto& t : s.model.tets) {
+    EXPECT_GT(t.volume, 0);
+    volume += t.volume;
+  }
+  const double surface_volume = enclosed_volume(read_obj(kScenes / "meshes/bunny_tiny.obj"));
+  EXPECT_NEAR(volume, surface_volume, 1e-6 * surface_volume);
+  EXPECT_NEAR(s.model.mass.sum(), 1100 * volume, 1e-9);
+  int pinned = 0;
+  for (auto p : s.model.pinned) pinned += p;
+  EXPECT_GT(pinned, 2);  // the glued base
+}
+
+TEST(PaperScenes, DashboardJoltsReturnToRest) {
+  const Scene s = load_scene(kScenes / "tiny/toy_dashboard.toml");
+  const auto left = entry_kinematics(s, s.palette_index("left"));
+  EXPECT_FLOAT_EQ(left.axis[2], -1.0f);
+  EXPECT_FLOAT_EQ(left.rate, 1.0f);
+  EXPECT_FLOAT_EQ(left.pulse_tau, 0.08f);
+  const OrbitStore o = simulate_schedule(s, parse_schedule("left 1.2", s));
+  ASSERT_TRUE(o.positions.allFinite());
+  double peak = 0;
+  for (int f = 0; f < o.frames(); ++f) peak = std::max(peak, std::abs(double(o.support(f, 11))));
+  EXPECT_NEAR(peak, 0.08 * std::exp(-1.0), 2e-3);            // jolt displacement tau e^-1 at t = tau
+  EXPECT_LT(std::abs(o.support(o.frames() - 1, 11)), 1e-4);  // back at rest
+  // The toy wobbled relative to the dashboard.
+  const Eigen::VectorXf rest = o.positions.row(0);
+  double wobble = 0;
+  for (int f = 0; f < o.frames(); ++f)
+    wobble = std::max(wobble, double((o.positions.row(f).transpose() - rest).cwiseAbs().maxCoeff()));
+  EXPECT_GT(wobble, 0.002);
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
+
+namespace phasecast::precompute {
+namespace {
+
+TEST(PaperScenes, PlantStemTravelsThroughTheStoreAndObjFrames) {
+  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/plant_pot.toml");
+  const OrbitStore o = simulate_schedule(s, parse_schedule("right 0.04", s));
+  ASSERT_EQ(o.segments.rows(), 7);
+  const auto path = testing::scratch_dir("plant_segments") / "plant.h5";
+  write_orbit_store(o, path);
+  EXPECT_EQ(read_orbit_store(path).segments, o.segments);
+  write_obj_frames(o, s.model.obstacles, path.parent_path() / "frames");
+  std::ifstream obj(path.parent_path() / "frames/frame_00000.obj");
+  std::string text((std::istreambuf_iterator<char>(obj)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\nl 1 2\n"), std::string::npos);  // the stem's first edge
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
+
+namespace phasecast::precompute {
+namespace {
+
+// Fig. 8: opening the door (cloth side first) presses the cloth onto the board;
+// closing throws it away from the board.
+TEST(PaperScenes, DoorDragPressesClothOnOpeningAndLiftsItOnClosing) {
+  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/cloth_door.toml");
+  const OrbitStore o = simulate_schedule(s, parse_schedule("open 0.8; close 0.8", s));
+  const double board = s.model.obstacles[0].max.z() + s.model.thickness;
+  const auto mean_gap = [&](int frame) {
+    double gap = 0;
+    int n = 0;
+    for (int v = 0; v < o.vertices(); ++v) {
+      if (!o.pinned[static_cast<size_t>(v)]) gap += o.positions(frame, 3 * v + 2) - board, ++n;
+    }
+    return gap / n;
+  };
+  const double rest_gap = 0.012 - board;
+  EXPECT_LT(mean_gap(35), 0.1 * rest_gap);  // pressed flat onto the board while opening
+  EXPECT_GT(mean_gap(79), 5 * rest_gap);    // blown off the board while closing
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
+
+namespace phasecast::precompute {
+namespace {
+
+double fastest_after_idle_frames(const Scene& scene, double settle_seconds) {
+  auto sim = make_simulator(scene);
+  settle(*sim, settle_seconds);
+  double fastest = 0;
+  for (int i = 0; i < 10; ++i) {
+    sim->step(Eigen::Vector3d::Zero());
+    fastest = std::max(fastest, sim->state().v.lpNorm<Eigen::Infinity>());
+  }
+  return fastest;
+}
+
+TEST(PaperScenes, SettledToyRestsOnItsBase) {
+  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/toy_dashboard.toml");
+  EXPECT_DOUBLE_EQ(s.simulation.settle, 0.6);
+  EXPECT_GT(fastest_after_idle_frames(s, 0), 0.01);  // unsettled, it drops onto its base
+  EXPECT_LT(fastest_after_idle_frames(s, s.simulation.settle), 1e-4);
+}
+
+}  // namespace
+}  // namespace phasecast::precompute

@@ -1,0 +1,218 @@
+// Scene files: the shipped tiny scenes load, palette kinematics map onto the
+// package's terms, and every invalid file is rejected with one line naming
+// the file and the field.
+
+#include "phasecast/precompute/simulation/scene.h"
+#include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "run_tool.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+
+namespace phasecast::precompute {
+namespace {
+
+const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+
+TEST(Scene, TinyClothDoorLoads) {
+  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  EXPECT_EQ(s.name, "cloth_door_tiny");
+  EXPECT_EQ(s.model.vertices(), 6 * 8);
+  EXPECT_EQ(s.model.membranes.size(), 2u * 5 * 7);
+  EXPECT_EQ(s.model.surface.rows(), 2 * 5 * 7);
+  int pinned = 0;
+  for (auto p : s.model.pinned) pinned += p;
+  EXPECT_EQ(pinned, 6);  // the top row on the rail
+  ASSERT_EQ(s.palette.size(), 3u);
+  EXPECT_EQ(s.palette_index("open"), 2);
+  EXPECT_NEAR(s.model.mass.sum(), 0.2 * 0.5 * 0.7, 1e-12);  // density x area
+}
+
+TEST(Scene, DoorPaletteMapsToRotationalKinematicsWithItsRange) {
+  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  const auto open = entry_kinematics(s, s.palette_index("open"));
+  EXPECT_TRUE(open.rotational);
+  EXPECT_FLOAT_EQ(open.rate, 1.5f);
+  EXPECT_FLOAT_EQ(open.axis[1], -1.0f);
+  EXPECT_FLOAT_EQ(open.range_min, 0.0f);
+  EXPECT_NEAR(open.range_max, 3.14159265f / 2, 1e-6);
+  EXPECT_FLOAT_EQ(entry_kinematics(s, s.palette_index("close")).rate, -1.5f);
+  EXPECT_FLOAT_EQ(entry_kinematics(s, s.palette_index("stop")).rate, 0.0f);
+}
+
+TEST(Scene, ScheduleParsesEntriesAndDurations) {
+  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  const auto items = parse_schedule("open 1.5; stop 2;close 0.5 ;", s);
+  ASSERT_EQ(items.size(), 3u);
+  EXPECT_EQ(items[0].entry, 2);
+  EXPECT_DOUBLE_EQ(items[1].duration, 2.0);
+  EXPECT_EQ(items[2].entry, 0);
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(Scene, BadSchedulesAreRejectedWithTheItem) {
+  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  EXPECT_NE(error_of([&] {
+              parse_schedule("open 1; slam 2", s);
+            }).find("unknown palette entry 'slam' (expected one of: close, stop, open)"),
+            std::string::npos);
+  EXPECT_EQ(error_of([&] { parse_schedule("open fast", s); }),
+            "schedule item 'open fast': expected '<palette entry> <seconds > 0>'");
+  EXPECT_EQ(error_of([&] { parse_schedule("open -1", s); }),
+            "schedule item 'open -1': expected '<palette entry> <seconds > 0>'");
+  EXPECT_EQ(error_of([&] { parse_schedule("open 0.001", s); }),
+            "schedule item 'open 0.001': shorter than one frame (0.02 s)");
+}
+
+// A valid small scene; each rejection test edits one line of it.
+const std::string kValid = R"(name = "t"
+[simulation]
+frame_dt = 0.02
+[support]
+motion = "rotational"
+axis = [0, 1, 0]
+[[body]]
+name = "cloth"
+energies = ["membrane", "bending"]
+density = 0.2
+young = 100
+bending = 1e-5
+grid = { origin = [0, 0, 0], u = [1, 0, 0], v = [0, -1, 0], cells = [2, 2] }
+pin = { min = [-1, -0.1, -1], max = [2, 0.1, 1] }
+[[palette]]
+name = "go"
+alpha_impulse = [0, 1, 0]
+alpha_forcing = [0, 1, 0]
+)";
+
+std::filesystem::path write_scene(const std::string& name, const std::string& text) {
+  const auto dir = testing::scratch_dir("scene_" + name);
+  std::ofstream(dir / "scene.toml") << text;
+  return dir / "scene.toml";
+}
+
+std::string edited(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return text.replace(at, from.size(), to);
+}
+
+std::string rejection(const std::string& name, const std::string& text) {
+  const auto path = write_scene(name, text);
+  std::string message = error_of([&] { load_scene(path); });
+  EXPECT_EQ(message.find('\n'), std::string::npos) << "one line: " << message;
+  EXPECT_EQ(message.rfind(path.string(), 0), 0u) << "names the file: " << message;
+  return message.substr(std::min(message.size(), path.string().size()));
+}
+
+TEST(SceneErrors, ValidBaseLoads) {
+  EXPECT_NO_THROW(load_scene(write_scene("valid", kValid)));
+}
+
+TEST(SceneErrors, MissingField) {
+  EXPECT_EQ(rejection("missing", edited(kValid, "frame_dt = 0.02", "")),
+            ": field 'simulation.frame_dt': expected a positive number, got nothing (missing)");
+}
+
+TEST(SceneErrors, WrongType) {
+  EXPECT_EQ(rejection("type", edited(kValid, "density = 0.2", "density = \"heavy\"")),
+            ": field 'body[0].density': expected a positive number, got string \"heavy\"");
+}
+
+TEST(SceneErrors, NaNValue) {
+  EXPECT_EQ(rejection("nan", edited(kValid, "young = 100", "young = nan")),
+            ": field 'body[0].young': expected a positive number, got number nan");
+  EXPECT_EQ(rejection("nanvec", edited(kValid, "alpha_forcing = [0, 1, 0]", "alpha_forcing = [0, nan, 0]")),
+            ": field 'palette[0].alpha_forcing': expected an array of 3 finite numbers, got array of 3");
+}
+
+TEST(SceneErrors, UnknownEnergyName) {
+  EXPECT_EQ(rejection("energy", edited(kValid, "\"bending\"]", "\"stretchy\"]")),
+            ": field 'body[0].energies': expected energy names among membrane, bending, rod, tet_fem "
+            "('stretchy' is "
+            "unknown), got array of 2");
+}
+
+TEST(SceneErrors, EnergyOnTheWrongMesh) {
+  EXPECT_EQ(rejection("rodgrid", edited(kValid, "\"bending\"]", "\"rod\"]")),
+            ": field 'body[0].energies': expected 'rod' only on polyline meshes, got array of 2");
+}
+
+TEST(SceneErrors, MisspeltField) {
+  EXPECT_EQ(rejection("typo", edited(kValid, "young = 100", "young = 100\nyoung_modulus = 3")),
+            ": field 'body[0].young_modulus': unknown field (misspelt?)");
+}
+
+TEST(SceneErrors, TomlSyntaxErrorNamesLineAndColumn) {
+  EXPECT_NE(rejection("syntax", edited(kValid, "frame_dt = 0.02", "frame_dt = = 0.02")).find(":3:"),
+            std::string::npos);
+}
+
+TEST(SceneErrors, BadSupportMotion) {
+  EXPECT_EQ(rejection("motion", edited(kValid, "\"rotational\"", "\"wobbly\"")),
+            ": field 'support.motion': expected \"rotational\" or \"translational\", got string \"wobbly\"");
+}
+
+TEST(SceneErrors, AngularVelocityOffTheAxis) {
+  EXPECT_EQ(
+      rejection("axis", edited(kValid, "alpha_impulse = [0, 1, 0]", "alpha_impulse = [1, 0, 0]")),
+      ": field 'palette[0].alpha_impulse': expected an angular velocity along support.axis, got array of 3");
+}
+
+TEST(SceneErrors, PinBoxOutsideTheBody) {
+  EXPECT_EQ(
+      rejection("pin", edited(kValid, "min = [-1, -0.1, -1], max = [2, 0.1, 1]",
+                              "min = [5, 5, 5], max = [6, 6, 6]")),
+      ": field 'body[0].pin.min': expected a box containing at least one vertex of the body, got array of 3");
+}
+
+std::string obj_scene(const std::string& name, const std::string& obj) {
+  const auto path = write_scene(
+      name, edited(kValid, "grid = { origin = [0, 0, 0], u = [1, 0, 0], v = [0, -1, 0], cells = [2, 2] }",
+                   "obj = { path = \"m.obj\" }"));
+  std::ofstream(path.parent_path() / "m.obj") << obj;
+  std::string message = error_of([&] { load_scene(path); });
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  return message.substr(std::min(message.size(), path.string().size()));
+}
+
+TEST(SceneErrors, NonManifoldMesh) {
+  EXPECT_EQ(
+      obj_scene("nonmanifold", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n"),
+      ": field 'body[0].obj': non-manifold edge (0, 1) shared by more than 2 triangles");
+}
+
+TEST(SceneErrors, DegenerateTriangle) {
+  EXPECT_EQ(obj_scene("degenerate", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n"),
+            ": field 'body[0].obj': membrane triangle (0, 1, 2) is degenerate (zero area)");
+}
+
+TEST(SceneErrors, MalformedObj) {
+  const std::string m = obj_scene("badobj", "v 0 0 0\nv 1 0 zero\n");
+  EXPECT_NE(m.find("field 'body[0].obj.path'"), std::string::npos) << m;
+  EXPECT_NE(m.find("m.obj:2: expected a finite number, got 'zero'"), std::string::npos) << m;
+}
+
+TEST(SceneErrors, InvertedTetIsRejectedByTheBuilder) {
+  DeformableModel m;
+  m.rest.resize(12);
+  m.rest << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  EXPECT_EQ(error_of([&] {
+              add_tet(m, {0, 2, 1, 3}, {1, 1});
+            }),
+            "tet (0, 2, 1, 3) is inverted (volume -0.16666666666666666 < 0)");
+  EXPECT_NO_THROW(add_tet(m, {0, 1, 2, 3}, {1, 1}));
+}
+
+}  // namespace
+}  // namespace phasecast::precompute

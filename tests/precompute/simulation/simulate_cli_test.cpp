@@ -1,0 +1,63 @@
+// phasecast-precompute simulate as a user runs it.
+
+#include "phasecast/precompute/simulation/obj_mesh.h"
+#include "phasecast/precompute/sampling/orbit_store.h"
+#include "run_tool.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+namespace phasecast::precompute {
+namespace {
+
+const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+using testing::run_tool;
+
+TEST(SimulateCli, WritesOrbitStoreAndObjFrames) {
+  const auto dir = testing::scratch_dir("cli_simulate");
+  const auto r =
+      run_tool("phasecast-precompute", {"simulate", (kScenes / "tiny/cloth_door.toml").string(), "--schedule",
+                                        "open 0.5; stop 0.3; close 0.4", "-o", (dir / "run.h5").string(),
+                                        "--obj-dir", (dir / "frames").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("simulate: 60/60 (100%)"), std::string::npos) << r.err;  // progress on a non-TTY
+  const OrbitStore s = read_orbit_store(dir / "run.h5");
+  EXPECT_EQ(s.frames(), 25 + 15 + 20);
+  EXPECT_EQ(s.irf_palette, (std::vector<std::int32_t>{2, 1, 0}));
+  const ObjMesh last = read_obj(dir / "frames/frame_00059.obj");
+  EXPECT_EQ(last.vertices.rows(), s.vertices() + 8);  // cloth + door board
+  EXPECT_FALSE(std::filesystem::exists(dir / "frames/frame_00060.obj"));
+}
+
+TEST(SimulateCli, HelpListsTheSubcommand) {
+  const auto r = run_tool("phasecast-precompute", {"--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("simulate"), std::string::npos);
+}
+
+void expect_one_line_failure(const testing::ToolResult& r, const std::string& fragment) {
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err.rfind("phasecast-precompute: ", 0), 0u) << r.err;
+  EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "one line: " << r.err;
+  EXPECT_NE(r.err.find(fragment), std::string::npos) << r.err;
+}
+
+TEST(SimulateCli, MissingSceneFails) {
+  const auto dir = testing::scratch_dir("cli_missing");
+  expect_one_line_failure(run_tool("phasecast-precompute", {"simulate", "/no/scene.toml", "--schedule",
+                                                            "open 1", "-o", (dir / "x.h5").string()}),
+                          "/no/scene.toml");
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.h5"));
+}
+
+TEST(SimulateCli, UnknownPaletteEntryFails) {
+  const auto dir = testing::scratch_dir("cli_unknown");
+  expect_one_line_failure(
+      run_tool("phasecast-precompute", {"simulate", (kScenes / "tiny/cloth_door.toml").string(), "--schedule",
+                                        "slam 1", "-o", (dir / "x.h5").string()}),
+      "unknown palette entry 'slam' (expected one of: close, stop, open)");
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
