@@ -207,6 +207,26 @@ void File::read_raw(const std::string& name, Dtype dtype, void* out) const {
         "cannot read data (truncated or corrupt file?)");
 }
 
+void File::read_rows_raw(const std::string& name, Dtype dtype, std::uint64_t first, std::uint64_t count,
+                         void* out) const {
+  Handle ds = open_dataset(name);
+  Handle file_space(check(H5Dget_space(ds.get()), "cannot read dataspace"), H5Sclose);
+  hsize_t dims[2] = {0, 0};
+  if (H5Sget_simple_extent_ndims(file_space.get()) != 2) throw Failure("expected a 2-D dataset");
+  H5Sget_simple_extent_dims(file_space.get(), dims, nullptr);
+  if (first + count > dims[0]) {
+    throw Failure("rows " + std::to_string(first) + ".." + std::to_string(first + count) + " past the end (" +
+                  std::to_string(dims[0]) + " rows)");
+  }
+  const hsize_t start[2] = {first, 0};
+  const hsize_t size[2] = {count, dims[1]};
+  Handle memory_space(check(H5Screate_simple(2, size, nullptr), "cannot make a dataspace"), H5Sclose);
+  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, size, nullptr),
+        "cannot select rows");
+  check(H5Dread(ds.get(), native_type(dtype), memory_space.get(), file_space.get(), H5P_DEFAULT, out),
+        "cannot read rows (truncated or corrupt file?)");
+}
+
 std::vector<std::string> File::read_strings(const std::string& name) const {
   Handle ds = open_dataset(name);
   Handle type(check(H5Dget_type(ds.get()), "cannot read datatype"), H5Tclose);
@@ -383,6 +403,83 @@ void write_atomically(const std::filesystem::path& path, const std::function<voi
 
 void File::flush() {
   check(H5Fflush(file_.get(), H5F_SCOPE_GLOBAL), "cannot flush the file");
+}
+
+// ---- checked reading ------------------------------------------------------------
+
+std::string describe_dims(const std::vector<std::uint64_t>& dims) {
+  if (dims.empty()) return "a scalar";
+  std::string s;
+  for (size_t i = 0; i < dims.size(); ++i) s += (i ? "x" : "") + std::to_string(dims[i]);
+  return s;
+}
+
+void Reader::fail(const std::string& where, const std::string& what) const {
+  const std::string line = source_ + ": " + where + ": " + what;
+  raise_(line);
+  throw Failure(line);  // only if `raise` returned
+}
+
+std::string Reader::length_mismatch(Eigen::Index expected, Eigen::Index got) {
+  return "expected " + std::to_string(expected) + " values, got " + std::to_string(got);
+}
+
+DatasetInfo Reader::require(const std::string& name, Dtype dtype, size_t ndim) const {
+  const std::string expected = std::to_string(ndim) + "-D " + dtype_name(dtype);
+  if (!file_.exists(name)) fail(name, "missing dataset (expected " + expected + ")");
+  DatasetInfo info;
+  try {
+    info = file_.info(name);
+  } catch (const Failure& e) {
+    fail(name, e.what());
+  }
+  if (info.dims.size() != ndim || info.dtype != dtype) {
+    fail(name, "expected a " + expected + " dataset, got " + describe_dims(info.dims) + " " +
+                   dtype_name(info.dtype));
+  }
+  return info;
+}
+
+DatasetInfo Reader::require_shape(const std::string& name, Dtype dtype,
+                                  const std::vector<std::uint64_t>& shape) const {
+  DatasetInfo info = require(name, dtype, shape.size());
+  for (size_t i = 0; i < shape.size(); ++i) {
+    if (shape[i] != 0 && info.dims[i] != shape[i]) {
+      std::string want;
+      for (size_t k = 0; k < shape.size(); ++k)
+        want += (k ? "x" : "") + (shape[k] ? std::to_string(shape[k]) : std::string("N"));
+      fail(name,
+           "expected a " + want + " " + dtype_name(dtype) + " dataset, got " + describe_dims(info.dims));
+    }
+  }
+  return info;
+}
+
+std::vector<std::string> Reader::strings(const std::string& name) const {
+  if (!file_.exists(name)) fail(name, "missing dataset (expected 1-D strings)");
+  try {
+    return file_.read_strings(name);
+  } catch (const Failure& e) {
+    fail(name, e.what());
+  }
+}
+
+double Reader::number(const std::string& attribute) const {
+  if (!file_.has_attribute(attribute)) fail("/@" + attribute, "missing root attribute (expected a number)");
+  try {
+    return file_.read_attribute_number(attribute);
+  } catch (const Failure& e) {
+    fail("/@" + attribute, e.what());
+  }
+}
+
+std::string Reader::text(const std::string& attribute) const {
+  if (!file_.has_attribute(attribute)) fail("/@" + attribute, "missing root attribute (expected a string)");
+  try {
+    return file_.read_attribute_string(attribute);
+  } catch (const Failure& e) {
+    fail("/@" + attribute, e.what());
+  }
 }
 
 }  // namespace phasecast::core::h5

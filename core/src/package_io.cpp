@@ -14,102 +14,7 @@
 namespace phasecast::core {
 namespace {
 
-std::string describe_dims(const std::vector<std::uint64_t>& dims) {
-  if (dims.empty()) return "a scalar";
-  std::string s;
-  for (size_t i = 0; i < dims.size(); ++i) s += (i ? "x" : "") + std::to_string(dims[i]);
-  return s;
-}
-
-class Reader {
- public:
-  Reader(const h5::File& file, std::string source) : file_(file), source_(std::move(source)) {}
-
-  [[noreturn]] void fail(const std::string& where, const std::string& message) const {
-    throw PackageError(fmt::format("{}: {}: {}", source_, where, message));
-  }
-
-  h5::DatasetInfo require(const std::string& name, h5::Dtype dtype, size_t ndim) const {
-    if (!file_.exists(name))
-      fail(name, fmt::format("missing dataset (expected {}-D {})", ndim, h5::dtype_name(dtype)));
-    h5::DatasetInfo info;
-    try {
-      info = file_.info(name);
-    } catch (const h5::Failure& e) {
-      fail(name, e.what());
-    }
-    if (info.dims.size() != ndim || info.dtype != dtype) {
-      fail(name, fmt::format("expected a {}-D {} dataset, got {} {}", ndim, h5::dtype_name(dtype),
-                             describe_dims(info.dims), h5::dtype_name(info.dtype)));
-    }
-    return info;
-  }
-
-  template <class T>
-  RowMatrix<T> matrix(const std::string& name) const {
-    const auto info = require(name, h5::dtype_of<T>(), 2);
-    RowMatrix<T> m(static_cast<Eigen::Index>(info.dims[0]), static_cast<Eigen::Index>(info.dims[1]));
-    read_into(name, m.data());
-    return m;
-  }
-
-  template <class T>
-  std::vector<T> vector(const std::string& name) const {
-    const auto info = require(name, h5::dtype_of<T>(), 1);
-    std::vector<T> v(info.dims[0]);
-    read_into(name, v.data());
-    return v;
-  }
-
-  VectorXf vectorf(const std::string& name) const {
-    const auto info = require(name, h5::Dtype::f32, 1);
-    VectorXf v(static_cast<Eigen::Index>(info.dims[0]));
-    read_into(name, v.data());
-    return v;
-  }
-
-  std::vector<std::string> strings(const std::string& name) const {
-    if (!file_.exists(name)) fail(name, "missing dataset (expected 1-D strings)");
-    try {
-      return file_.read_strings(name);
-    } catch (const h5::Failure& e) {
-      fail(name, e.what());
-    }
-  }
-
-  double number(const std::string& attr) const {
-    if (!file_.has_attribute(attr)) fail("/@" + attr, "missing root attribute (expected a number)");
-    try {
-      return file_.read_attribute_number(attr);
-    } catch (const h5::Failure& e) {
-      fail("/@" + attr, e.what());
-    }
-  }
-
-  std::string text(const std::string& attr) const {
-    if (!file_.has_attribute(attr)) fail("/@" + attr, "missing root attribute (expected a string)");
-    try {
-      return file_.read_attribute_string(attr);
-    } catch (const h5::Failure& e) {
-      fail("/@" + attr, e.what());
-    }
-  }
-
-  const h5::File& file() const { return file_; }
-
- private:
-  template <class T>
-  void read_into(const std::string& name, T* out) const {
-    try {
-      file_.read(name, out);
-    } catch (const h5::Failure& e) {
-      fail(name, e.what());
-    }
-  }
-
-  const h5::File& file_;
-  std::string source_;
-};
+using Reader = h5::Reader;
 
 PackageAttributes read_attributes(const Reader& r) {
   PackageAttributes a;
@@ -154,15 +59,15 @@ ImpulsePalette read_palette(const Reader& r) {
 
 Appearance read_appearance(const Reader& r) {
   Appearance a;
-  a.mean_transfer = r.vectorf("/appearance/mean_transfer");
+  a.mean_transfer = r.column<float>("/appearance/mean_transfer");
   a.U_a = r.matrix<float>("/appearance/U_a");
-  a.singular_values = r.vectorf("/appearance/singular_values");
-  a.rel_error = r.vectorf("/appearance/rel_error");
+  a.singular_values = r.column<float>("/appearance/singular_values");
+  a.rel_error = r.column<float>("/appearance/rel_error");
   a.cluster_nodes = r.vector<std::int32_t>("/appearance/cluster_nodes");
   a.nrbf_centers = r.matrix<float>("/appearance/nrbf_centers");
   a.nrbf_weights = r.matrix<float>("/appearance/nrbf_weights");
-  a.nrbf_widths = r.vectorf("/appearance/nrbf_widths");
-  const VectorXf reg = r.vectorf("/appearance/nrbf_regularization");
+  a.nrbf_widths = r.column<float>("/appearance/nrbf_widths");
+  const VectorXf reg = r.column<float>("/appearance/nrbf_regularization");
   if (reg.size() != 1)
     r.fail("/appearance/nrbf_regularization", fmt::format("expected 1 value, got {}", reg.size()));
   a.nrbf_regularization = reg[0];
@@ -181,10 +86,10 @@ ScenePackage read_from(const Reader& r) {
 
   pkg.palette = read_palette(r);
 
-  pkg.reduction.mean_shape = r.vectorf("/reduction/mean_shape");
+  pkg.reduction.mean_shape = r.column<float>("/reduction/mean_shape");
   pkg.reduction.U_u = r.matrix<float>("/reduction/U_u");
-  pkg.reduction.singular_values = r.vectorf("/reduction/singular_values");
-  pkg.reduction.rel_error = r.vectorf("/reduction/rel_error");
+  pkg.reduction.singular_values = r.column<float>("/reduction/singular_values");
+  pkg.reduction.rel_error = r.column<float>("/reduction/rel_error");
 
   auto& pp = pkg.portrait;
   pp.q_u = r.matrix<float>("/portrait/q_u");
@@ -206,24 +111,6 @@ ScenePackage read_from(const Reader& r) {
 
 // ---- writing -------------------------------------------------------------------
 
-std::vector<std::uint64_t> dims_of(Eigen::Index rows, Eigen::Index cols) {
-  return {static_cast<std::uint64_t>(rows), static_cast<std::uint64_t>(cols)};
-}
-
-template <class T>
-void put(h5::File& f, const std::string& name, const RowMatrix<T>& m) {
-  f.write(name, m.data(), dims_of(m.rows(), m.cols()));
-}
-
-template <class T>
-void put(h5::File& f, const std::string& name, const std::vector<T>& v) {
-  f.write(name, v.data(), {v.size()});
-}
-
-void put(h5::File& f, const std::string& name, const VectorXf& v) {
-  f.write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
-}
-
 void write_to(h5::File& f, const ScenePackage& pkg) {
   const auto& a = pkg.attributes;
   f.write_attribute("format_version", static_cast<std::int32_t>(kFormatVersion));
@@ -235,45 +122,45 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
   f.write_attribute("eps_a", a.eps_a);
   if (a.camera) f.write_attribute("camera", std::vector<float>(a.camera->begin(), a.camera->end()));
 
-  put(f, "/mesh/rest_positions", pkg.mesh.rest_positions);
-  put(f, "/mesh/triangles", pkg.mesh.triangles);
-  put(f, "/mesh/normals", pkg.mesh.normals);
-  put(f, "/mesh/deformable", pkg.mesh.deformable);
-  put(f, "/mesh/attached", pkg.mesh.attached);
+  f.write("/mesh/rest_positions", pkg.mesh.rest_positions);
+  f.write("/mesh/triangles", pkg.mesh.triangles);
+  f.write("/mesh/normals", pkg.mesh.normals);
+  f.write("/mesh/deformable", pkg.mesh.deformable);
+  f.write("/mesh/attached", pkg.mesh.attached);
 
   f.write_strings("/palette/names", pkg.palette.names);
-  put(f, "/palette/alpha_impulse", pkg.palette.alpha_impulse);
-  put(f, "/palette/alpha_forcing", pkg.palette.alpha_forcing);
-  put(f, "/palette/transitions", pkg.palette.transitions);
-  put(f, "/palette/on_end", pkg.palette.on_end);
-  put(f, "/palette/kinematics", kinematics_to_rows(pkg.palette.kinematics));
+  f.write("/palette/alpha_impulse", pkg.palette.alpha_impulse);
+  f.write("/palette/alpha_forcing", pkg.palette.alpha_forcing);
+  f.write("/palette/transitions", pkg.palette.transitions);
+  f.write("/palette/on_end", pkg.palette.on_end);
+  f.write("/palette/kinematics", kinematics_to_rows(pkg.palette.kinematics));
   f.write_attribute_on("/palette/kinematics", "columns", kKinematicsColumnNames);
 
-  put(f, "/reduction/mean_shape", pkg.reduction.mean_shape);
-  put(f, "/reduction/U_u", pkg.reduction.U_u);
-  put(f, "/reduction/singular_values", pkg.reduction.singular_values);
-  put(f, "/reduction/rel_error", pkg.reduction.rel_error);
+  f.write("/reduction/mean_shape", pkg.reduction.mean_shape);
+  f.write("/reduction/U_u", pkg.reduction.U_u);
+  f.write("/reduction/singular_values", pkg.reduction.singular_values);
+  f.write("/reduction/rel_error", pkg.reduction.rel_error);
 
   const auto& pp = pkg.portrait;
-  put(f, "/portrait/q_u", pp.q_u);
-  put(f, "/portrait/qdot_u", pp.qdot_u);
-  put(f, "/portrait/irf_start", pp.irf_start);
-  put(f, "/portrait/irf_length", pp.irf_length);
-  put(f, "/portrait/irf_palette", pp.irf_palette);
-  put(f, "/portrait/nearest_irf", pp.nearest_irf);
-  if (pp.support.rows() > 0) put(f, "/portrait/support", pp.support);
+  f.write("/portrait/q_u", pp.q_u);
+  f.write("/portrait/qdot_u", pp.qdot_u);
+  f.write("/portrait/irf_start", pp.irf_start);
+  f.write("/portrait/irf_length", pp.irf_length);
+  f.write("/portrait/irf_palette", pp.irf_palette);
+  f.write("/portrait/nearest_irf", pp.nearest_irf);
+  if (pp.support.rows() > 0) f.write("/portrait/support", pp.support);
 
   if (const auto& ap = pkg.appearance) {
-    put(f, "/portrait/q_a", pp.q_a);
-    put(f, "/appearance/mean_transfer", ap->mean_transfer);
-    put(f, "/appearance/U_a", ap->U_a);
-    put(f, "/appearance/singular_values", ap->singular_values);
-    put(f, "/appearance/rel_error", ap->rel_error);
-    put(f, "/appearance/cluster_nodes", ap->cluster_nodes);
-    put(f, "/appearance/nrbf_centers", ap->nrbf_centers);
-    put(f, "/appearance/nrbf_weights", ap->nrbf_weights);
-    put(f, "/appearance/nrbf_widths", ap->nrbf_widths);
-    put(f, "/appearance/nrbf_regularization", VectorXf::Constant(1, ap->nrbf_regularization));
+    f.write("/portrait/q_a", pp.q_a);
+    f.write("/appearance/mean_transfer", ap->mean_transfer);
+    f.write("/appearance/U_a", ap->U_a);
+    f.write("/appearance/singular_values", ap->singular_values);
+    f.write("/appearance/rel_error", ap->rel_error);
+    f.write("/appearance/cluster_nodes", ap->cluster_nodes);
+    f.write("/appearance/nrbf_centers", ap->nrbf_centers);
+    f.write("/appearance/nrbf_weights", ap->nrbf_weights);
+    f.write("/appearance/nrbf_widths", ap->nrbf_widths);
+    f.write("/appearance/nrbf_regularization", VectorXf(VectorXf::Constant(1, ap->nrbf_regularization)));
   }
 }
 
@@ -317,7 +204,7 @@ ScenePackage read_package(const std::filesystem::path& path) {
   } catch (const h5::Failure& e) {
     throw PackageError(fmt::format("{}: {}", source, e.what()));
   }
-  ScenePackage pkg = read_from(Reader(*file, source));
+  ScenePackage pkg = read_from(h5::checked_reader<PackageError>(*file, source));
   validate_package(pkg, source);
   return pkg;
 }

@@ -2,8 +2,8 @@
 
 #include "phasecast/precompute/sampling/scene_palette.h"
 
-#include "phasecast/precompute/sampling/orbit_store.h"
 #include "phasecast/precompute/reduction/phase_portrait.h"
+#include "phasecast/precompute/sampling/orbit_store.h"
 
 #include "phasecast/core/hdf5_file.h"
 
@@ -17,18 +17,6 @@ namespace phasecast::precompute {
 namespace {
 
 namespace h5 = core::h5;
-
-template <class T>
-std::vector<T> read_vector(const h5::File& f, const std::filesystem::path& path, const std::string& name) {
-  if (!f.exists(name)) throw OrbitStoreError(fmt::format("{}: {}: missing dataset", path.string(), name));
-  const auto info = f.info(name);
-  if (info.dims.size() != 1 || info.dtype != h5::dtype_of<T>())
-    throw OrbitStoreError(fmt::format("{}: {}: expected a 1-D {} dataset", path.string(), name,
-                                      h5::dtype_name(h5::dtype_of<T>())));
-  std::vector<T> v(static_cast<size_t>(info.dims[0]));
-  if (!v.empty()) f.read(name, v.data());
-  return v;
-}
 
 // Appends one axis-aligned box as 6 quads with outward normals. Plain scalar
 // writes: fixed-size Eigen temporaries here trip GCC 12's -Warray-bounds.
@@ -133,21 +121,17 @@ OrbitIndex read_orbit_index(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw OrbitStoreError(fmt::format("{}: no such file", path.string()));
   try {
     const h5::File f = h5::File::open_read(path);
+    const h5::Reader r = h5::checked_reader<OrbitStoreError>(f, path.string());
     OrbitIndex o;
-    o.scene = f.read_attribute_string("scene");
-    o.dt = f.read_attribute_number("dt");
-    o.palette_names = f.read_strings("/palette/names");
-    const auto rest = f.info("/mesh/rest_positions");
-    o.vertices = rest.dims.empty() ? 0 : static_cast<int>(rest.dims[0]);
-    o.irfs.start = read_vector<std::int32_t>(f, path, "/irfs/start");
-    o.irfs.length = read_vector<std::int32_t>(f, path, "/irfs/length");
-    o.irfs.palette = read_vector<std::int32_t>(f, path, "/irfs/palette");
-    const auto support = f.info("/frames/support");
-    if (support.dims.size() != 2 || support.dims[1] != core::kSupportFloats ||
-        support.dtype != h5::Dtype::f32)
-      throw OrbitStoreError(fmt::format("{}: /frames/support: expected N x 12 float32", path.string()));
-    o.support.resize(static_cast<Eigen::Index>(support.dims[0]), core::kSupportFloats);
-    if (o.support.size() > 0) f.read("/frames/support", o.support.data());
+    o.scene = r.text("scene");
+    o.dt = r.number("dt");
+    o.palette_names = r.strings("/palette/names");
+    o.vertices = static_cast<int>(r.require("/mesh/rest_positions", h5::Dtype::f32, 2).dims[0]);
+    o.irfs.start = r.vector<std::int32_t>("/irfs/start");
+    o.irfs.length = r.vector<std::int32_t>("/irfs/length");
+    o.irfs.palette = r.vector<std::int32_t>("/irfs/palette");
+    r.require_shape("/frames/support", h5::Dtype::f32, {0, core::kSupportFloats});
+    o.support = r.matrix<float>("/frames/support");
     // IRFs must tile the frames in order (as validate_orbit_store checks for a loaded store).
     std::int64_t next = 0;
     for (size_t i = 0; i < o.irfs.size(); ++i) {

@@ -6,8 +6,6 @@
 
 #include <fmt/format.h>
 
-#include <hdf5.h>
-
 #include <algorithm>
 #include <stdexcept>
 
@@ -16,8 +14,7 @@ namespace phasecast::precompute {
 namespace h5 = core::h5;
 
 struct OrbitDisplacementSource::Hdf5 {
-  h5::Handle file;
-  h5::Handle dataset;
+  h5::File file;
 };
 
 namespace {
@@ -25,38 +22,27 @@ constexpr const char* kPositions = "/frames/positions";
 constexpr Eigen::Index kBlockFrames = 512;  // frames per hyperslab read
 }  // namespace
 
-OrbitDisplacementSource::OrbitDisplacementSource(const std::filesystem::path& store)
-    : h5_(std::make_unique<Hdf5>()), path_(store) {
-  const auto fail = [&](const std::string& what) {
-    throw OrbitStoreError(fmt::format("{}: {}: {}", store.string(), kPositions, what));
-  };
+OrbitDisplacementSource::OrbitDisplacementSource(const std::filesystem::path& store) : path_(store) {
   if (!std::filesystem::exists(store)) throw OrbitStoreError(fmt::format("{}: no such file", store.string()));
-  {
-    // Shape and dtype through the checked layer first (it also silences HDF5's error printer).
-    try {
-      const h5::File f = h5::File::open_read(store);
-      if (!f.exists(kPositions)) fail("missing dataset (expected N x 3V float32 frames)");
-      const auto info = f.info(kPositions);
-      if (info.dtype != h5::Dtype::f32 || info.dims.size() != 2 || info.dims[0] == 0 || info.dims[1] == 0 ||
-          info.dims[1] % 3 != 0) {
-        fail("expected a non-empty N x 3V float32 dataset");
-      }
-      frames_ = static_cast<Eigen::Index>(info.dims[0]);
-      mean_.resize(static_cast<Eigen::Index>(info.dims[1]));
-    } catch (const h5::Failure& e) {
-      throw OrbitStoreError(fmt::format("{}: {}", store.string(), e.what()));
-    }
+  try {
+    h5_ = std::make_unique<Hdf5>(Hdf5{h5::File::open_read(store)});
+  } catch (const h5::Failure& e) {
+    throw OrbitStoreError(fmt::format("{}: {}", store.string(), e.what()));
   }
-  h5_->file = h5::Handle(H5Fopen(store.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (h5_->file.get() < 0) throw OrbitStoreError(fmt::format("{}: cannot open", store.string()));
-  h5_->dataset = h5::Handle(H5Dopen2(h5_->file.get(), kPositions, H5P_DEFAULT), H5Dclose);
-  if (h5_->dataset.get() < 0) fail("cannot open");
+  const h5::Reader r = h5::checked_reader<OrbitStoreError>(h5_->file, store.string());
+  if (!h5_->file.exists(kPositions)) r.fail(kPositions, "missing dataset (expected N x 3V float32 frames)");
+  const auto dims = r.require(kPositions, h5::Dtype::f32, 2).dims;
+  if (dims[0] == 0 || dims[1] == 0 || dims[1] % 3 != 0)
+    r.fail(kPositions, "expected a non-empty N x 3V float32 dataset");
+  frames_ = static_cast<Eigen::Index>(dims[0]);
+  mean_.resize(static_cast<Eigen::Index>(dims[1]));
   // First pass: x-bar, accumulated in double so the mean does not depend on block size.
   Eigen::VectorXd sum = Eigen::VectorXd::Zero(mean_.size());
   MatrixXfR rows;
   for (Eigen::Index first = 0; first < frames_; first += kBlockFrames) {
     read_frames(first, std::min(kBlockFrames, frames_ - first), rows);
-    if (!rows.allFinite()) fail(fmt::format("NaN or Inf in frames {}..{}", first, first + rows.rows() - 1));
+    if (!rows.allFinite())
+      r.fail(kPositions, fmt::format("NaN or Inf in frames {}..{}", first, first + rows.rows() - 1));
     sum += rows.cast<double>().colwise().sum().transpose();
   }
   mean_ = (sum / static_cast<double>(frames_)).cast<float>();
@@ -66,16 +52,12 @@ OrbitDisplacementSource::~OrbitDisplacementSource() = default;
 
 void OrbitDisplacementSource::read_frames(Eigen::Index first, Eigen::Index count, MatrixXfR& rows) const {
   rows.resize(count, mean_.size());
-  const hsize_t start[2] = {static_cast<hsize_t>(first), 0};
-  const hsize_t size[2] = {static_cast<hsize_t>(count), static_cast<hsize_t>(mean_.size())};
-  const h5::Handle file_space(H5Dget_space(h5_->dataset.get()), H5Sclose);
-  const h5::Handle memory_space(H5Screate_simple(2, size, nullptr), H5Sclose);
-  if (file_space.get() < 0 || memory_space.get() < 0 ||
-      H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, size, nullptr) < 0 ||
-      H5Dread(h5_->dataset.get(), H5T_NATIVE_FLOAT, memory_space.get(), file_space.get(), H5P_DEFAULT,
-              rows.data()) < 0) {
-    throw OrbitStoreError(fmt::format("{}: {}: cannot read frames {}..{}", path_.string(), kPositions, first,
-                                      first + count - 1));
+  try {
+    h5_->file.read_rows(kPositions, static_cast<std::uint64_t>(first), static_cast<std::uint64_t>(count),
+                        rows.data());
+  } catch (const h5::Failure& e) {
+    throw OrbitStoreError(fmt::format("{}: {}: cannot read frames {}..{}: {}", path_.string(), kPositions,
+                                      first, first + count - 1, e.what()));
   }
 }
 

@@ -39,22 +39,6 @@ struct Checkpoint {
   SimState state;
 };
 
-void write_vec(h5::File& f, const std::string& name, const Eigen::VectorXd& v) {
-  f.write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
-}
-
-Eigen::VectorXd read_vec(const h5::File& f, const std::string& name, Eigen::Index n,
-                         const std::string& source) {
-  const auto info = f.info(name);
-  if (info.dtype != h5::Dtype::f64 || info.dims.size() != 1 ||
-      info.dims[0] != static_cast<std::uint64_t>(n)) {
-    throw SamplingError(fmt::format("{}: {}: expected {} float64 values", source, name, n));
-  }
-  Eigen::VectorXd v(n);
-  f.read(name, v.data());
-  return v;
-}
-
 void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c, const SamplingOptions& o,
                       int chain) {
   try {
@@ -64,12 +48,12 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c, co
       f.write_attribute("irfs", std::int32_t{c.irfs});
       f.write_attribute("previous", std::int32_t{c.previous});
       f.write_attribute("time", c.state.time);
-      write_vec(f, "/x", c.state.x);
-      write_vec(f, "/v", c.state.v);
+      f.write("/x", c.state.x);
+      f.write("/v", c.state.v);
       const auto& s = c.state.support;
       Eigen::VectorXd support(10);
       support << s.held, s.pulse, s.pulse_time, s.coordinate;
-      write_vec(f, "/support", support);
+      f.write("/support", support);
     });
   } catch (const h5::Failure& e) {
     throw SamplingError(fmt::format("{}: cannot write the checkpoint: {}", path.string(), e.what()));
@@ -81,6 +65,7 @@ Checkpoint read_checkpoint(const std::filesystem::path& path, const SamplingOpti
   const std::string src = path.string();
   try {
     const h5::File f = h5::File::open_read(path);
+    const h5::Reader r = h5::checked_reader<SamplingError>(f, src);
     if (f.read_attribute_string("seed") != std::to_string(o.seed) ||
         static_cast<int>(f.read_attribute_number("chain")) != chain) {
       throw SamplingError(
@@ -92,9 +77,9 @@ Checkpoint read_checkpoint(const std::filesystem::path& path, const SamplingOpti
     c.irfs = static_cast<int>(f.read_attribute_number("irfs"));
     c.previous = static_cast<int>(f.read_attribute_number("previous"));
     c.state.time = f.read_attribute_number("time");
-    c.state.x = read_vec(f, "/x", n, src);
-    c.state.v = read_vec(f, "/v", n, src);
-    const Eigen::VectorXd s = read_vec(f, "/support", 10, src);
+    c.state.x = r.column<double>("/x", n);
+    c.state.v = r.column<double>("/v", n);
+    const Eigen::VectorXd s = r.column<double>("/support", 10);
     c.state.support.held = s.segment<3>(0);
     c.state.support.pulse = s.segment<3>(3);
     c.state.support.pulse_time = s(6);

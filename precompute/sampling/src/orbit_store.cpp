@@ -15,62 +15,6 @@ namespace {
 namespace h5 = core::h5;
 constexpr const char* kFormat = "phasecast-orbits";
 
-std::string dims_text(const std::vector<std::uint64_t>& dims) {
-  std::string s;
-  for (size_t i = 0; i < dims.size(); ++i) s += (i ? "x" : "") + std::to_string(dims[i]);
-  return s.empty() ? "a scalar" : s;
-}
-
-class Reader {
- public:
-  Reader(const h5::File& f, std::string source) : f_(f), source_(std::move(source)) {}
-
-  [[noreturn]] void fail(const std::string& where, const std::string& what) const {
-    throw OrbitStoreError(fmt::format("{}: {}: {}", source_, where, what));
-  }
-
-  std::vector<std::uint64_t> require(const std::string& name, h5::Dtype dtype, size_t ndim) const {
-    if (!f_.exists(name))
-      fail(name, fmt::format("missing dataset (expected {}-D {})", ndim, h5::dtype_name(dtype)));
-    const auto info = f_.info(name);
-    if (info.dims.size() != ndim || info.dtype != dtype) {
-      fail(name, fmt::format("expected a {}-D {} dataset, got {} {}", ndim, h5::dtype_name(dtype),
-                             dims_text(info.dims), h5::dtype_name(info.dtype)));
-    }
-    return info.dims;
-  }
-
-  template <class T>
-  RowMatrix<T> matrix(const std::string& name) const {
-    const auto dims = require(name, h5::dtype_of<T>(), 2);
-    RowMatrix<T> m(static_cast<Eigen::Index>(dims[0]), static_cast<Eigen::Index>(dims[1]));
-    if (m.size() > 0) f_.read(name, m.data());
-    return m;
-  }
-
-  template <class T>
-  std::vector<T> vector(const std::string& name) const {
-    const auto dims = require(name, h5::dtype_of<T>(), 1);
-    std::vector<T> v(static_cast<size_t>(dims[0]));
-    if (!v.empty()) f_.read(name, v.data());
-    return v;
-  }
-
- private:
-  const h5::File& f_;
-  std::string source_;
-};
-
-template <class T>
-void write_matrix(h5::File& f, const std::string& name, const RowMatrix<T>& m) {
-  f.write(name, m.data(), {static_cast<std::uint64_t>(m.rows()), static_cast<std::uint64_t>(m.cols())});
-}
-
-template <class T>
-void write_vector(h5::File& f, const std::string& name, const std::vector<T>& v) {
-  f.write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
-}
-
 }  // namespace
 
 void validate_orbit_store(const OrbitStore& s, const std::string& source) {
@@ -140,21 +84,21 @@ void write_orbit_store(const OrbitStore& s, const std::filesystem::path& path) {
       f.write_attribute("scene", s.scene);
       f.write_attribute("source", s.source);
       f.write_attribute("dt", s.dt);
-      write_matrix(f, "/mesh/rest_positions", s.rest_positions);
-      write_matrix(f, "/mesh/triangles", s.triangles);
-      if (s.segments.rows() > 0) write_matrix(f, "/mesh/segments", s.segments);  // only scenes with rods
-      write_vector(f, "/mesh/pinned", s.pinned);
+      f.write("/mesh/rest_positions", s.rest_positions);
+      f.write("/mesh/triangles", s.triangles);
+      if (s.segments.rows() > 0) f.write("/mesh/segments", s.segments);  // only scenes with rods
+      f.write("/mesh/pinned", s.pinned);
       f.write_strings("/palette/names", s.palette_names);
-      write_matrix(f, "/palette/alpha_impulse", s.alpha_impulse);
-      write_matrix(f, "/palette/alpha_forcing", s.alpha_forcing);
-      write_matrix(f, "/palette/kinematics", core::kinematics_to_rows(s.kinematics));
-      write_matrix(f, "/frames/positions", s.positions);
-      write_matrix(f, "/frames/velocities", s.velocities);
-      write_vector(f, "/frames/palette", s.frame_palette);
-      write_matrix(f, "/frames/support", s.support);
-      write_vector(f, "/irfs/start", s.irf_start);
-      write_vector(f, "/irfs/length", s.irf_length);
-      write_vector(f, "/irfs/palette", s.irf_palette);
+      f.write("/palette/alpha_impulse", s.alpha_impulse);
+      f.write("/palette/alpha_forcing", s.alpha_forcing);
+      f.write("/palette/kinematics", core::kinematics_to_rows(s.kinematics));
+      f.write("/frames/positions", s.positions);
+      f.write("/frames/velocities", s.velocities);
+      f.write("/frames/palette", s.frame_palette);
+      f.write("/frames/support", s.support);
+      f.write("/irfs/start", s.irf_start);
+      f.write("/irfs/length", s.irf_length);
+      f.write("/irfs/palette", s.irf_palette);
     });
   } catch (const h5::Failure& e) {
     throw OrbitStoreError(fmt::format("{}: cannot write: {}", path.string(), e.what()));
@@ -165,7 +109,7 @@ OrbitStore read_orbit_store(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw OrbitStoreError(fmt::format("{}: no such file", path.string()));
   try {
     const h5::File f = h5::File::open_read(path);
-    const Reader r(f, path.string());
+    const h5::Reader r = h5::checked_reader<OrbitStoreError>(f, path.string());
     if (!f.has_attribute("format") || f.read_attribute_string("format") != kFormat) {
       r.fail("/ attribute format", fmt::format("expected \"{}\" (is this an orbit store?)", kFormat));
     }
@@ -181,7 +125,7 @@ OrbitStore read_orbit_store(const std::filesystem::path& path) {
     s.triangles = r.matrix<std::uint32_t>("/mesh/triangles");
     s.segments = f.exists("/mesh/segments") ? r.matrix<std::uint32_t>("/mesh/segments") : MatrixXuR(0, 2);
     s.pinned = r.vector<std::uint8_t>("/mesh/pinned");
-    s.palette_names = f.read_strings("/palette/names");
+    s.palette_names = r.strings("/palette/names");
     s.alpha_impulse = r.matrix<float>("/palette/alpha_impulse");
     s.alpha_forcing = r.matrix<float>("/palette/alpha_forcing");
     const MatrixXfR k = r.matrix<float>("/palette/kinematics");

@@ -3,6 +3,8 @@
 // every HDF5 failure into an exception (never an HDF5 error-stack dump) and
 // checks dtypes exactly, because the package format promises exact dtypes.
 
+#include "phasecast/core/eigen_types.h"
+
 #include <hdf5.h>
 
 #include <cstdint>
@@ -85,11 +87,29 @@ class File {
   void read(const std::string& name, T* out) const {
     read_raw(name, dtype_of<T>(), out);
   }
+  // Reads rows [first, first + count) of a 2-D dataset (a block of frames),
+  // so large datasets can be streamed without holding them in memory.
+  template <class T>
+  void read_rows(const std::string& name, std::uint64_t first, std::uint64_t count, T* out) const {
+    read_rows_raw(name, dtype_of<T>(), first, count, out);
+  }
   std::vector<std::string> read_strings(const std::string& name) const;
 
   template <class T>
   void write(const std::string& name, const T* data, const std::vector<std::uint64_t>& dims) {
     write_raw(name, dtype_of<T>(), data, dims);
+  }
+  template <class T>
+  void write(const std::string& name, const RowMatrix<T>& m) {
+    write(name, m.data(), {static_cast<std::uint64_t>(m.rows()), static_cast<std::uint64_t>(m.cols())});
+  }
+  template <class T>
+  void write(const std::string& name, const std::vector<T>& v) {
+    write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
+  }
+  template <class T>
+  void write(const std::string& name, const Eigen::Matrix<T, Eigen::Dynamic, 1>& v) {
+    write(name, v.data(), {static_cast<std::uint64_t>(v.size())});
   }
   void write_strings(const std::string& name, const std::vector<std::string>& values);
 
@@ -110,12 +130,86 @@ class File {
  private:
   explicit File(Handle file) : file_(std::move(file)) {}
   void read_raw(const std::string& name, Dtype dtype, void* out) const;
+  void read_rows_raw(const std::string& name, Dtype dtype, std::uint64_t first, std::uint64_t count,
+                     void* out) const;
   void write_raw(const std::string& name, Dtype dtype, const void* data,
                  const std::vector<std::uint64_t>& dims);
   Handle open_dataset(const std::string& name) const;
   void ensure_parent_groups(const std::string& name);
   Handle file_;
 };
+
+// "3x4", "a scalar": dataset shapes in error messages.
+std::string describe_dims(const std::vector<std::uint64_t>& dims);
+
+// Checked reading for one file format: every dataset and attribute must be
+// present with the rank and exact dtype the format promises. Each failure,
+// this layer's or HDF5's, becomes one line "<source>: <where>: <what>" handed
+// to `raise`, which throws the format's own error type (see checked_reader).
+class Reader {
+ public:
+  using Raise = std::function<void(const std::string& line)>;
+  Reader(const File& file, std::string source, Raise raise)
+      : file_(file), source_(std::move(source)), raise_(std::move(raise)) {}
+
+  [[noreturn]] void fail(const std::string& where, const std::string& what) const;
+  DatasetInfo require(const std::string& name, Dtype dtype, size_t ndim) const;
+  // Like require(); each nonzero entry of `shape` must also match exactly.
+  DatasetInfo require_shape(const std::string& name, Dtype dtype,
+                            const std::vector<std::uint64_t>& shape) const;
+
+  template <class T>
+  RowMatrix<T> matrix(const std::string& name) const {
+    const auto dims = require(name, dtype_of<T>(), 2).dims;
+    RowMatrix<T> m(static_cast<Eigen::Index>(dims[0]), static_cast<Eigen::Index>(dims[1]));
+    read_into(name, m.data(), m.size());
+    return m;
+  }
+  template <class T>
+  std::vector<T> vector(const std::string& name) const {
+    std::vector<T> v(require(name, dtype_of<T>(), 1).dims[0]);
+    read_into(name, v.data(), static_cast<Eigen::Index>(v.size()));
+    return v;
+  }
+  // A 1-D dataset as an Eigen column; `expected` >= 0 also checks its length.
+  template <class T>
+  Eigen::Matrix<T, Eigen::Dynamic, 1> column(const std::string& name, Eigen::Index expected = -1) const {
+    const auto n = static_cast<Eigen::Index>(require(name, dtype_of<T>(), 1).dims[0]);
+    if (expected >= 0 && n != expected) fail(name, length_mismatch(expected, n));
+    Eigen::Matrix<T, Eigen::Dynamic, 1> v(n);
+    read_into(name, v.data(), n);
+    return v;
+  }
+  std::vector<std::string> strings(const std::string& name) const;
+  double number(const std::string& attribute) const;     // root attribute
+  std::string text(const std::string& attribute) const;  // root attribute
+  const File& file() const { return file_; }
+  const std::string& source() const { return source_; }
+
+  // Reads `size` elements of a dataset already checked by require().
+  template <class T>
+  void read_into(const std::string& name, T* out, Eigen::Index size) const {
+    if (size == 0) return;
+    try {
+      file_.read(name, out);
+    } catch (const Failure& e) {
+      fail(name, e.what());
+    }
+  }
+
+ private:
+  static std::string length_mismatch(Eigen::Index expected, Eigen::Index got);
+
+  const File& file_;
+  std::string source_;
+  Raise raise_;
+};
+
+// A Reader that throws `Error` (PackageError, OrbitStoreError, ...).
+template <class Error>
+Reader checked_reader(const File& file, std::string source) {
+  return Reader(file, std::move(source), [](const std::string& line) { throw Error(line); });
+}
 
 // Writes a new HDF5 file atomically: `fill` writes into a temporary file in
 // the same folder, which is flushed and then renamed over `path`, so an
