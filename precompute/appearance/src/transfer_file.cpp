@@ -1,12 +1,12 @@
 // OBJ input and HDF5 output of the standalone transfer tool (docs/transfer.md).
-// The HDF5 layer is phasecast_core's private RAII wrapper (core/src/hdf5_file.h).
+// OBJ files are read by the one reader of the simulation stage (obj_mesh.h).
 
 #include "phasecast/precompute/appearance/transfer_file.h"
 
 #include "phasecast/core/hdf5_file.h"
+#include "phasecast/precompute/simulation/obj_mesh.h"
 
 #include <fmt/format.h>
-#include <tiny_obj_loader.h>
 
 #include <cmath>
 #include <stdexcept>
@@ -15,77 +15,18 @@ namespace phasecast::precompute {
 namespace {
 
 namespace h5 = core::h5;
-
-std::string one_line(std::string s) {
-  while (!s.empty() && (s.back() == '\n' || s.back() == '\r')) s.pop_back();
-  for (char& c : s) {
-    if (c == '\n' || c == '\r') c = ' ';
-  }
-  return s;
-}
-
-void check_dims(const h5::File& f, const std::string& source, const std::string& name,
-                const std::vector<std::uint64_t>& want, const char* expected) {
-  const auto info = f.info(name);
-  if (info.dtype != h5::Dtype::f32 || info.dims.size() != want.size()) {
-    throw std::runtime_error(fmt::format("{}: {}: expected float32 {}", source, name, expected));
-  }
-  for (size_t i = 0; i < want.size(); ++i) {
-    if (want[i] != 0 && info.dims[i] != want[i]) {
-      throw std::runtime_error(fmt::format("{}: {}: expected float32 {}", source, name, expected));
-    }
-  }
-}
-
 }  // namespace
 
 TransferMesh load_obj_mesh(const std::filesystem::path& path) {
-  const std::string source = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
-    throw std::runtime_error(fmt::format("{}: no such mesh file", source));
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = true;
-  config.vertex_color = false;
-  config.mtl_search_path = "";  // materials do not matter for transfer geometry
-  tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(source, config)) {
-    throw std::runtime_error(
-        fmt::format("{}: not a readable OBJ file: {}", source, one_line(reader.Error())));
-  }
-  const auto& vertices = reader.GetAttrib().vertices;
+    throw std::runtime_error(fmt::format("{}: no such mesh file", path.string()));
+  const ObjMesh obj = read_obj(path);
+  if (obj.triangles.rows() == 0)
+    throw std::runtime_error(fmt::format("{}: expected at least one face, found none", path.string()));
   TransferMesh mesh;
-  const auto S = static_cast<Eigen::Index>(vertices.size() / 3);
-  mesh.positions.resize(S, 3);
-  for (Eigen::Index i = 0; i < S; ++i) {
-    for (int j = 0; j < 3; ++j) {
-      const float x = vertices[static_cast<size_t>(3 * i + j)];
-      if (!std::isfinite(x))
-        throw std::runtime_error(fmt::format("{}: vertex {} is not finite", source, i + 1));
-      mesh.positions(i, j) = x;
-    }
-  }
-  std::vector<std::uint32_t> indices;
-  for (const auto& shape : reader.GetShapes()) {
-    size_t offset = 0;
-    for (const auto count : shape.mesh.num_face_vertices) {
-      if (count == 3) {
-        for (size_t j = 0; j < 3; ++j) {
-          const int v = shape.mesh.indices[offset + j].vertex_index;
-          if (v < 0 || v >= S) {
-            throw std::runtime_error(
-                fmt::format("{}: face refers to vertex {}, expected 1..{}", source, v + 1, S));
-          }
-          indices.push_back(static_cast<std::uint32_t>(v));
-        }
-      }
-      offset += count;
-    }
-  }
-  if (indices.empty())
-    throw std::runtime_error(fmt::format("{}: expected at least one face, found none", source));
-  mesh.triangles =
-      Eigen::Map<const MatrixXuR>(indices.data(), static_cast<Eigen::Index>(indices.size() / 3), 3);
+  mesh.positions = obj.vertices.cast<float>();
+  mesh.triangles = obj.triangles.cast<std::uint32_t>();
   mesh.normals = vertex_normals(mesh.positions, mesh.triangles);
   return mesh;
 }
@@ -138,21 +79,19 @@ TransferFile read_transfer_file(const std::filesystem::path& path) {
   }
   try {
     const h5::File f = h5::File::open_read(path);
-    for (const char* name : {"/positions", "/normals", "/transfer"}) {
-      if (!f.exists(name)) throw std::runtime_error(fmt::format("{}: {}: missing dataset", source, name));
-    }
-    const auto S = f.info("/positions").dims.empty() ? 0 : f.info("/positions").dims[0];
-    check_dims(f, source, "/positions", {0, 3}, "S x 3");
-    check_dims(f, source, "/normals", {S, 3}, "S x 3 like /positions");
-    check_dims(f, source, "/transfer", {S, 3, 16}, "S x 3 x 16 like /positions");
+    const h5::Reader r = h5::checked_reader<std::runtime_error>(f, source);
+    const auto S = r.require("/positions", h5::Dtype::f32, 2).dims[0];
+    r.require_shape("/positions", h5::Dtype::f32, {S, 3});
+    r.require_shape("/normals", h5::Dtype::f32, {S, 3});
+    r.require_shape("/transfer", h5::Dtype::f32, {S, 3, 16});
     TransferFile out;
     const auto rows = static_cast<Eigen::Index>(S);
     out.positions.resize(rows, 3);
     out.normals.resize(rows, 3);
     out.transfer.resize(rows, 48);
-    f.read("/positions", out.positions.data());
-    f.read("/normals", out.normals.data());
-    f.read("/transfer", out.transfer.data());
+    r.read_into("/positions", out.positions.data(), out.positions.size());
+    r.read_into("/normals", out.normals.data(), out.normals.size());
+    r.read_into("/transfer", out.transfer.data(), out.transfer.size());
     out.options.mode = parse_transfer_mode(f.read_attribute_string("mode"));
     out.options.rays = static_cast<int>(f.read_attribute_number("rays"));
     out.options.bounces = static_cast<int>(f.read_attribute_number("bounces"));

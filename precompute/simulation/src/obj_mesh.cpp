@@ -1,9 +1,10 @@
 #include "phasecast/precompute/simulation/obj_mesh.h"
 
 #include <fmt/format.h>
+#include <tiny_obj_loader.h>
 
-#include <array>
 #include <charconv>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -12,70 +13,75 @@
 namespace phasecast::precompute {
 namespace {
 
-double parse_number(const std::string& token, const std::filesystem::path& path, int line) {
-  double value = 0;
-  const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
-  if (ec != std::errc() || end != token.data() + token.size() || !std::isfinite(value)) {
-    throw ObjError(fmt::format("{}:{}: expected a finite number, got '{}'", path.string(), line, token));
+std::string one_line(std::string s) {
+  while (!s.empty() && (s.back() == '\n' || s.back() == '\r')) s.pop_back();
+  for (char& c : s) {
+    if (c == '\n' || c == '\r') c = ' ';
   }
-  return value;
+  return s;
 }
 
-int parse_index(const std::string& token, int vertex_count, const std::filesystem::path& path, int line) {
-  const std::string head = token.substr(0, token.find('/'));
-  int value = 0;
-  const auto [end, ec] = std::from_chars(head.data(), head.data() + head.size(), value);
-  if (ec != std::errc() || end != head.data() + head.size() || value == 0) {
-    throw ObjError(fmt::format("{}:{}: expected a vertex index, got '{}'", path.string(), line, token));
+// tinyobjloader reads a malformed coordinate as 0 without a word, so every
+// "v" line is checked first: a typo must not become a vertex at the origin.
+void check_vertex_lines(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw ObjError(fmt::format("{}: cannot open OBJ file", path.string()));
+  std::string text;
+  for (int line = 1; std::getline(in, text); ++line) {
+    std::istringstream words(text);
+    std::string tag;
+    if (!(words >> tag) || tag != "v") continue;
+    for (int k = 0; k < 3; ++k) {
+      std::string token;
+      if (!(words >> token)) throw ObjError(fmt::format("{}:{}: expected 'v x y z'", path.string(), line));
+      double value = 0;
+      const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
+      if (ec != std::errc() || end != token.data() + token.size() || !std::isfinite(value)) {
+        throw ObjError(fmt::format("{}:{}: expected a finite number, got '{}'", path.string(), line, token));
+      }
+    }
   }
-  const int index = value > 0 ? value - 1 : vertex_count + value;
-  if (index < 0 || index >= vertex_count) {
-    throw ObjError(
-        fmt::format("{}:{}: vertex index {} out of range [1, {}]", path.string(), line, value, vertex_count));
+}
+
+Eigen::MatrixX3i triangles_of(const tinyobj::ObjReader& reader, Eigen::Index vertex_count,
+                              const std::filesystem::path& path) {
+  std::vector<int> corners;
+  for (const auto& shape : reader.GetShapes()) {
+    for (const auto& index : shape.mesh.indices) {
+      if (index.vertex_index < 0 || index.vertex_index >= vertex_count) {
+        throw ObjError(fmt::format("{}: face refers to vertex {}, expected 1..{}", path.string(),
+                                   index.vertex_index + 1, vertex_count));
+      }
+      corners.push_back(index.vertex_index);
+    }
   }
-  return index;
+  Eigen::MatrixX3i triangles(static_cast<Eigen::Index>(corners.size() / 3), 3);
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) triangles(f, k) = corners[static_cast<size_t>(3 * f + k)];
+  }
+  return triangles;
 }
 
 }  // namespace
 
 ObjMesh read_obj(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw ObjError(fmt::format("{}: cannot open OBJ file", path.string()));
-  std::vector<Eigen::Vector3d> vertices;
-  std::vector<std::array<int, 3>> triangles;
-  std::string text;
-  for (int line = 1; std::getline(in, text); ++line) {
-    std::istringstream words(text);
-    std::string tag;
-    words >> tag;
-    if (tag == "v") {
-      std::array<std::string, 3> t;
-      if (!(words >> t[0] >> t[1] >> t[2])) {
-        throw ObjError(fmt::format("{}:{}: expected 'v x y z'", path.string(), line));
-      }
-      vertices.emplace_back(parse_number(t[0], path, line), parse_number(t[1], path, line),
-                            parse_number(t[2], path, line));
-    } else if (tag == "f") {
-      std::vector<int> corners;
-      for (std::string t; words >> t;)
-        corners.push_back(parse_index(t, static_cast<int>(vertices.size()), path, line));
-      if (corners.size() < 3) {
-        throw ObjError(fmt::format("{}:{}: face has {} corners, expected at least 3", path.string(), line,
-                                   corners.size()));
-      }
-      for (size_t k = 1; k + 1 < corners.size(); ++k)
-        triangles.push_back({corners[0], corners[k], corners[k + 1]});
-    }
+  check_vertex_lines(path);
+  tinyobj::ObjReaderConfig config;
+  config.triangulate = true;  // polygons become fans, as every consumer wants triangles
+  config.vertex_color = false;
+  config.mtl_search_path = "";  // materials play no part in geometry
+  tinyobj::ObjReader reader;
+  if (!reader.ParseFromFile(path.string(), config)) {
+    throw ObjError(fmt::format("{}: not a readable OBJ file: {}", path.string(), one_line(reader.Error())));
   }
+  const auto& v = reader.GetAttrib().vertices;
   ObjMesh mesh;
-  mesh.vertices.resize(static_cast<Eigen::Index>(vertices.size()), 3);
-  for (size_t i = 0; i < vertices.size(); ++i) mesh.vertices.row(static_cast<Eigen::Index>(i)) = vertices[i];
-  mesh.triangles.resize(static_cast<Eigen::Index>(triangles.size()), 3);
-  for (size_t i = 0; i < triangles.size(); ++i) {
-    for (int k = 0; k < 3; ++k)
-      mesh.triangles(static_cast<Eigen::Index>(i), k) = triangles[i][static_cast<size_t>(k)];
+  mesh.vertices.resize(static_cast<Eigen::Index>(v.size() / 3), 3);
+  for (Eigen::Index i = 0; i < mesh.vertices.rows(); ++i) {
+    for (int k = 0; k < 3; ++k) mesh.vertices(i, k) = v[static_cast<size_t>(3 * i + k)];
   }
   if (mesh.vertices.rows() == 0) throw ObjError(fmt::format("{}: OBJ file has no vertices", path.string()));
+  mesh.triangles = triangles_of(reader, mesh.vertices.rows(), path);
   return mesh;
 }
 

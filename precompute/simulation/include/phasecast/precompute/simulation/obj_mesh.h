@@ -1,5 +1,5 @@
 #pragma once
-// Minimal Wavefront OBJ reading and writing: vertices ("v") and faces ("f",
+// Wavefront OBJ reading (tinyobjloader) and writing: vertices ("v") and faces ("f",
 // polygons fan-triangulated, "a/b/c" and negative indices accepted). Enough
 // for scene meshes, exported frames and imported orbits; anything else in a
 // file (normals, texture coordinates, groups) is skipped.
@@ -22,7 +22,7 @@ struct ObjMesh {
 };
 
 // Throws ObjError naming the file and line for unreadable files, malformed
-// numbers, out-of-range indices and faces with fewer than 3 corners.
+// numbers, out-of-range indices and files tinyobjloader cannot parse.
 ObjMesh read_obj(const std::filesystem::path& path);
 
 // Writes atomically enough for viewers (one ofstream, checked at close).
