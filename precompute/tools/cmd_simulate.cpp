@@ -1,9 +1,9 @@
 // phasecast-precompute simulate: run a scene through a schedule of palette entries.
 
 #include "commands.h"
+#include "phasecast/core/progress.h"
 #include "phasecast/precompute/sampling/obj_frames.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
-#include "phasecast/core/progress.h"
 #include "phasecast/precompute/simulation/scene.h"
 
 #include <fmt/format.h>
@@ -22,7 +22,7 @@ struct SimulateOptions {
 
 void run_simulate(const SimulateOptions& o) {
   using namespace phasecast::precompute;
-  const Scene scene = load_scene(o.scene);
+  const Scene scene = load_scene_file(o.scene);
   const auto schedule = parse_schedule(o.schedule, scene);
   fmt::print(stderr, "{}: {} vertices, {} palette entries, {} IRFs\n", scene.name, scene.model.vertices(),
              scene.palette.size(), schedule.size());

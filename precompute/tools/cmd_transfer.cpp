@@ -2,12 +2,12 @@
 // transfer file (docs/transfer.md).
 
 #include "commands.h"
+#include "phasecast/core/progress.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_file.h"
 
 #include <fmt/format.h>
 
-#include <unistd.h>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -51,29 +51,15 @@ std::array<float, 3> parse_albedo(const std::string& text) {
   throw std::invalid_argument(fmt::format("--albedo '{}': expected three numbers R,G,B in [0, 1]", text));
 }
 
-// Stage, done/total and ETA: one updating line on a TTY, a line per 10% otherwise.
+// Stage, done/total and ETA through the one progress printer.
 auto progress_printer(bool quiet) {
-  struct State {
-    std::string stage;
-    std::chrono::steady_clock::time_point start;
-    long decile = -1;
-  };
-  const bool tty = ::isatty(STDERR_FILENO) != 0;
-  auto state = std::make_shared<State>();
-  return [=](const char* stage, long done, long total) {
+  auto bar = std::make_shared<core::ProgressBar>("transfer");
+  auto stage = std::make_shared<std::string>();
+  return [=](const char* name, long done, long total) {
     if (quiet) return;
-    const auto now = std::chrono::steady_clock::now();
-    if (state->stage != stage) *state = {stage, now, -1};
-    const double elapsed = std::chrono::duration<double>(now - state->start).count();
-    const double eta = done > 0 ? elapsed * static_cast<double>(total - done) / static_cast<double>(done) : 0;
-    const long decile = total > 0 ? 10 * done / total : 10;
-    const std::string line = fmt::format("transfer: {} {}/{} points, ETA {:.0f} s", stage, done, total, eta);
-    if (tty) {
-      fmt::print(stderr, "\r{}\x1b[K{}", line, done == total ? "\n" : "");
-    } else if (decile != state->decile || done == total) {
-      state->decile = decile;
-      fmt::print(stderr, "{}\n", line);
-    }
+    if (*stage != name) bar->restart(fmt::format("transfer: {} points", *stage = name));
+    bar->update(done, total);
+    if (done == total) bar->finish();
   };
 }
 

@@ -1,47 +1,27 @@
 #include "pipeline.h"
 
 #include "phasecast/core/package.h"
-#include "phasecast/precompute/reduction/displacement_reduction.h"
 #include "phasecast/core/progress.h"
+#include "phasecast/precompute/reduction/displacement_reduction.h"
 
 #include <fmt/format.h>
 
-#include <unistd.h>
 #include <chrono>
 
 namespace phasecast::tools {
 namespace {
 
-// Sampling progress: IRFs done/total, state nodes and ETA, redrawn on a
-// terminal, one line per 10 % otherwise.
+// Sampling progress: IRFs done/total, state nodes and ETA (resumed IRFs do
+// not count towards the rate).
 class SamplingDisplay {
  public:
   void operator()(const precompute::SamplingProgress& p) {
-    if (p.irfs_total <= 0) return;
-    if (first_done_ < 0) first_done_ = p.irfs_done;  // resumed IRFs do not count towards the rate
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    const int fresh = p.irfs_done - first_done_;
-    const double eta = fresh > 0 ? elapsed * (p.irfs_total - p.irfs_done) / fresh : 0.0;
-    const int percent = 100 * p.irfs_done / p.irfs_total;
-    if (tty_) {
-      fmt::print(stderr, "\rsample: IRFs {}/{} ({:3d}%), {} state nodes, ETA {:.0f}s ", p.irfs_done,
-                 p.irfs_total, percent, p.nodes, eta);
-    } else if (percent / 10 != last_decile_) {
-      last_decile_ = percent / 10;
-      fmt::print(stderr, "sample: IRFs {}/{} ({}%), {} state nodes, elapsed {:.1f}s, ETA {:.0f}s\n",
-                 p.irfs_done, p.irfs_total, percent, p.nodes, elapsed, eta);
-    }
-    std::fflush(stderr);
+    bar_.update(p.irfs_done, p.irfs_total, fmt::format("{} state nodes", p.nodes));
   }
-  void finish() const {
-    if (tty_) fmt::print(stderr, "\n");
-  }
+  void finish() { bar_.finish(); }
 
  private:
-  bool tty_ = ::isatty(::fileno(stderr)) != 0;
-  int last_decile_ = -1;
-  int first_done_ = -1;
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  core::ProgressBar bar_{"sample IRFs"};
 };
 
 }  // namespace
