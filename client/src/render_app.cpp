@@ -127,10 +127,10 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log) 
   const ClientBasis basis = basis_from_package(package, core::file_content_hash(*o.package));
   std::vector<FrameState> frames;
   if (o.replay) {
-    const Recording rec = read_recording(*o.replay);
+    const Recording rec = core::read_recording_file(*o.replay);
     if (rec.truncated)
       fmt::print(log, "phasecast-render: {}: last record truncated, ignored\n", o.replay->string());
-    const auto& scenes = rec.header.scenes();
+    const auto& scenes = rec.header().scenes();
     const auto match = std::find_if(scenes.begin(), scenes.end(),
                                     [&](const v1::RecordedScene& s) { return s.scene() == basis.scene; });
     if (match == scenes.end()) {

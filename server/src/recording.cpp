@@ -6,30 +6,16 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
-#include <google/protobuf/io/coded_stream.h>
-#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 
 #include <cerrno>
 #include <cstring>
-#include <fstream>
-#include <iterator>
 #include <map>
 
 namespace phasecast::server {
 namespace {
 
-constexpr std::size_t kMagicSize = sizeof(kRecordingMagic) - 1;
-constexpr std::uint32_t kMaxRecordBytes = 64u << 20;  // far above any Frame; guards corrupt lengths
-
 std::string errno_text() {
   return std::strerror(errno);
-}
-
-void append_delimited(const v1::RecordEntry& entry, std::string& out) {
-  google::protobuf::io::StringOutputStream stream(&out);
-  google::protobuf::io::CodedOutputStream coded(&stream);
-  coded.WriteVarint32(static_cast<std::uint32_t>(entry.ByteSizeLong()));
-  entry.SerializeWithCachedSizes(&coded);
 }
 
 }  // namespace
@@ -39,10 +25,7 @@ RecordingWriter::RecordingWriter(std::filesystem::path path, const v1::Recording
   fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd_ < 0)
     throw RecordingError(fmt::format("record: cannot create '{}': {}", path_.string(), errno_text()));
-  buffer_.assign(kRecordingMagic, kMagicSize);
-  v1::RecordEntry e;
-  *e.mutable_header() = header;
-  append(e);
+  buffer_ = core::recording_prologue(header);
   flush_buffer();
 }
 
@@ -55,7 +38,7 @@ RecordingWriter::~RecordingWriter() {
 }
 
 void RecordingWriter::append(const v1::RecordEntry& entry) {
-  append_delimited(entry, buffer_);
+  core::append_record(entry, buffer_);
   if (entry.has_frame()) ++frames_;
 }
 
@@ -93,43 +76,6 @@ void RecordingWriter::close() {
   ::close(fd_);
   fd_ = -1;
   if (!failure.empty()) throw RecordingError(failure);
-}
-
-std::vector<v1::RecordEntry> read_recording(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw RecordingError(fmt::format("recording '{}': cannot open: {}", path.string(), errno_text()));
-  const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (bytes.size() < kMagicSize || bytes.compare(0, kMagicSize, kRecordingMagic, kMagicSize) != 0) {
-    throw RecordingError(
-        fmt::format("recording '{}': not a recording (expected the magic \"PHCREC1\\n\")", path.string()));
-  }
-  const auto body = static_cast<int>(bytes.size() - kMagicSize);
-  google::protobuf::io::CodedInputStream coded(
-      reinterpret_cast<const std::uint8_t*>(bytes.data()) + kMagicSize, body);
-  coded.SetTotalBytesLimit(body);
-  std::vector<v1::RecordEntry> entries;
-  for (;;) {
-    std::uint32_t size = 0;
-    if (!coded.ReadVarint32(&size)) break;  // end of file, or a truncated length
-    if (size > kMaxRecordBytes) {
-      throw RecordingError(fmt::format("recording '{}': record {} claims {} bytes (expected at most {})",
-                                       path.string(), entries.size(), size, kMaxRecordBytes));
-    }
-    if (body - coded.CurrentPosition() < static_cast<int>(size)) break;  // truncated final record
-    const auto limit = coded.PushLimit(static_cast<int>(size));
-    v1::RecordEntry e;
-    if (!e.ParseFromCodedStream(&coded) || !coded.ConsumedEntireMessage()) {
-      throw RecordingError(fmt::format("recording '{}': record {} does not parse as a RecordEntry",
-                                       path.string(), entries.size()));
-    }
-    coded.PopLimit(limit);
-    entries.push_back(std::move(e));
-  }
-  if (entries.empty() || !entries.front().has_header()) {
-    throw RecordingError(
-        fmt::format("recording '{}': expected a RecordingHeader as the first record", path.string()));
-  }
-  return entries;
 }
 
 namespace {
@@ -208,8 +154,8 @@ ReplayReport replay_check(SynthesisEngine& engine, const std::vector<v1::RecordE
                             i, rec.frame(), rec.instance(), engine.instance(rec.instance()).frame));
           }
           produced.clear();
-          engine.tick();
-          for (const auto& [id, inst] : engine.instances()) produced[id] = inst.last;
+          TickResult made = engine.tick();
+          for (auto& f : made.frames) produced[f.instance] = std::move(f);
         }
         const auto& inst = engine.instance(rec.instance());
         to_frame_message(engine.scenes()[static_cast<std::size_t>(inst.scene)], produced.at(rec.instance()),

@@ -1,29 +1,24 @@
 #pragma once
-// Recordings (docs/protocol.md, "Recording"): "PHCREC1\n", then varint-length
-// delimited RecordEntry messages, the first one the header. Written as the
-// stream goes, fsync'd at least once per second and at close.
+// Recording while serving, and checking a recording by replaying it. The
+// format itself (magic, framing, reader, RecordingError) is
+// phasecast/core/recording.h; this is what writes it as the stream goes,
+// fsync'd at least once per second and at close.
 
+#include "phasecast/core/recording.h"
 #include "phasecast/proto/phasecast.pb.h"
 #include "phasecast/server/synthesis_engine.h"
 
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace phasecast::server {
 
-inline constexpr char kRecordingMagic[] = "PHCREC1\n";  // 8 bytes, no terminator on disk
-inline constexpr std::uint32_t kRecordingFormatVersion = 1;
-
-// Thrown for files that cannot be written or read as recordings, and by
-// replay_check when the replay differs; one line naming the file or frame.
-class RecordingError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+// The service and the recorder name these unqualified; they are core's.
+using core::kRecordingFormatVersion;
+using core::RecordingError;
 
 class RecordingWriter {
  public:
@@ -55,19 +50,15 @@ class RecordingWriter {
   std::chrono::steady_clock::time_point last_sync_;
 };
 
-// Every entry of a recording, in order; a truncated final record (a crash
-// while writing) ends the list cleanly. Throws RecordingError for a missing
-// file, a wrong magic, a first entry that is not a header, or a corrupt record.
-std::vector<v1::RecordEntry> read_recording(const std::filesystem::path& path);
-
 struct ReplayReport {
   std::uint64_t frames = 0;    // recorded frames reproduced
   std::uint64_t impulses = 0;  // recorded impulses re-applied
   std::size_t instances = 0;   // instances seen
 };
 
-// Re-runs the `created`, `impulse` and `destroyed` entries on `engine` (its
-// scenes loaded, no instances) and checks that every recorded frame is
+// Re-runs the `created`, `impulse` and `destroyed` entries (those of
+// core::read_recording_file, the header first) on `engine` (its scenes
+// loaded, no instances) and checks that every recorded frame is
 // reproduced bit for bit. Throws RecordingError at the first difference, for
 // a scene whose package hash differs from the header's, or for entries out
 // of order.
