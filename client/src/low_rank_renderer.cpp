@@ -1,6 +1,7 @@
 #include "phasecast/client/low_rank_renderer.h"
 
 #include "gl_functions.h"
+#include "gl_handles.h"
 #include "phasecast/client/embedded_shaders.h"
 
 #include <fmt/format.h>
@@ -12,7 +13,13 @@
 
 namespace phasecast::client {
 
+using detail::Buffer;
+using detail::Framebuffer;
 using detail::GlFunctions;
+using detail::Program;
+using detail::Renderbuffer;
+using detail::Shader;
+using detail::VertexArray;
 
 namespace {
 
@@ -30,54 +37,62 @@ enum Binding : GLuint {
   kBindingCount = 9
 };
 
-GLuint compile(const GlFunctions& gl, GLenum stage, std::string_view source, const char* name) {
-  const GLuint shader = gl.glCreateShader(stage);
+// The first line of a GL info log: enough for a one-line error.
+std::string first_line(const std::array<char, 4096>& log) {
+  const std::string text(log.data());
+  return text.substr(0, text.find('\n'));
+}
+
+Shader compile(const GlFunctions& gl, GLenum stage, std::string_view source, const char* name) {
+  Shader shader(gl, stage);
   const char* text = source.data();
   const auto length = static_cast<GLint>(source.size());
-  gl.glShaderSource(shader, 1, &text, &length);
-  gl.glCompileShader(shader);
+  gl.glShaderSource(shader.get(), 1, &text, &length);
+  gl.glCompileShader(shader.get());
   GLint ok = GL_FALSE;
-  gl.glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  gl.glGetShaderiv(shader.get(), GL_COMPILE_STATUS, &ok);
   if (!ok) {
     std::array<char, 4096> log{};
-    gl.glGetShaderInfoLog(shader, static_cast<GLsizei>(log.size()), nullptr, log.data());
-    gl.glDeleteShader(shader);
-    std::string first_line(log.data());
-    first_line = first_line.substr(0, first_line.find('\n'));
-    throw RenderError(fmt::format("shader {} does not compile: {}", name, first_line));
+    gl.glGetShaderInfoLog(shader.get(), static_cast<GLsizei>(log.size()), nullptr, log.data());
+    throw RenderError(fmt::format("shader {} does not compile: {}", name, first_line(log)));
   }
   return shader;
 }
 
-void check_link(const GlFunctions& gl, GLuint program, const char* name) {
+void check_link(const GlFunctions& gl, const Program& program, const char* name) {
   GLint ok = GL_FALSE;
-  gl.glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  gl.glGetProgramiv(program.get(), GL_LINK_STATUS, &ok);
   if (!ok) {
     std::array<char, 4096> log{};
-    gl.glGetProgramInfoLog(program, static_cast<GLsizei>(log.size()), nullptr, log.data());
-    gl.glDeleteProgram(program);
-    std::string first_line(log.data());
-    throw RenderError(fmt::format("shader program {} does not link: {}", name,
-                                  first_line.substr(0, first_line.find('\n'))));
+    gl.glGetProgramInfoLog(program.get(), static_cast<GLsizei>(log.size()), nullptr, log.data());
+    throw RenderError(fmt::format("shader program {} does not link: {}", name, first_line(log)));
   }
 }
 
 // A vertex program with radiance.frag; `capture`: record world_position and
-// radiance by transform feedback.
-GLuint link(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture) {
-  const GLuint vs = compile(gl, GL_VERTEX_SHADER, vertex, vertex_name);
-  const GLuint fs = compile(gl, GL_FRAGMENT_SHADER, shaders::radiance_frag, "radiance.frag");
-  const GLuint program = gl.glCreateProgram();
-  gl.glAttachShader(program, vs);
-  gl.glAttachShader(program, fs);
+// radiance by transform feedback. The shaders are freed on return: a linked
+// program no longer needs them.
+Program link(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture) {
+  const Shader vs = compile(gl, GL_VERTEX_SHADER, vertex, vertex_name);
+  const Shader fs = compile(gl, GL_FRAGMENT_SHADER, shaders::radiance_frag, "radiance.frag");
+  Program program(gl);
+  gl.glAttachShader(program.get(), vs.get());
+  gl.glAttachShader(program.get(), fs.get());
   if (capture) {
     const char* varyings[] = {"world_position", "radiance"};
-    gl.glTransformFeedbackVaryings(program, 2, varyings, GL_INTERLEAVED_ATTRIBS);
+    gl.glTransformFeedbackVaryings(program.get(), 2, varyings, GL_INTERLEAVED_ATTRIBS);
   }
-  gl.glLinkProgram(program);
-  gl.glDeleteShader(vs);
-  gl.glDeleteShader(fs);
+  gl.glLinkProgram(program.get());
   check_link(gl, program, vertex_name);
+  return program;
+}
+
+Program link_compute(const GlFunctions& gl, std::string_view source, const char* name) {
+  const Shader cs = compile(gl, GL_COMPUTE_SHADER, source, name);
+  Program program(gl);
+  gl.glAttachShader(program.get(), cs.get());
+  gl.glLinkProgram(program.get());
+  check_link(gl, program, name);
   return program;
 }
 
@@ -92,14 +107,55 @@ std::vector<float> pad_columns(const std::vector<float>& m, int cols) {
   return out;
 }
 
-GLuint link_compute(const GlFunctions& gl, std::string_view source, const char* name) {
-  const GLuint cs = compile(gl, GL_COMPUTE_SHADER, source, name);
-  const GLuint program = gl.glCreateProgram();
-  gl.glAttachShader(program, cs);
-  gl.glLinkProgram(program);
-  gl.glDeleteShader(cs);
-  check_link(gl, program, name);
-  return program;
+// Bit 0: deformable, bit 1: attached (shaders/low_rank.vert).
+std::vector<std::uint32_t> point_flags(const ClientBasis& basis) {
+  std::vector<std::uint32_t> flags(static_cast<std::size_t>(basis.points));
+  for (std::size_t v = 0; v < flags.size(); ++v) {
+    flags[v] = (basis.deformable[v] ? 1u : 0u) | (basis.attached[v] ? 2u : 0u);
+  }
+  return flags;
+}
+
+// Support transform (3x4 row-major, support -> world) as a 4x4 for GLSL.
+Eigen::Matrix4f support_matrix(const FrameState& f) {
+  Eigen::Matrix4f support = Eigen::Matrix4f::Identity();
+  if (f.support.size() == 12) {
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 4; ++j) support(i, j) = f.support[static_cast<std::size_t>(4 * i + j)];
+    }
+  }
+  return support;
+}
+
+// Interleaved position, radiance: 6 floats per point.
+std::vector<float> interleave(const VertexDump& d, int points) {
+  std::vector<float> interleaved;
+  interleaved.reserve(2 * d.positions.size());
+  for (std::size_t v = 0; v < static_cast<std::size_t>(points); ++v) {
+    interleaved.insert(interleaved.end(), &d.positions[3 * v], &d.positions[3 * v + 3]);
+    interleaved.insert(interleaved.end(), &d.radiance[3 * v], &d.radiance[3 * v + 3]);
+  }
+  return interleaved;
+}
+
+VertexDump deinterleave(const std::vector<float>& captured, int points) {
+  VertexDump dump;
+  dump.positions.reserve(3 * static_cast<std::size_t>(points));
+  dump.radiance.reserve(3 * static_cast<std::size_t>(points));
+  for (std::size_t v = 0; v < static_cast<std::size_t>(points); ++v) {
+    dump.positions.insert(dump.positions.end(), &captured[6 * v], &captured[6 * v + 3]);
+    dump.radiance.insert(dump.radiance.end(), &captured[6 * v + 3], &captured[6 * v + 6]);
+  }
+  return dump;
+}
+
+// GL reads rows bottom-up; Image holds them top row first.
+void copy_rows_flipped(const std::vector<std::uint8_t>& bottom_up, Image& image) {
+  const auto row = static_cast<std::size_t>(4 * image.width);
+  const auto height = static_cast<std::size_t>(image.height);
+  for (std::size_t y = 0; y < height; ++y) {
+    std::memcpy(image.rgba.data() + y * row, bottom_up.data() + (height - 1 - y) * row, row);
+  }
 }
 
 template <class T>
@@ -115,14 +171,15 @@ struct LowRankRenderer::Impl {
   ClientBasis basis;  // sizes and flags; the bulk data lives on the GPU
   int width, height;
   float radius;
-  GLuint program = 0, static_program = 0, dot_program = 0;
+  Program program, static_program, dot_program;
   std::optional<std::array<float, 96>> dotted_lights;  // lights the dotted form was made with
   std::uint64_t light_dot_passes = 0;
-  GLuint vao = 0, static_vao = 0, evaluated_vao = 0;
+  VertexArray vao, static_vao, evaluated_vao;
   Evaluation evaluation = Evaluation::per_point_pass;
-  std::array<GLuint, kBindingCount> storage{};
-  GLuint index_buffer = 0, feedback_buffer = 0, static_buffer = 0;
-  GLuint framebuffer = 0, colour_buffer = 0, depth_buffer = 0;
+  std::array<Buffer, kBindingCount> storage;
+  Buffer index_buffer, feedback_buffer, static_buffer;
+  Framebuffer framebuffer;
+  Renderbuffer colour_buffer, depth_buffer;
   Camera camera;
   float exposure = 1;
   ShLight light;
@@ -144,22 +201,6 @@ struct LowRankRenderer::Impl {
     check("setting up the renderer");
   }
 
-  ~Impl() {
-    gl.glDeleteProgram(program);
-    gl.glDeleteProgram(static_program);
-    gl.glDeleteProgram(dot_program);
-    gl.glDeleteBuffers(static_cast<GLsizei>(storage.size()), storage.data());
-    const GLuint buffers[] = {index_buffer, feedback_buffer, static_buffer};
-    gl.glDeleteBuffers(3, buffers);
-    const GLuint vaos[] = {vao, static_vao, evaluated_vao};
-    gl.glDeleteVertexArrays(3, vaos);
-    gl.glDeleteFramebuffers(1, &framebuffer);
-    const GLuint renderbuffers[] = {colour_buffer, depth_buffer};
-    gl.glDeleteRenderbuffers(2, renderbuffers);
-  }
-  Impl(const Impl&) = delete;
-  Impl& operator=(const Impl&) = delete;
-
   void check(const char* what) const {
     const GLenum error = gl.glGetError();
     if (error != GL_NO_ERROR) {
@@ -179,114 +220,126 @@ struct LowRankRenderer::Impl {
                       "block may hold ({} bytes)",
                       backend.name(), part, byte_size(data), static_cast<unsigned>(limit32)));
     }
-    gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[binding]);
+    gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[binding].get());
     const std::array<T, 4> padding{};
     gl.glBufferData(GL_SHADER_STORAGE_BUFFER, data.empty() ? byte_size(std::vector<T>(4)) : byte_size(data),
                     data.empty() ? padding.data() : data.data(), GL_STATIC_DRAW);
-    gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, storage[binding]);
+    gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, storage[binding].get());
   }
 
   void upload_bases() {
-    gl.glGenBuffers(static_cast<GLsizei>(storage.size()), storage.data());
-    std::vector<std::uint32_t> flags(static_cast<std::size_t>(basis.points));
-    for (std::size_t v = 0; v < flags.size(); ++v) {
-      flags[v] = (basis.deformable[v] ? 1u : 0u) | (basis.attached[v] ? 2u : 0u);
-    }
-    r_u4 = (basis.rank_u + 3) / 4;
-    r_a4 = (basis.rank_a + 3) / 4;
-    upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
-    upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
-    upload_storage(kMeanTransfer, basis.mean_transfer, "mean_transfer");
-    upload_storage(kTransferBasis, pad_columns(basis.U_a, basis.rank_a), "U_a");
-    upload_storage(kPointFlags, flags, "flags");
-    upload_storage(kRestNormals, basis.normals, "normals");
-    upload_storage(kReduced, std::vector<float>(static_cast<std::size_t>(4 * (r_u4 + r_a4)) + 4), "q");
-    // Written by light_dot.comp: M_bar.L (a vec4 per point), U_a.L ([S][3][r_a4] vec4s).
-    upload_storage(kMeanDotted, std::vector<float>(4 * static_cast<std::size_t>(basis.points)), "M_bar.L");
-    upload_storage(kBasisDotted, std::vector<float>(12 * static_cast<std::size_t>(basis.points) * r_a4),
-                   "U_a.L");
+    upload_storage_buffers();
     // The client keeps only sizes and flags on the CPU once the GPU has the bases.
     has_transfer = basis.has_transfer();
     basis.U_u = {};
     basis.U_a = {};
     basis.mean_transfer = {};
+    create_index_buffer();
+    create_feedback_buffer();
+  }
 
-    gl.glGenVertexArrays(1, &vao);
-    gl.glBindVertexArray(vao);
-    gl.glGenBuffers(1, &index_buffer);
-    gl.glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
+  void upload_storage_buffers() {
+    for (auto& buffer : storage) buffer = Buffer(gl);
+    r_u4 = (basis.rank_u + 3) / 4;
+    r_a4 = (basis.rank_a + 3) / 4;
+    const auto points = static_cast<std::size_t>(basis.points);
+    upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
+    upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
+    upload_storage(kMeanTransfer, basis.mean_transfer, "mean_transfer");
+    upload_storage(kTransferBasis, pad_columns(basis.U_a, basis.rank_a), "U_a");
+    upload_storage(kPointFlags, point_flags(basis), "flags");
+    upload_storage(kRestNormals, basis.normals, "normals");
+    upload_storage(kReduced, std::vector<float>(static_cast<std::size_t>(4 * (r_u4 + r_a4)) + 4), "q");
+    // Written by light_dot.comp: M_bar.L (a vec4 per point), U_a.L ([S][3][r_a4] vec4s).
+    upload_storage(kMeanDotted, std::vector<float>(4 * points), "M_bar.L");
+    upload_storage(kBasisDotted, std::vector<float>(12 * points * r_a4), "U_a.L");
+  }
+
+  // The triangles, recorded in vao: the in_draw evaluation draws with it.
+  void create_index_buffer() {
+    vao = VertexArray(gl);
+    gl.glBindVertexArray(vao.get());
+    index_buffer = Buffer(gl);
+    gl.glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer.get());
     gl.glBufferData(GL_ELEMENT_ARRAY_BUFFER, byte_size(basis.triangles), basis.triangles.data(),
                     GL_STATIC_DRAW);
     gl.glBindVertexArray(0);
+  }
 
-    gl.glGenBuffers(1, &feedback_buffer);
-    gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer);
+  // Where the per-point pass writes, and evaluated_vao to draw triangles from it.
+  void create_feedback_buffer() {
+    feedback_buffer = Buffer(gl);
+    gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer.get());
     gl.glBufferData(GL_TRANSFORM_FEEDBACK_BUFFER, static_cast<GLsizeiptr>(6 * sizeof(float)) * basis.points,
                     nullptr, GL_DYNAMIC_COPY);
-    gl.glGenVertexArrays(1, &evaluated_vao);
+    evaluated_vao = VertexArray(gl);
     describe_vertices(evaluated_vao, feedback_buffer);
   }
 
   // Interleaved position, radiance (6 floats per point) as attributes 0, 1
   // of static_mesh.vert, indexed by the triangles.
-  void describe_vertices(GLuint vertex_array, GLuint buffer) {
-    gl.glBindVertexArray(vertex_array);
-    gl.glBindBuffer(GL_ARRAY_BUFFER, buffer);
+  void describe_vertices(const VertexArray& vertex_array, const Buffer& buffer) {
+    gl.glBindVertexArray(vertex_array.get());
+    gl.glBindBuffer(GL_ARRAY_BUFFER, buffer.get());
     const auto stride = static_cast<GLsizei>(6 * sizeof(float));
     gl.glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, nullptr);
     gl.glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride,
                              reinterpret_cast<const void*>(3 * sizeof(float)));
     gl.glEnableVertexAttribArray(0);
     gl.glEnableVertexAttribArray(1);
-    gl.glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer);
+    gl.glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, index_buffer.get());
     gl.glBindVertexArray(0);
   }
 
   void create_framebuffer() {
-    gl.glGenFramebuffers(1, &framebuffer);
-    gl.glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
-    gl.glGenRenderbuffers(1, &colour_buffer);
-    gl.glBindRenderbuffer(GL_RENDERBUFFER, colour_buffer);
-    gl.glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height);
-    gl.glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_buffer);
-    gl.glGenRenderbuffers(1, &depth_buffer);
-    gl.glBindRenderbuffer(GL_RENDERBUFFER, depth_buffer);
-    gl.glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height);
-    gl.glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_buffer);
+    framebuffer = Framebuffer(gl);
+    gl.glBindFramebuffer(GL_FRAMEBUFFER, framebuffer.get());
+    colour_buffer = attach_renderbuffer(GL_RGBA8, GL_COLOR_ATTACHMENT0);
+    depth_buffer = attach_renderbuffer(GL_DEPTH_COMPONENT24, GL_DEPTH_ATTACHMENT);
     if (gl.glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
       throw RenderError(fmt::format("{} backend: a {}x{} RGBA8 + depth framebuffer is incomplete",
                                     backend.name(), width, height));
     }
   }
 
-  void set_uniforms(GLuint p, const FrameState& f) {
-    gl.glUseProgram(p);
+  // A width x height renderbuffer attached to the bound framebuffer.
+  Renderbuffer attach_renderbuffer(GLenum format, GLenum attachment) {
+    Renderbuffer renderbuffer(gl);
+    gl.glBindRenderbuffer(GL_RENDERBUFFER, renderbuffer.get());
+    gl.glRenderbufferStorage(GL_RENDERBUFFER, format, width, height);
+    gl.glFramebufferRenderbuffer(GL_FRAMEBUFFER, attachment, GL_RENDERBUFFER, renderbuffer.get());
+    return renderbuffer;
+  }
+
+  void set_uniforms(const Program& p, const FrameState& f) {
+    gl.glUseProgram(p.get());
     const Eigen::Matrix4f vp = view_projection(camera, width, height, radius);
-    gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "view_projection"), 1, GL_FALSE, vp.data());
-    gl.glUniform1f(gl.glGetUniformLocation(p, "exposure"), exposure);
-    if (p != program) return;
+    gl.glUniformMatrix4fv(gl.glGetUniformLocation(p.get(), "view_projection"), 1, GL_FALSE, vp.data());
+    gl.glUniform1f(gl.glGetUniformLocation(p.get(), "exposure"), exposure);
+    if (p.get() == program.get()) set_low_rank_uniforms(f);
+  }
+
+  // What only low_rank.vert reads: ranks, support, lights and q.
+  void set_low_rank_uniforms(const FrameState& f) {
+    const GLuint p = program.get();
     gl.glUniform1i(gl.glGetUniformLocation(p, "r_u4"), r_u4);
     gl.glUniform1i(gl.glGetUniformLocation(p, "r_a4"), r_a4);
     gl.glUniform1i(gl.glGetUniformLocation(p, "has_transfer"), has_transfer ? 1 : 0);
-
-    // Support transform (3x4 row-major, support -> world) as a 4x4 for GLSL.
-    Eigen::Matrix4f support = Eigen::Matrix4f::Identity();
-    if (f.support.size() == 12) {
-      for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 4; ++j) support(i, j) = f.support[static_cast<std::size_t>(4 * i + j)];
-      }
-    }
+    const Eigen::Matrix4f support = support_matrix(f);
     gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "support"), 1, GL_FALSE, support.data());
     const auto lights = frame_lights(support);
     if (has_transfer) update_light_dotted(lights);
-    gl.glUseProgram(p);
+    gl.glUseProgram(p);  // update_light_dotted may have switched to dot_program
     gl.glUniform4fv(gl.glGetUniformLocation(p, "light"), 24, lights.data());
+    upload_reduced(f);
+  }
 
-    // Per-frame upload: q_u then q_a.
+  // Per-frame upload: q_u then q_a, each padded to vec4 blocks.
+  void upload_reduced(const FrameState& f) {
     std::vector<float> q(static_cast<std::size_t>(4 * (r_u4 + r_a4)), 0.0f);
     std::copy(f.q_u.begin(), f.q_u.end(), q.begin());
     std::copy(f.q_a.begin(), f.q_a.end(), q.begin() + 4 * r_u4);
-    gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kReduced]);
+    gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kReduced].get());
     if (!q.empty()) gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(q), q.data());
   }
 
@@ -304,10 +357,11 @@ struct LowRankRenderer::Impl {
   // changed (a new light or a rotated support); otherwise nothing to do.
   void update_light_dotted(const std::array<float, 96>& lights) {
     if (dotted_lights && *dotted_lights == lights) return;
-    gl.glUseProgram(dot_program);
-    gl.glUniform1i(gl.glGetUniformLocation(dot_program, "r_a4"), r_a4);
-    gl.glUniform4fv(gl.glGetUniformLocation(dot_program, "light"), 24, lights.data());
-    gl.glUniform1i(gl.glGetUniformLocation(dot_program, "points"), basis.points);
+    const GLuint p = dot_program.get();
+    gl.glUseProgram(p);
+    gl.glUniform1i(gl.glGetUniformLocation(p, "r_a4"), r_a4);
+    gl.glUniform4fv(gl.glGetUniformLocation(p, "light"), 24, lights.data());
+    gl.glUniform1i(gl.glGetUniformLocation(p, "points"), basis.points);
     gl.glDispatchCompute(static_cast<GLuint>((basis.points + 63) / 64), 1, 1);
     gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     dotted_lights = lights;
@@ -315,7 +369,7 @@ struct LowRankRenderer::Impl {
   }
 
   void begin_frame() {
-    gl.glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+    gl.glBindFramebuffer(GL_FRAMEBUFFER, framebuffer.get());
     gl.glViewport(0, 0, width, height);
     gl.glClearColor(0.02f, 0.02f, 0.025f, 1.0f);
     gl.glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
@@ -330,7 +384,7 @@ struct LowRankRenderer::Impl {
 
   void show() {
     if (!backend.shows_frames()) return;
-    gl.glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
+    gl.glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer.get());
     gl.glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
     gl.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
     backend.present();
@@ -341,8 +395,8 @@ struct LowRankRenderer::Impl {
   void evaluation_pass(const FrameState& f) {
     set_uniforms(program, f);
     gl.glEnable(GL_RASTERIZER_DISCARD);
-    gl.glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer);
-    gl.glBindVertexArray(vao);
+    gl.glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer.get());
+    gl.glBindVertexArray(vao.get());
     gl.glBeginTransformFeedback(GL_POINTS);
     gl.glDrawArrays(GL_POINTS, 0, basis.points);
     gl.glEndTransformFeedback();
@@ -350,10 +404,10 @@ struct LowRankRenderer::Impl {
     gl.glDisable(GL_RASTERIZER_DISCARD);
   }
 
-  void draw_triangles(GLuint p, GLuint vertex_array, const FrameState& f) {
+  void draw_triangles(const Program& p, const VertexArray& vertex_array, const FrameState& f) {
     begin_frame();
     set_uniforms(p, f);
-    gl.glBindVertexArray(vertex_array);
+    gl.glBindVertexArray(vertex_array.get());
     gl.glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(basis.triangles.size()), GL_UNSIGNED_INT, nullptr);
     gl.glBindVertexArray(0);
   }
@@ -374,17 +428,13 @@ struct LowRankRenderer::Impl {
 
   Image read_pixels() {
     Image image{width, height, std::vector<std::uint8_t>(static_cast<std::size_t>(4 * width * height))};
-    gl.glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer);
+    gl.glBindFramebuffer(GL_READ_FRAMEBUFFER, framebuffer.get());
     gl.glReadBuffer(GL_COLOR_ATTACHMENT0);
     gl.glPixelStorei(GL_PACK_ALIGNMENT, 1);
     std::vector<std::uint8_t> bottom_up(image.rgba.size());
     gl.glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, bottom_up.data());
     check("reading back pixels");
-    const auto row = static_cast<std::size_t>(4 * width);
-    for (std::size_t y = 0; y < static_cast<std::size_t>(height); ++y) {
-      std::memcpy(image.rgba.data() + y * row,
-                  bottom_up.data() + (static_cast<std::size_t>(height) - 1 - y) * row, row);
-    }
+    copy_rows_flipped(bottom_up, image);
     return image;
   }
 
@@ -392,17 +442,10 @@ struct LowRankRenderer::Impl {
     validate_frame(f, basis, "renderer");
     evaluation_pass(f);
     std::vector<float> captured(static_cast<std::size_t>(6 * basis.points));
-    gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer);
+    gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer.get());
     gl.glGetBufferSubData(GL_TRANSFORM_FEEDBACK_BUFFER, 0, byte_size(captured), captured.data());
     check("capturing vertices by transform feedback");
-    VertexDump dump;
-    dump.positions.reserve(3 * static_cast<std::size_t>(basis.points));
-    dump.radiance.reserve(3 * static_cast<std::size_t>(basis.points));
-    for (std::size_t v = 0; v < static_cast<std::size_t>(basis.points); ++v) {
-      dump.positions.insert(dump.positions.end(), &captured[6 * v], &captured[6 * v + 3]);
-      dump.radiance.insert(dump.radiance.end(), &captured[6 * v + 3], &captured[6 * v + 6]);
-    }
-    return dump;
+    return deinterleave(captured, basis.points);
   }
 
   void set_static_mesh(const VertexDump& d) {
@@ -412,17 +455,12 @@ struct LowRankRenderer::Impl {
           fmt::format("static mesh has {} positions and {} radiance values (expected 3S = {} each)",
                       d.positions.size(), d.radiance.size(), 3 * basis.points));
     }
-    std::vector<float> interleaved;
-    interleaved.reserve(2 * d.positions.size());
-    for (std::size_t v = 0; v < static_cast<std::size_t>(basis.points); ++v) {
-      interleaved.insert(interleaved.end(), &d.positions[3 * v], &d.positions[3 * v + 3]);
-      interleaved.insert(interleaved.end(), &d.radiance[3 * v], &d.radiance[3 * v + 3]);
-    }
+    const std::vector<float> interleaved = interleave(d, basis.points);
     if (!static_vao) {
-      gl.glGenVertexArrays(1, &static_vao);
-      gl.glGenBuffers(1, &static_buffer);
+      static_vao = VertexArray(gl);
+      static_buffer = Buffer(gl);
     }
-    gl.glBindBuffer(GL_ARRAY_BUFFER, static_buffer);
+    gl.glBindBuffer(GL_ARRAY_BUFFER, static_buffer.get());
     gl.glBufferData(GL_ARRAY_BUFFER, byte_size(interleaved), interleaved.data(), GL_STATIC_DRAW);
     describe_vertices(static_vao, static_buffer);
     has_static = true;

@@ -1,12 +1,18 @@
 #include "phasecast/client/network.h"
 
+#include "phasecast/core/basis.h"
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
+#include <algorithm>
+#include <array>
 #include <cstring>
 #include <regex>
+#include <type_traits>
+#include <variant>
 
 namespace phasecast::client {
 namespace {
@@ -17,39 +23,75 @@ zmq::context_t& context() {
   return ctx;
 }
 
-std::size_t dtype_size(const std::string& dtype) {
-  if (dtype == "float32" || dtype == "uint32") return 4;
-  if (dtype == "uint8") return 1;
-  return 0;
+// The sizes the part shapes of docs/protocol.md depend on, as the server lists them.
+core::BasisSizes sizes_of(const v1::SceneInfo& s) {
+  return {s.points(), s.triangles(), s.rank_u(), s.rank_a()};
 }
 
-struct ExpectedPart {
-  const char* dtype;
-  std::vector<std::uint64_t> shape;
-};
-
-// What docs/protocol.md promises for each part of a scene of this size.
-ExpectedPart expected_part(v1::BasisPart part, const v1::SceneInfo& s) {
-  const std::uint64_t S = s.points(), F = s.triangles();
-  switch (part) {
-    case v1::MEAN_SHAPE:
-    case v1::NORMALS:
-      return {"float32", {S, 3}};
-    case v1::TRIANGLES:
-      return {"uint32", {F, 3}};
-    case v1::DEFORMABLE:
-    case v1::ATTACHED:
-      return {"uint8", {S}};
-    case v1::U_U:
-      return {"float32", {3 * S, s.rank_u()}};
-    case v1::MEAN_TRANSFER:
-      return {"float32", {48 * S}};
-    case v1::U_A:
-      return {"float32", {48 * S, s.rank_a()}};
-    default:
-      throw NetworkError(fmt::format("scene '{}': basis part {} is unknown (expected MEAN_SHAPE..U_A)",
-                                     s.name(), static_cast<int>(part)));
+// The table entry of a listed part, after checking its dtype, shape and size
+// against what the table promises for a scene of this size.
+const core::BasisPartSpec& checked_spec(const v1::BasisPartInfo& info, const v1::SceneInfo& scene) {
+  const auto* spec = core::find_basis_part_spec(info.part());
+  if (!spec) {
+    throw NetworkError(fmt::format("scene '{}': basis part {} is unknown (expected MEAN_SHAPE..U_A)",
+                                   scene.name(), static_cast<int>(info.part())));
   }
+  const auto expected = spec->shape(sizes_of(scene));
+  const std::vector<std::uint64_t> shape(info.shape().begin(), info.shape().end());
+  if (info.dtype() != spec->dtype || shape != expected) {
+    throw NetworkError(fmt::format("scene '{}': basis part {} is {} [{}] (expected {} [{}])", scene.name(),
+                                   spec->name, info.dtype(), fmt::join(shape, ", "), spec->dtype,
+                                   fmt::join(expected, ", ")));
+  }
+  std::uint64_t count = 1;
+  for (auto n : shape) count *= n;
+  if (info.total_bytes() != count * spec->element_bytes) {
+    throw NetworkError(fmt::format("scene '{}': basis part {} has total_bytes {} (expected {} for its shape)",
+                                   scene.name(), spec->name, info.total_bytes(),
+                                   count * spec->element_bytes));
+  }
+  return *spec;
+}
+
+// A chunk must continue the part exactly where the bytes so far end, from the
+// same package the scene was listed from.
+void check_chunk(const v1::BasisChunk& chunk, const v1::SceneInfo& scene, const std::string& name,
+                 std::uint64_t done, std::uint64_t total) {
+  if (chunk.content_hash() != scene.content_hash()) {
+    throw NetworkError(
+        fmt::format("basis {} {}: content hash changed during the download ({:016x}, expected "
+                    "{:016x}); the server reloaded the package, reconnect",
+                    scene.name(), name, chunk.content_hash(), scene.content_hash()));
+  }
+  if (chunk.offset() != done || chunk.data().empty() || chunk.data().size() > total - done) {
+    throw NetworkError(
+        fmt::format("basis {} {}: chunk at offset {} with {} bytes (expected offset {} and 1..{} "
+                    "bytes)",
+                    scene.name(), name, chunk.offset(), chunk.data().size(), done, total - done));
+  }
+}
+
+using Progress = std::function<void(const std::string&, std::uint64_t, std::uint64_t)>;
+
+// The bytes of one part, requested in chunks of at most `chunk_bytes`.
+std::string download_part(CommandClient& client, const v1::SceneInfo& scene, const v1::BasisPartInfo& info,
+                          const std::string& name, std::uint32_t chunk_bytes, const Progress& progress) {
+  std::string bytes;
+  bytes.reserve(info.total_bytes());
+  while (bytes.size() < info.total_bytes()) {
+    v1::Request r;
+    auto* q = r.mutable_basis();
+    q->set_scene(scene.name());
+    q->set_part(info.part());
+    q->set_offset(bytes.size());
+    q->set_max_bytes(chunk_bytes);
+    const auto chunk =
+        client.call(r, fmt::format("basis {} {} at byte {}", scene.name(), name, bytes.size())).basis();
+    check_chunk(chunk, scene, name, bytes.size(), info.total_bytes());
+    bytes += chunk.data();
+    if (progress) progress(name, bytes.size(), info.total_bytes());
+  }
+  return bytes;
 }
 
 template <class T>
@@ -59,29 +101,62 @@ std::vector<T> as_vector(const std::string& bytes) {
   return v;
 }
 
+// The ClientBasis member each part fills: the client's own layout, the one
+// fact about a part the core table cannot hold. checked_spec has matched the
+// part's dtype, which is the member's element type.
+template <class T>
+using Field = std::vector<T> ClientBasis::*;
+using PartField = std::variant<Field<float>, Field<std::uint32_t>, Field<std::uint8_t>>;
+
+struct PartDestination {
+  core::BasisPartId id;
+  PartField field;
+};
+
+constexpr std::array<PartDestination, core::kBasisPartCount> kDestinations = {{
+    {core::BasisPartId::mean_shape, &ClientBasis::mean_shape},
+    {core::BasisPartId::triangles, &ClientBasis::triangles},
+    {core::BasisPartId::normals, &ClientBasis::normals},
+    {core::BasisPartId::deformable, &ClientBasis::deformable},
+    {core::BasisPartId::attached, &ClientBasis::attached},
+    {core::BasisPartId::U_u, &ClientBasis::U_u},
+    {core::BasisPartId::mean_transfer, &ClientBasis::mean_transfer},
+    {core::BasisPartId::U_a, &ClientBasis::U_a},
+}};
+
+void store(ClientBasis& b, core::BasisPartId id, const std::string& bytes) {
+  const auto it = std::find_if(kDestinations.begin(), kDestinations.end(),
+                               [&](const PartDestination& d) { return d.id == id; });
+  if (it == kDestinations.end()) return;
+  std::visit(
+      [&](auto field) {
+        auto& member = b.*field;
+        member = as_vector<typename std::remove_reference_t<decltype(member)>::value_type>(bytes);
+      },
+      it->field);
+}
+
+// The sizes and camera of the scene; the parts are filled in as they arrive.
+ClientBasis basis_header(const v1::SceneInfo& scene) {
+  ClientBasis b;
+  b.scene = scene.name();
+  b.content_hash = scene.content_hash();
+  b.points = static_cast<int>(scene.points());
+  b.rank_u = static_cast<int>(scene.rank_u());
+  b.rank_a = static_cast<int>(scene.rank_a());
+  if (scene.camera_size() == 10) {
+    std::array<float, 10> camera{};
+    std::copy(scene.camera().begin(), scene.camera().end(), camera.begin());
+    b.camera = camera;
+  }
+  return b;
+}
+
 }  // namespace
 
 std::string basis_part_name(v1::BasisPart part) {
-  switch (part) {
-    case v1::MEAN_SHAPE:
-      return "mean_shape";
-    case v1::TRIANGLES:
-      return "triangles";
-    case v1::NORMALS:
-      return "normals";
-    case v1::DEFORMABLE:
-      return "deformable";
-    case v1::ATTACHED:
-      return "attached";
-    case v1::U_U:
-      return "U_u";
-    case v1::MEAN_TRANSFER:
-      return "mean_transfer";
-    case v1::U_A:
-      return "U_a";
-    default:
-      return fmt::format("part {}", static_cast<int>(part));
-  }
+  const auto* spec = core::find_basis_part_spec(part);
+  return spec ? std::string(spec->name) : fmt::format("part {}", static_cast<int>(part));
 }
 
 // ---- command connection ---------------------------------------------------------
@@ -168,89 +243,10 @@ v1::InstanceInfo CommandClient::create_instance(const std::string& scene) {
 ClientBasis CommandClient::download_basis(
     const v1::SceneInfo& scene, std::uint32_t chunk_bytes,
     const std::function<void(const std::string&, std::uint64_t, std::uint64_t)>& progress) {
-  ClientBasis b;
-  b.scene = scene.name();
-  b.content_hash = scene.content_hash();
-  b.points = static_cast<int>(scene.points());
-  b.rank_u = static_cast<int>(scene.rank_u());
-  b.rank_a = static_cast<int>(scene.rank_a());
-  if (scene.camera_size() == 10) {
-    std::array<float, 10> camera{};
-    std::copy(scene.camera().begin(), scene.camera().end(), camera.begin());
-    b.camera = camera;
-  }
+  ClientBasis b = basis_header(scene);
   for (const auto& info : scene.parts()) {
-    const std::string name = basis_part_name(info.part());
-    const auto expected = expected_part(info.part(), scene);
-    const std::vector<std::uint64_t> shape(info.shape().begin(), info.shape().end());
-    if (info.dtype() != expected.dtype || shape != expected.shape) {
-      throw NetworkError(fmt::format("scene '{}': basis part {} is {} [{}] (expected {} [{}])", scene.name(),
-                                     name, info.dtype(), fmt::join(shape, ", "), expected.dtype,
-                                     fmt::join(expected.shape, ", ")));
-    }
-    std::uint64_t count = 1;
-    for (auto n : shape) count *= n;
-    if (info.total_bytes() != count * dtype_size(info.dtype())) {
-      throw NetworkError(
-          fmt::format("scene '{}': basis part {} has total_bytes {} (expected {} for its shape)",
-                      scene.name(), name, info.total_bytes(), count * dtype_size(info.dtype())));
-    }
-    std::string bytes;
-    bytes.reserve(info.total_bytes());
-    while (bytes.size() < info.total_bytes()) {
-      v1::Request r;
-      auto* q = r.mutable_basis();
-      q->set_scene(scene.name());
-      q->set_part(info.part());
-      q->set_offset(bytes.size());
-      q->set_max_bytes(chunk_bytes);
-      const auto chunk =
-          call(r, fmt::format("basis {} {} at byte {}", scene.name(), name, bytes.size())).basis();
-      if (chunk.content_hash() != scene.content_hash()) {
-        throw NetworkError(
-            fmt::format("basis {} {}: content hash changed during the download ({:016x}, expected "
-                        "{:016x}); the server reloaded the package, reconnect",
-                        scene.name(), name, chunk.content_hash(), scene.content_hash()));
-      }
-      if (chunk.offset() != bytes.size() || chunk.data().empty() ||
-          chunk.data().size() > info.total_bytes() - bytes.size()) {
-        throw NetworkError(
-            fmt::format("basis {} {}: chunk at offset {} with {} bytes (expected offset {} and 1..{} "
-                        "bytes)",
-                        scene.name(), name, chunk.offset(), chunk.data().size(), bytes.size(),
-                        info.total_bytes() - bytes.size()));
-      }
-      bytes += chunk.data();
-      if (progress) progress(name, bytes.size(), info.total_bytes());
-    }
-    switch (info.part()) {
-      case v1::MEAN_SHAPE:
-        b.mean_shape = as_vector<float>(bytes);
-        break;
-      case v1::TRIANGLES:
-        b.triangles = as_vector<std::uint32_t>(bytes);
-        break;
-      case v1::NORMALS:
-        b.normals = as_vector<float>(bytes);
-        break;
-      case v1::DEFORMABLE:
-        b.deformable = as_vector<std::uint8_t>(bytes);
-        break;
-      case v1::ATTACHED:
-        b.attached = as_vector<std::uint8_t>(bytes);
-        break;
-      case v1::U_U:
-        b.U_u = as_vector<float>(bytes);
-        break;
-      case v1::MEAN_TRANSFER:
-        b.mean_transfer = as_vector<float>(bytes);
-        break;
-      case v1::U_A:
-        b.U_a = as_vector<float>(bytes);
-        break;
-      default:
-        break;
-    }
+    const auto& spec = checked_spec(info, scene);
+    store(b, spec.id, download_part(*this, scene, info, std::string(spec.name), chunk_bytes, progress));
   }
   b.validate(fmt::format("bases of scene '{}' from {}", scene.name(), endpoint_));
   return b;

@@ -2,6 +2,9 @@
 // The static data a thin render client needs (§5.3): mean shape, triangles,
 // normals, flags, U_u, mean transfer and U_a, as raw row-major byte views of a
 // package. The server streams these in chunks; inspect reports their sizes.
+//
+// basis_part_specs() is the one table of these parts: the server lists and
+// serves them from it, and the client checks what it is sent against it.
 
 #include "phasecast/core/package.h"
 
@@ -9,6 +12,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace phasecast::core {
@@ -24,6 +28,37 @@ enum class BasisPartId : int {
   mean_transfer = 7,
   U_a = 8,
 };
+
+inline constexpr std::size_t kBasisPartCount = 8;
+
+// The scene sizes a part's shape depends on. A package gives them
+// (basis_sizes), and so does a SceneInfo on the client, which holds no package.
+struct BasisSizes {
+  std::uint64_t points = 0;     // S
+  std::uint64_t triangles = 0;  // F
+  std::uint64_t rank_u = 0;     // r_u
+  std::uint64_t rank_a = 0;     // r_a (0: no appearance model)
+};
+
+BasisSizes basis_sizes(const ScenePackage& package);
+
+// One row of the basis-part table: what docs/protocol.md promises for a part.
+struct BasisPartSpec {
+  BasisPartId id;
+  std::string_view name;      // e.g. "U_u", the package dataset's name
+  std::string_view dtype;     // "float32", "uint32" or "uint8" (little-endian)
+  std::size_t element_bytes;  // of one element of `dtype`
+  bool needs_appearance;      // listed only when the package has an appearance model
+  std::vector<std::uint64_t> (*shape)(const BasisSizes& sizes);
+  // The part's data in `package`; for needs_appearance parts, the package must have one.
+  std::span<const std::byte> (*bytes)(const ScenePackage& package);
+};
+
+// Every part, in BasisPartId order.
+std::span<const BasisPartSpec> basis_part_specs();
+// The part numbered `id` (a phasecast.v1.BasisPart value), or nullptr when
+// there is none: the wire may carry any number.
+const BasisPartSpec* find_basis_part_spec(int id);
 
 struct BasisPartView {
   BasisPartId id;
