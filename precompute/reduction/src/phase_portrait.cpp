@@ -1,5 +1,7 @@
 #include "phasecast/precompute/reduction/phase_portrait.h"
 
+#include "phasecast/core/phase_space.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -34,23 +36,11 @@ double default_beta(const MatrixXfR& q_u, const MatrixXfR& qdot_u) {
   return max_v > 0 ? max_q / max_v : 1.0;
 }
 
-namespace {
-
-// Phase-space points [q, sqrt(beta) qdot]: eq. 9 becomes a Euclidean distance.
-Eigen::MatrixXf phase_points(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta) {
-  Eigen::MatrixXf x(q_u.rows(), 2 * q_u.cols());
-  x.leftCols(q_u.cols()) = q_u;
-  x.rightCols(q_u.cols()) = qdot_u * static_cast<float>(std::sqrt(beta));
-  return x;
-}
-
-}  // namespace
-
 MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
                             const std::vector<std::int32_t>& irf_start,
                             const std::vector<std::int32_t>& irf_palette, int palette_size) {
   const Eigen::Index N = q_u.rows();
-  const Eigen::MatrixXf x = phase_points(q_u, qdot_u, beta);
+  const Eigen::MatrixXf x = core::phase_points(q_u, qdot_u, beta);
   MatrixXiR cache = MatrixXiR::Constant(N, palette_size, -1);
   constexpr Eigen::Index kBlock = 1024;
 

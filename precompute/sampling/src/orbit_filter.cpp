@@ -1,5 +1,7 @@
 #include "phasecast/precompute/sampling/orbit_filter.h"
 
+#include "phasecast/core/phase_space.h"
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -7,24 +9,9 @@
 #include <stdexcept>
 
 namespace phasecast::precompute {
-namespace {
-
-// Eq. 9: D(i, j)^2 = ||q_i - q_j||^2 + beta ||qdot_i - qdot_j||^2.
-double distance_squared(const MatrixXfR& q, const MatrixXfR& qd, double beta, Eigen::Index i,
-                        Eigen::Index j) {
-  return (q.row(i) - q.row(j)).cast<double>().squaredNorm() +
-         beta * (qd.row(i) - qd.row(j)).cast<double>().squaredNorm();
-}
-
-}  // namespace
-
 double portrait_radius(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta) {
-  double r2 = 0;
-  for (Eigen::Index j = 0; j < q_u.rows(); ++j) {
-    r2 = std::max(
-        r2, q_u.row(j).cast<double>().squaredNorm() + beta * qdot_u.row(j).cast<double>().squaredNorm());
-  }
-  return std::sqrt(r2);
+  if (q_u.rows() == 0) return 0;
+  return std::sqrt(core::phase_points(q_u, qdot_u, beta).rowwise().squaredNorm().cast<double>().maxCoeff());
 }
 
 OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
@@ -48,7 +35,10 @@ OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, d
         const Eigen::Index end = irfs.start[i] + irfs.length[i] - 1;
         double nearest = std::numeric_limits<double>::infinity();
         for (size_t k = 0; k < irfs.size(); ++k) {
-          if (alive[k]) nearest = std::min(nearest, distance_squared(q_u, qdot_u, beta, end, irfs.start[k]));
+          if (alive[k])
+            nearest = std::min(
+                nearest, core::phase_distance_squared(q_u.row(end), qdot_u.row(end), q_u.row(irfs.start[k]),
+                                                      qdot_u.row(irfs.start[k]), beta));
         }
         if (std::sqrt(nearest) > threshold) {
           alive[i] = 0;

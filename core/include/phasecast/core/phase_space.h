@@ -1,0 +1,33 @@
+#pragma once
+// Eq. 9 of the paper, the one distance between phase-space points (q, q̇):
+//   D(a, b)^2 = ||q_a - q_b||^2 + beta ||q̇_a - q̇_b||^2,
+// beta weighting velocity against displacement (§2.3.2). The sampler's
+// dead-end filter, the IRF reference cache and the server's rest node all
+// measure with it.
+
+#include "phasecast/core/eigen_types.h"
+
+#include <Eigen/Core>
+
+#include <cmath>
+
+namespace phasecast::core {
+
+template <class QA, class VA, class QB, class VB>
+double phase_distance_squared(const Eigen::MatrixBase<QA>& q_a, const Eigen::MatrixBase<VA>& qdot_a,
+                              const Eigen::MatrixBase<QB>& q_b, const Eigen::MatrixBase<VB>& qdot_b,
+                              double beta) {
+  return (q_a - q_b).template cast<double>().squaredNorm() +
+         beta * (qdot_a - qdot_b).template cast<double>().squaredNorm();
+}
+
+// Rows [q, sqrt(beta) q̇]: the Euclidean distance between two rows is eq. 9,
+// so bulk nearest-neighbour searches can use matrix products.
+inline Eigen::MatrixXf phase_points(const MatrixXfR& q, const MatrixXfR& qdot, double beta) {
+  Eigen::MatrixXf x(q.rows(), 2 * q.cols());
+  x.leftCols(q.cols()) = q;
+  x.rightCols(q.cols()) = qdot * static_cast<float>(std::sqrt(beta));
+  return x;
+}
+
+}  // namespace phasecast::core
