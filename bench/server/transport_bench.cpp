@@ -27,7 +27,7 @@ using Clock = std::chrono::steady_clock;
 void BM_PublishThroughput(benchmark::State& state) {
   const int subs = static_cast<int>(state.range(0));
   server::SynthesisService service(60);
-  service.load_scene(cloth_ranks_package_file());
+  service.load_package(cloth_ranks_package_file());
   for (int i = 0; i < 100; ++i) service.engine().create_instance("plate");
   zmq::context_t ctx(2);
   zmq::socket_t pub(ctx, zmq::socket_type::pub);

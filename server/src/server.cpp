@@ -35,7 +35,7 @@ struct Server::Impl {
       throw std::runtime_error(fmt::format("--rate {} (expected a tick rate in (0, 10000] Hz)", o.rate_hz));
     }
     if (o.packages.empty()) throw std::runtime_error("no package given (expected at least one package.h5)");
-    for (const auto& p : o.packages) service.load_scene(p, o.blend_lambda);
+    for (const auto& p : o.packages) service.load_package(p, o.blend_lambda);
     for (const auto& s : service.engine().scenes()) {
       for (int i = 0; i < o.instances_per_scene; ++i) service.engine().create_instance(s.name);
     }

@@ -1,10 +1,13 @@
 #include "phasecast/server/synthesis_engine.h"
 
+#include "phasecast/core/phase_space.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <ranges>
 
 namespace phasecast::server {
 namespace {
@@ -53,6 +56,21 @@ int current_node(const SceneModel& s, const InstanceState& st) {
   const auto& pp = s.data->portrait;
   const int len = pp.irf_length[at(st.irf)];
   return pp.irf_start[at(st.irf)] + std::min(static_cast<int>(st.irf_t), len - 1);
+}
+
+// Why entry `d` cannot start in the instance's current frame, or nullopt if
+// it can. Checked again when the frame comes: an impulse queued for a later
+// frame was validated against the entry expected then, which an end-of-IRF
+// rule may have changed, and the node it lands on was not known.
+std::optional<std::string> refusal(const SceneModel& s, const InstanceState& st, int d) {
+  const auto& pal = s.data->palette;
+  if (!pal.allowed(st.palette_index, d)) return transition_error(pal, st.palette_index, d);
+  const int node = current_node(s, st);
+  if (s.data->portrait.nearest_irf(node, d) < 0) {
+    return fmt::format("no IRF of '{}' is cached at state node {} (/portrait/nearest_irf)", pal.names[at(d)],
+                       node);
+  }
+  return std::nullopt;
 }
 
 // x' at the instance's current position: the node's state plus the decayed
@@ -203,8 +221,9 @@ int SynthesisEngine::add_scene(std::shared_ptr<const core::ScenePackage> data,
   const auto& pp = data->portrait;
   double best = std::numeric_limits<double>::infinity();
   for (int n = 0; n < pp.nodes(); ++n) {
-    const double d = (pp.q_u.row(n).transpose() - q_rest).squaredNorm() +
-                     data->attributes.beta * pp.qdot_u.row(n).squaredNorm();  // eq. 9
+    const double d =
+        core::phase_distance_squared(pp.q_u.row(n).transpose(), pp.qdot_u.row(n).transpose(), q_rest,
+                                     VectorXf::Zero(q_rest.size()), data->attributes.beta);
     if (d < best) {
       best = d;
       s.rest_node = n;
@@ -269,9 +288,6 @@ void SynthesisEngine::restore_instance(std::uint32_t id, const std::string& scen
   inst.scene = si;
   inst.frame = frame;
   inst.state = state;
-  inst.last.instance = id;
-  inst.last.q_u.resize(pkg.rank_u());
-  inst.last.q_a.resize(pkg.rank_a());
   instances_.emplace(id, std::move(inst));
   next_id_ = std::max(next_id_, id + 1);
 }
@@ -350,13 +366,16 @@ void SynthesisEngine::apply_impulse(Instance& inst, int d) {
   start_irf(s, inst.state, d, irf, state_now(s, inst.state));
 }
 
-void SynthesisEngine::synthesize(Instance& inst) const {
+// Writes every field of `f`; q_u and q_a keep their storage when `f` held a
+// frame of the same ranks (Eigen resizes them otherwise).
+void SynthesisEngine::synthesize(const Instance& inst, SynthesizedFrame& f) const {
   const SceneModel& s = scenes_[at(inst.scene)];
   const auto& pkg = *s.data;
   const InstanceState& st = inst.state;
   const int node = current_node(s, st);
   const float w = blend_weight(s, st.blend_age);
-  SynthesizedFrame& f = inst.last;
+  f.instance = inst.id;
+  f.scene = inst.scene;
   f.frame = inst.frame;
   f.q_u.noalias() = pkg.portrait.q_u.row(node).transpose() + w * st.offset_q_u;  // eq. 12
   f.q_a.noalias() = pkg.portrait.q_a.row(node).transpose() + w * st.offset_q_a;  // §5.1, appearance
@@ -396,39 +415,40 @@ void SynthesisEngine::advance(Instance& inst) const {
   if (ended || stopped) end_of_irf(s, st);
 }
 
-TickResult SynthesisEngine::tick() {
-  TickResult result;
-  for (auto& [id, inst] : instances_) {
-    const auto q = pending_.find(id);
-    if (q != pending_.end()) {
-      auto& queue = q->second;
-      std::size_t used = 0;
-      for (; used < queue.size() && queue[used].frame == inst.frame; ++used) {
-        const int d = queue[used].palette_index;
-        const SceneModel& s = scenes_[at(inst.scene)];
-        const int from = inst.state.palette_index;
-        if (!s.data->palette.allowed(from, d)) {
-          result.refused.push_back({id, d, inst.frame, transition_error(s.data->palette, from, d)});
-          continue;
-        }
-        const int node = current_node(s, inst.state);
-        if (s.data->portrait.nearest_irf(node, d) < 0) {
-          result.refused.push_back(
-              {id, d, inst.frame,
-               fmt::format("no IRF of '{}' is cached at state node {} (/portrait/nearest_irf)",
-                           s.data->palette.names[at(d)], node)});
-          continue;
-        }
-        apply_impulse(inst, d);
-        result.applied.push_back({id, d, inst.frame});
-      }
-      queue.erase(queue.begin(), queue.begin() + static_cast<std::ptrdiff_t>(used));
-      if (queue.empty()) pending_.erase(q);
+void SynthesisEngine::apply_due_impulses(Instance& inst, TickResult& out) {
+  const auto q = pending_.find(inst.id);
+  if (q == pending_.end()) return;
+  auto& queue = q->second;
+  std::size_t used = 0;
+  for (; used < queue.size() && queue[used].frame == inst.frame; ++used) {
+    const int d = queue[used].palette_index;
+    if (auto why = refusal(scenes_[at(inst.scene)], inst.state, d)) {
+      out.refused.push_back({inst.id, d, inst.frame, std::move(*why)});
+      continue;
     }
-    synthesize(inst);
+    apply_impulse(inst, d);
+    out.applied.push_back({inst.id, d, inst.frame});
+  }
+  queue.erase(queue.begin(), queue.begin() + static_cast<std::ptrdiff_t>(used));
+  if (queue.empty()) pending_.erase(q);
+}
+
+TickResult SynthesisEngine::tick() {
+  TickResult out;
+  tick(out);
+  return out;
+}
+
+void SynthesisEngine::tick(TickResult& out) {
+  out.frames.resize(instances_.size());
+  out.applied.clear();
+  out.refused.clear();
+  auto frame = out.frames.begin();
+  for (Instance& inst : instances_ | std::views::values) {
+    apply_due_impulses(inst, out);
+    synthesize(inst, *frame++);
     advance(inst);
   }
-  return result;
 }
 
 }  // namespace phasecast::server

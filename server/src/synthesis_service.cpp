@@ -69,7 +69,8 @@ SynthesisService::SynthesisService(double rate_hz) : rate_hz_(rate_hz) {}
 
 SynthesisService::~SynthesisService() = default;
 
-void SynthesisService::load_scene(const std::filesystem::path& package, std::optional<double> blend_lambda) {
+void SynthesisService::load_package(const std::filesystem::path& package,
+                                    std::optional<double> blend_lambda) {
   auto data = std::make_shared<const core::ScenePackage>(core::read_package(package));
   engine_.add_scene(std::move(data), package.filename().string(), core::file_content_hash(package),
                     blend_lambda);
@@ -108,70 +109,23 @@ v1::Reply SynthesisService::handle(const v1::Request& request) {
 void SynthesisService::answer(const v1::Request& r, v1::Reply& reply) {
   switch (r.body_case()) {
     case v1::Request::kImpulse:
-      impulse(r.impulse(), *reply.mutable_impulse());
-      return;
+      return impulse(r.impulse(), *reply.mutable_impulse());
     case v1::Request::kListScenes:
-      list_scenes(*reply.mutable_scenes());
-      return;
+      return list_scenes(*reply.mutable_scenes());
     case v1::Request::kListInstances:
-      for (const auto& [id, inst] : engine_.instances())
-        instance_info(id, *reply.mutable_instances()->add_instances());
-      return;
-    case v1::Request::kCreateInstance: {
-      if (engine_.instances().size() >= max_instances_) {
-        throw RequestError(fmt::format("{} instances exist (expected at most {}; see --max-instances)",
-                                       engine_.instances().size(), max_instances_));
-      }
-      const auto id = engine_.create_instance(r.create_instance().scene());
-      record_created(id);
-      instance_info(id, *reply.mutable_created());
-      return;
-    }
-    case v1::Request::kDestroyInstance: {
-      const auto id = r.destroy_instance().instance();
-      (void)engine_.instance(id);
-      instance_info(id, *reply.mutable_destroyed());
-      engine_.destroy_instance(id);
-      if (recorder_) {
-        v1::RecordEntry e;
-        e.mutable_destroyed()->set_instance(id);
-        e.mutable_destroyed()->set_scene(reply.destroyed().scene());
-        e.mutable_destroyed()->set_frame(reply.destroyed().frame());
-        recorder_->append(e);
-      }
-      return;
-    }
+      return list_instances(reply);
+    case v1::Request::kCreateInstance:
+      return create_instance(r.create_instance(), *reply.mutable_created());
+    case v1::Request::kDestroyInstance:
+      return destroy_instance(r.destroy_instance(), *reply.mutable_destroyed());
     case v1::Request::kBasis:
-      basis(r.basis(), *reply.mutable_basis());
-      return;
-    case v1::Request::kRecordStart: {
-      check_record_name(r.record_start().path());
-      start_recording(record_dir_ / r.record_start().path());
-      auto& s = *reply.mutable_record();
-      s.set_recording(true);
-      s.set_path(recorder_->path().string());
-      return;
-    }
+      return basis(r.basis(), *reply.mutable_basis());
+    case v1::Request::kRecordStart:
+      return record_start(r.record_start(), *reply.mutable_record());
     case v1::Request::kRecordStop:
-      if (!recorder_) throw RequestError("not recording (expected a record_start first)");
-      *reply.mutable_record() = stop_recording();
-      return;
-    case v1::Request::kStats: {
-      auto& s = *reply.mutable_stats();
-      s.set_ticks(stats_.ticks);
-      s.set_frames_published(stats_.frames_published);
-      s.set_late_ticks(stats_.late_ticks);
-      s.set_rate_hz(rate_hz_);
-      s.set_requests(stats_.requests);
-      s.set_bad_requests(stats_.bad_requests);
-      s.set_impulses_applied(stats_.impulses_applied);
-      s.set_impulses_refused(stats_.impulses_refused);
-      s.set_recording(recorder_ != nullptr);
-      s.set_max_tick_seconds(stats_.max_tick_seconds);
-      s.set_recording_error(recording_error_);
-      for (const auto& [id, inst] : engine_.instances()) instance_info(id, *s.add_instances());
-      return;
-    }
+      return record_stop(*reply.mutable_record());
+    case v1::Request::kStats:
+      return report_stats(*reply.mutable_stats());
     case v1::Request::BODY_NOT_SET:
       break;
   }
@@ -250,6 +204,30 @@ void SynthesisService::list_scenes(v1::SceneList& out) const {
   }
 }
 
+// Takes the whole reply because with no instances its result has always been
+// left unset rather than an empty list; replies stay byte-identical that way.
+void SynthesisService::list_instances(v1::Reply& reply) const {
+  for (const auto& [id, inst] : engine_.instances())
+    instance_info(id, *reply.mutable_instances()->add_instances());
+}
+
+void SynthesisService::create_instance(const v1::CreateInstance& r, v1::InstanceInfo& out) {
+  if (engine_.instances().size() >= max_instances_) {
+    throw RequestError(fmt::format("{} instances exist (expected at most {}; see --max-instances)",
+                                   engine_.instances().size(), max_instances_));
+  }
+  const auto id = engine_.create_instance(r.scene());
+  record_created(id);
+  instance_info(id, out);
+}
+
+// The reply describes the instance as it was just before it went.
+void SynthesisService::destroy_instance(const v1::DestroyInstance& r, v1::InstanceInfo& out) {
+  instance_info(r.instance(), out);  // throws EngineError for unknown instances
+  engine_.destroy_instance(r.instance());
+  record_destroyed(out);
+}
+
 void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) const {
   const auto& s = engine_.scenes()[static_cast<std::size_t>(engine_.scene_index(r.scene()))];
   const auto parts = core::basis_parts(*s.data);
@@ -283,6 +261,33 @@ void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) con
   info.set_total_bytes(total);
 }
 
+void SynthesisService::record_start(const v1::RecordStart& r, v1::RecordStatus& out) {
+  check_record_name(r.path());
+  start_recording(record_dir_ / r.path());
+  out.set_recording(true);
+  out.set_path(recorder_->path().string());
+}
+
+void SynthesisService::record_stop(v1::RecordStatus& out) {
+  if (!recorder_) throw RequestError("not recording (expected a record_start first)");
+  out = stop_recording();
+}
+
+void SynthesisService::report_stats(v1::Stats& out) const {
+  out.set_ticks(stats_.ticks);
+  out.set_frames_published(stats_.frames_published);
+  out.set_late_ticks(stats_.late_ticks);
+  out.set_rate_hz(rate_hz_);
+  out.set_requests(stats_.requests);
+  out.set_bad_requests(stats_.bad_requests);
+  out.set_impulses_applied(stats_.impulses_applied);
+  out.set_impulses_refused(stats_.impulses_refused);
+  out.set_recording(recorder_ != nullptr);
+  out.set_max_tick_seconds(stats_.max_tick_seconds);
+  out.set_recording_error(recording_error_);
+  for (const auto& [id, inst] : engine_.instances()) instance_info(id, *out.add_instances());
+}
+
 void SynthesisService::instance_info(std::uint32_t id, v1::InstanceInfo& out) const {
   const auto& inst = engine_.instance(id);
   out.set_instance(id);
@@ -304,6 +309,28 @@ void SynthesisService::record_created(std::uint32_t id) {
   c.set_frame(inst.frame);
   to_snapshot(inst.state, *c.mutable_state());
   recorder_->append(e);
+}
+
+void SynthesisService::record_destroyed(const v1::InstanceInfo& info) {
+  if (!recorder_) return;
+  v1::RecordEntry e;
+  auto& d = *e.mutable_destroyed();
+  d.set_instance(info.instance());
+  d.set_scene(info.scene());
+  d.set_frame(info.frame());
+  recorder_->append(e);
+}
+
+void SynthesisService::record_impulses(const std::vector<AppliedImpulse>& applied) {
+  if (!recorder_) return;
+  for (const auto& a : applied) {
+    v1::RecordEntry e;
+    auto& imp = *e.mutable_impulse();
+    imp.set_instance(a.instance);
+    imp.set_index(static_cast<std::uint32_t>(a.palette_index));
+    imp.set_at_frame(a.frame);
+    recorder_->append(e);
+  }
 }
 
 void SynthesisService::start_recording(const std::filesystem::path& path) {
@@ -348,27 +375,19 @@ const std::vector<PublishedFrame>& SynthesisService::tick(std::chrono::steady_cl
 
 const std::vector<PublishedFrame>& SynthesisService::tick_and_record(
     std::chrono::steady_clock::time_point now) {
-  const TickResult r = engine_.tick();
+  engine_.tick(tick_result_);
+  const TickResult& r = tick_result_;
   ++stats_.ticks;
   stats_.impulses_applied += r.applied.size();
   stats_.impulses_refused += r.refused.size();
-  if (recorder_) {
-    for (const auto& a : r.applied) {
-      v1::RecordEntry e;
-      auto& imp = *e.mutable_impulse();
-      imp.set_instance(a.instance);
-      imp.set_index(static_cast<std::uint32_t>(a.palette_index));
-      imp.set_at_frame(a.frame);
-      recorder_->append(e);
-    }
-  }
-  published_.resize(engine_.instances().size());
+  record_impulses(r.applied);
+  published_.resize(r.frames.size());
   std::size_t i = 0;
   v1::RecordEntry entry;
-  for (const auto& [id, inst] : engine_.instances()) {
-    to_frame_message(engine_.scenes()[static_cast<std::size_t>(inst.scene)], inst.last, frame_);
+  for (const auto& f : r.frames) {
+    to_frame_message(engine_.scenes()[static_cast<std::size_t>(f.scene)], f, frame_);
     auto& out = published_[i++];
-    out.topic = instance_topic(id);
+    out.topic = instance_topic(f.instance);
     frame_.SerializeToString(&out.payload);
     if (recorder_) {
       *entry.mutable_frame() = frame_;

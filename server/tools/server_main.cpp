@@ -20,8 +20,8 @@ using phasecast::server::ServerOptions;
 
 int replay_check(const ServerOptions& o, const std::string& recording) {
   phasecast::server::SynthesisService service(o.rate_hz);
-  for (const auto& p : o.packages) service.load_scene(p, o.blend_lambda);
-  const auto entries = phasecast::server::read_recording(recording);
+  for (const auto& p : o.packages) service.load_package(p, o.blend_lambda);
+  const auto entries = phasecast::core::read_recording_file(recording).entries;
   const auto r = phasecast::server::replay_check(service.engine(), entries);
   fmt::print(
       "phasecast-server: replay-check {}: {} frames of {} instances with {} impulses reproduced bit for "

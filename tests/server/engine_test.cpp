@@ -2,6 +2,7 @@
 // IRF switching through the §5.2 cache, eq. 12 blending, end-of-IRF rules,
 // palette transitions, support kinematics, target frames and determinism.
 
+#include "error_of.h"
 #include "phasecast/server/synthesis_engine.h"
 #include "synthetic_package.h"
 
@@ -13,6 +14,8 @@
 
 namespace phasecast::server {
 namespace {
+
+using phasecast::testing::error_of;
 
 using Package = std::shared_ptr<const core::ScenePackage>;
 
@@ -31,16 +34,20 @@ SynthesisEngine engine_with(const Package& p, std::optional<double> lambda = std
   return e;
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const EngineError& e) {
-    return e.what();
+constexpr int kOpen = 2, kStop = 1, kClose = 0;
+
+// The frame `r` holds for instance `id`.
+const SynthesizedFrame& frame_of(const TickResult& r, std::uint32_t id) {
+  for (const auto& f : r.frames) {
+    if (f.instance == id) return f;
   }
-  return "(no error)";
+  throw std::out_of_range("instance " + std::to_string(id) + " made no frame this tick");
 }
 
-constexpr int kOpen = 2, kStop = 1, kClose = 0;
+// Ticks `e` and returns the frame of instance `id` (a copy: the tick's result is gone after).
+SynthesizedFrame tick_frame(SynthesisEngine& e, std::uint32_t id) {
+  return frame_of(e.tick(), id);
+}
 
 TEST(Engine, NewInstanceRestsOnTheNodeNearestTheRestShape) {
   auto e = engine_with(default_plate());
@@ -48,8 +55,7 @@ TEST(Engine, NewInstanceRestsOnTheNodeNearestTheRestShape) {
   EXPECT_EQ(id, 1u);
   const int rest = e.scenes()[0].rest_node;
   for (int f = 0; f < 5; ++f) {
-    e.tick();
-    const auto& last = e.instance(id).last;
+    const auto last = tick_frame(e, id);
     EXPECT_EQ(last.frame, static_cast<std::uint64_t>(f));
     EXPECT_EQ(last.palette_index, -1);
     EXPECT_EQ(last.irf, -1);
@@ -62,13 +68,12 @@ TEST(Engine, ImpulseSwitchesToTheCachedNearestIrfInTheNextFrame) {
   const auto& pkg = *default_plate();
   auto e = engine_with(default_plate());
   const auto id = e.create_instance("plate");
-  e.tick();
-  const VectorXf before = e.instance(id).last.q_u;
+  const VectorXf before = tick_frame(e, id).q_u;
   EXPECT_EQ(e.schedule_impulse(id, kOpen), 1u);
   const auto r = e.tick();
   ASSERT_EQ(r.applied.size(), 1u);
   EXPECT_EQ(r.applied[0].frame, 1u);
-  const auto& last = e.instance(id).last;
+  const auto& last = frame_of(r, id);
   EXPECT_EQ(last.palette_index, kOpen);
   EXPECT_EQ(last.irf, pkg.portrait.nearest_irf(e.scenes()[0].rest_node, kOpen));
   EXPECT_EQ(last.irf_t, 0u);
@@ -93,19 +98,18 @@ Switch measure_switch(std::optional<double> lambda) {
   Switch s;
   VectorXf prev;
   for (int i = 0; i < 37; ++i) {
-    e.tick();
-    if (i >= 32) s.step_before = std::max(s.step_before, (e.instance(id).last.q_u - prev).norm());
-    prev = e.instance(id).last.q_u;
+    const VectorXf q_u = tick_frame(e, id).q_u;
+    if (i >= 32) s.step_before = std::max(s.step_before, (q_u - prev).norm());
+    prev = q_u;
   }
   e.schedule_impulse(id, kStop);
-  e.tick();
-  s.step_into = (e.instance(id).last.q_u - prev).norm();
-  prev = e.instance(id).last.q_u;
-  const int start = pp.irf_start[static_cast<size_t>(e.instance(id).last.irf)];
+  const auto switched = tick_frame(e, id);
+  s.step_into = (switched.q_u - prev).norm();
+  prev = switched.q_u;
+  const int start = pp.irf_start[static_cast<size_t>(switched.irf)];
   s.offset = (prev - pp.q_u.row(start).transpose()).norm();
   s.qdot_start = pp.qdot_u.row(start).norm();
-  e.tick();
-  s.step_after = (e.instance(id).last.q_u - prev).norm();
+  s.step_after = (tick_frame(e, id).q_u - prev).norm();
   return s;
 }
 
@@ -129,21 +133,19 @@ TEST(Engine, BlendOffsetDecaysOntoTheTargetIrf) {
   e.schedule_impulse(id, kOpen);
   for (int i = 0; i < 30; ++i) e.tick();
   e.schedule_impulse(id, kStop);
-  e.tick();
-  const auto& last = e.instance(id).last;
-  const int irf = last.irf, start = pp.irf_start[static_cast<size_t>(irf)];
-  const VectorXf offset = last.q_u - pp.q_u.row(start).transpose();
+  auto f = tick_frame(e, id);
+  const int irf = f.irf, start = pp.irf_start[static_cast<size_t>(irf)];
+  const VectorXf offset = f.q_u - pp.q_u.row(start).transpose();
   ASSERT_GT(offset.norm(), 1e-3f);
   for (int t = 1; t < 60; ++t) {
-    e.tick();
-    const auto& f = e.instance(id).last;
+    f = tick_frame(e, id);
     ASSERT_EQ(f.irf, irf);
     ASSERT_EQ(f.irf_t, static_cast<std::uint32_t>(t));
     const float w = static_cast<float>(std::exp(-pkg.attributes.blend_lambda * t * pkg.attributes.dt));
     const VectorXf expected = pp.q_u.row(start + t).transpose() + w * offset;  // eq. 12
     EXPECT_LT((f.q_u - expected).norm(), 1e-5f) << "t = " << t;
   }
-  const VectorXf residual = e.instance(id).last.q_u - pp.q_u.row(start + 59).transpose();
+  const VectorXf residual = f.q_u - pp.q_u.row(start + 59).transpose();
   EXPECT_LT(residual.norm(), 2e-3f * offset.norm());
 }
 
@@ -152,21 +154,18 @@ TEST(Engine, FollowUpEntryStartsAtTheEndOfTheIrfThenComesToRest) {
   auto e = engine_with(default_plate());
   const auto id = e.create_instance("plate");
   e.schedule_impulse(id, kOpen);
-  e.tick();
-  const int open_irf = e.instance(id).last.irf;
-  const int len = pkg.portrait.irf_length[static_cast<size_t>(open_irf)];
-  for (int t = 1; t < len; ++t) e.tick();
-  EXPECT_EQ(e.instance(id).last.irf_t, static_cast<std::uint32_t>(len - 1));
-  e.tick();  // on_end(open) = stop: the door stops
-  const auto& stop = e.instance(id).last;
+  auto opening = tick_frame(e, id);
+  const int len = pkg.portrait.irf_length[static_cast<size_t>(opening.irf)];
+  for (int t = 1; t < len; ++t) opening = tick_frame(e, id);
+  EXPECT_EQ(opening.irf_t, static_cast<std::uint32_t>(len - 1));
+  const auto stop = tick_frame(e, id);  // on_end(open) = stop: the door stops
   EXPECT_EQ(stop.palette_index, kStop);
   EXPECT_EQ(pkg.portrait.irf_palette[static_cast<size_t>(stop.irf)], kStop);
   EXPECT_EQ(stop.irf_t, 0u);
   const int stop_irf = stop.irf;
   const int stop_len = pkg.portrait.irf_length[static_cast<size_t>(stop_irf)];
   for (int t = 1; t < stop_len; ++t) e.tick();
-  e.tick();  // on_end(stop) = rest: hold the last node
-  const auto& rest = e.instance(id).last;
+  const auto rest = tick_frame(e, id);  // on_end(stop) = rest: hold the last node
   EXPECT_EQ(rest.palette_index, -1);
   EXPECT_EQ(rest.irf, -1);
   const int last_node = pkg.portrait.irf_start[static_cast<size_t>(stop_irf)] + stop_len - 1;
@@ -184,11 +183,10 @@ TEST(Engine, HoldRuleContinuesOnTheNearestIrfOfTheSameEntry) {
   auto e = engine_with(pkg);
   const auto id = e.create_instance("plate");
   e.schedule_impulse(id, kOpen);
-  e.tick();
-  const int irf = e.instance(id).last.irf;
+  auto f = tick_frame(e, id);
+  const int irf = f.irf;
   const int len = pkg->portrait.irf_length[static_cast<size_t>(irf)];
-  for (int t = 1; t <= len; ++t) e.tick();
-  const auto& f = e.instance(id).last;
+  for (int t = 1; t <= len; ++t) f = tick_frame(e, id);
   EXPECT_EQ(f.palette_index, kOpen);
   EXPECT_EQ(f.irf_t, 0u);
   const int last_node = pkg->portrait.irf_start[static_cast<size_t>(irf)] + len - 1;
@@ -205,13 +203,14 @@ TEST(Engine, DoorStopsWhenItReachesTheEndOfItsRange) {
   const int frames_to_open =
       static_cast<int>(std::ceil((std::numbers::pi / 2) / (std::numbers::pi / 4) * 60));
   int switched_at = -1;
+  SynthesizedFrame last;
   for (int f = 0; f < 199 && switched_at < 0; ++f) {
-    e.tick();
-    if (e.instance(id).last.palette_index == kStop) switched_at = f;
+    last = tick_frame(e, id);
+    if (last.palette_index == kStop) switched_at = f;
   }
   EXPECT_NEAR(switched_at, frames_to_open, 1);
   // Rotation about +y by 90 degrees: R(0,0) = cos = 0, R(0,2) = sin = 1.
-  const auto& s = e.instance(id).last.support;
+  const auto& s = last.support;
   EXPECT_NEAR(s[0], 0.0f, 1e-6f);
   EXPECT_NEAR(s[2], 1.0f, 1e-6f);
 }
@@ -247,12 +246,13 @@ TEST(Engine, JoltIsADisplacementPulseThatReturnsToRest) {
   const auto id = e.create_instance("plate");
   e.schedule_impulse(id, kOpen);
   float peak = 0;
+  SynthesizedFrame last;
   for (int f = 0; f < 60; ++f) {
-    e.tick();
-    peak = std::max(peak, e.instance(id).last.support[3]);
+    last = tick_frame(e, id);
+    peak = std::max(peak, last.support[3]);
   }
   EXPECT_NEAR(peak, 2 * 0.1 / std::numbers::e, 2e-3);  // rate * tau / e
-  EXPECT_LT(std::abs(e.instance(id).last.support[3]), 2e-3f);
+  EXPECT_LT(std::abs(last.support[3]), 2e-3f);
 }
 
 TEST(Engine, ImpulseLandsExactlyInItsTargetFrame) {
@@ -260,14 +260,15 @@ TEST(Engine, ImpulseLandsExactlyInItsTargetFrame) {
   const auto id = e.create_instance("plate");
   EXPECT_EQ(e.schedule_impulse(id, kClose, 10), 10u);
   for (int f = 0; f < 10; ++f) {
-    EXPECT_TRUE(e.tick().applied.empty());
-    EXPECT_EQ(e.instance(id).last.palette_index, -1);
+    const auto r = e.tick();
+    EXPECT_TRUE(r.applied.empty());
+    EXPECT_EQ(frame_of(r, id).palette_index, -1);
   }
   const auto r = e.tick();
   ASSERT_EQ(r.applied.size(), 1u);
   EXPECT_EQ(r.applied[0].frame, 10u);
-  EXPECT_EQ(e.instance(id).last.frame, 10u);
-  EXPECT_EQ(e.instance(id).last.palette_index, kClose);
+  EXPECT_EQ(frame_of(r, id).frame, 10u);
+  EXPECT_EQ(frame_of(r, id).palette_index, kClose);
 }
 
 TEST(Engine, ImpulsesOfOneFrameApplyInArrivalOrderTheLaterWins) {
@@ -280,19 +281,19 @@ TEST(Engine, ImpulsesOfOneFrameApplyInArrivalOrderTheLaterWins) {
   ASSERT_EQ(r.applied.size(), 2u);
   EXPECT_EQ(r.applied[0].palette_index, kOpen);
   EXPECT_EQ(r.applied[1].palette_index, kStop);
-  EXPECT_EQ(e.instance(id).last.palette_index, kStop);
+  EXPECT_EQ(frame_of(r, id).palette_index, kStop);
 }
 
 TEST(Engine, ForbiddenTransitionsAreRefusedWithTheAllowedEntries) {
   auto e = engine_with(default_plate());
   const auto id = e.create_instance("plate");
-  EXPECT_EQ(error_of([&] { e.schedule_impulse(id, kStop); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, kStop); }),
             "instance 1 (plate): 'stop' is not allowed from 'rest' (allowed: close, open)");
   e.schedule_impulse(id, kOpen);
-  EXPECT_EQ(error_of([&] { e.schedule_impulse(id, kClose); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, kClose); }),
             "instance 1 (plate): 'close' is not allowed after 'open' (allowed: stop)");
   e.tick();
-  EXPECT_EQ(error_of([&] { e.schedule_impulse(id, kOpen); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, kOpen); }),
             "instance 1 (plate): 'open' is not allowed after 'open' (allowed: stop)");
 }
 
@@ -306,33 +307,34 @@ TEST(Engine, ScheduledImpulseThatBecameForbiddenIsRefusedWhenItsFrameComes) {
   ASSERT_EQ(r.refused.size(), 1u);
   EXPECT_EQ(r.refused[0].frame, 20u);
   EXPECT_EQ(r.refused[0].error, "'close' is not allowed after 'open' (allowed: stop)");
-  EXPECT_EQ(e.instance(id).last.palette_index, kOpen);
+  EXPECT_EQ(frame_of(r, id).palette_index, kOpen);
 }
 
 TEST(Engine, BadInputsAreRefusedWithOneLineMessages) {
   auto e = engine_with(default_plate());
   const auto id = e.create_instance("plate");
   e.tick();
-  EXPECT_EQ(error_of([&] { e.create_instance("pot"); }), "unknown scene 'pot' (expected one of plate)");
-  EXPECT_EQ(error_of([&] { e.schedule_impulse(7, kOpen); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.create_instance("pot"); }),
+            "unknown scene 'pot' (expected one of plate)");
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(7, kOpen); }),
             "unknown instance 7 (expected one of the 1 existing instances)");
-  EXPECT_EQ(error_of([&] { e.palette_index(id, "opn"); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.palette_index(id, "opn"); }),
             "instance 1 (plate): unknown palette entry 'opn' (expected one of close, stop, open)");
-  EXPECT_EQ(error_of([&] { e.schedule_impulse(id, 3); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, 3); }),
             "instance 1 (plate): palette index 3 out of range (expected 0..2)");
-  EXPECT_EQ(error_of([&] { e.schedule_impulse(id, kOpen, 0); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, kOpen, 0); }),
             "instance 1 (plate): frame 0 is in the past (expected at least the next frame 1)");
-  EXPECT_EQ(error_of([&] { e.destroy_instance(9); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.destroy_instance(9); }),
             "unknown instance 9 (expected one of the 1 existing instances)");
-  EXPECT_EQ(error_of([&] { e.add_scene(default_plate(), "other.h5", 1); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.add_scene(default_plate(), "other.h5", 1); }),
             "scene 'plate' of other.h5 is already loaded from plate.h5 (expected unique scene names)");
-  EXPECT_EQ(error_of([&] {
+  EXPECT_EQ(error_of<EngineError>([&] {
               SynthesisEngine x;
               x.add_scene(default_plate(), "p.h5", 1, NAN);
             }),
             "blend lambda nan for scene 'plate' (expected a finite value >= 0)");
   InstanceState broken;
-  EXPECT_EQ(error_of([&] { e.restore_instance(5, "plate", 0, broken); }),
+  EXPECT_EQ(error_of<EngineError>([&] { e.restore_instance(5, "plate", 0, broken); }),
             "instance 5 (plate): inconsistent state (expected IRF, node and entry indices and offset sizes "
             "r_u = 4, r_a = " +
                 std::to_string(default_plate()->rank_a()) + " of this scene)");
@@ -343,7 +345,7 @@ TEST(Engine, PendingImpulsesAreBounded) {
   const auto id = e.create_instance("plate");
   std::string err;
   for (std::uint64_t f = 0; f < 2000 && err.empty(); ++f) {
-    err = error_of([&] { e.schedule_impulse(id, f % 2 ? kStop : kOpen, 2 * f); });
+    err = error_of<EngineError>([&] { e.schedule_impulse(id, f % 2 ? kStop : kOpen, 2 * f); });
     if (err == "(no error)") err.clear();
   }
   EXPECT_EQ(err, "instance 1 (plate): 1024 impulses already pending (expected at most 1024 queued)");
@@ -359,10 +361,9 @@ std::string run_schedule(const Package& pkg) {
   e.schedule_impulse(3, kOpen, 0);
   std::string bytes;
   for (int f = 0; f < 400; ++f) {
-    e.tick();
+    const auto r = e.tick();
     if (f == 120) e.schedule_impulse(2, kClose);  // the open door is stopping by then
-    for (const auto& [id, inst] : e.instances()) {
-      const auto& l = inst.last;
+    for (const auto& l : r.frames) {
       bytes.append(reinterpret_cast<const char*>(l.q_u.data()),
                    sizeof(float) * static_cast<size_t>(l.q_u.size()));
       bytes.append(reinterpret_cast<const char*>(l.q_a.data()),
@@ -392,12 +393,11 @@ TEST(Engine, RestoredInstanceContinuesExactly) {
   auto b = engine_with(default_plate());
   b.restore_instance(id, "plate", a.instance(id).frame, a.instance(id).state);
   for (int f = 0; f < 200; ++f) {
-    a.tick();
-    b.tick();
-    ASSERT_EQ(a.instance(id).last.frame, b.instance(id).last.frame);
-    ASSERT_EQ(a.instance(id).last.q_u, b.instance(id).last.q_u);
-    ASSERT_EQ(a.instance(id).last.q_a, b.instance(id).last.q_a);
-    ASSERT_EQ(a.instance(id).last.support, b.instance(id).last.support);
+    const auto fa = tick_frame(a, id), fb = tick_frame(b, id);
+    ASSERT_EQ(fa.frame, fb.frame);
+    ASSERT_EQ(fa.q_u, fb.q_u);
+    ASSERT_EQ(fa.q_a, fb.q_a);
+    ASSERT_EQ(fa.support, fb.support);
   }
   EXPECT_EQ(b.create_instance("plate"), id + 1);
 }
@@ -410,6 +410,65 @@ TEST(Engine, DestroyedInstanceStopsAndIdsAreNotReused) {
   EXPECT_TRUE(e.instances().empty());
   EXPECT_TRUE(e.tick().applied.empty());
   EXPECT_EQ(e.create_instance("plate"), a + 1);
+}
+
+// Every field, so a reused TickResult cannot leave a stale value behind.
+void expect_same_frame(const SynthesizedFrame& a, const SynthesizedFrame& b) {
+  EXPECT_EQ(a.instance, b.instance);
+  EXPECT_EQ(a.scene, b.scene);
+  EXPECT_EQ(a.frame, b.frame);
+  ASSERT_EQ(a.q_u.size(), b.q_u.size());
+  ASSERT_EQ(a.q_a.size(), b.q_a.size());
+  EXPECT_EQ(a.q_u, b.q_u);
+  EXPECT_EQ(a.q_a, b.q_a);
+  EXPECT_EQ(a.support, b.support);
+  EXPECT_EQ(a.palette_index, b.palette_index);
+  EXPECT_EQ(a.irf, b.irf);
+  EXPECT_EQ(a.irf_t, b.irf_t);
+}
+
+// Two scenes of different ranks, so a reused TickResult sees a slot change
+// ranks when an instance goes and the ids shift down.
+SynthesisEngine plate_and_tall() {
+  testing::PlateOptions o;
+  o.rank_u = 6;
+  o.appearance = false;
+  auto tall = testing::make_plate_package(o);
+  tall.attributes.scene = "tall";
+  auto e = engine_with(default_plate());
+  e.add_scene(std::make_shared<const core::ScenePackage>(std::move(tall)), "tall.h5", 43);
+  return e;
+}
+
+TEST(Engine, TickReturnsOneFrameForEachInstanceInIdOrderAlsoIntoAReusedResult) {
+  auto fresh = plate_and_tall(), reused = plate_and_tall();
+  TickResult into;
+  auto step = [&] {
+    const auto r = fresh.tick();
+    reused.tick(into);
+    ASSERT_EQ(r.frames.size(), fresh.instances().size());
+    ASSERT_EQ(into.frames.size(), r.frames.size());
+    auto inst = fresh.instances().begin();
+    for (std::size_t i = 0; i < r.frames.size(); ++i, ++inst) {
+      EXPECT_EQ(r.frames[i].instance, inst->first);
+      EXPECT_EQ(r.frames[i].scene, inst->second.scene);
+      EXPECT_EQ(r.frames[i].frame + 1, inst->second.frame) << "the frame just made";
+      expect_same_frame(r.frames[i], into.frames[i]);
+    }
+    EXPECT_EQ(r.applied.size(), into.applied.size());
+  };
+  for (auto* e : {&fresh, &reused}) {
+    e->create_instance("plate");
+    e->create_instance("tall");
+    e->create_instance("plate");
+    e->schedule_impulse(1, kOpen);
+  }
+  for (int f = 0; f < 3; ++f) step();
+  for (auto* e : {&fresh, &reused}) e->destroy_instance(1);
+  step();  // slot 0 goes from plate (r_u = 4) to tall (r_u = 6, no appearance)
+  for (auto* e : {&fresh, &reused}) e->create_instance("tall");
+  step();
+  EXPECT_EQ(into.frames.size(), 3u);
 }
 
 }  // namespace

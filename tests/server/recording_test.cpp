@@ -1,8 +1,11 @@
 // Recordings through the service (no sockets): the format, replay bit for bit
-// (also for sessions recorded mid-way), and the reader's rejection paths.
+// (also for sessions recorded mid-way), and the reader's rejection paths
+// (core::read_recording_file, which the client's --replay shares).
 
 #include "phasecast/server/recording.h"
+#include "error_of.h"
 #include "phasecast/core/hash.h"
+#include "phasecast/core/recording.h"
 #include "phasecast/server/synthesis_service.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
@@ -19,6 +22,8 @@
 
 namespace phasecast::server {
 namespace {
+
+using phasecast::testing::error_of;
 
 using Clock = std::chrono::steady_clock;
 
@@ -41,7 +46,7 @@ v1::Request impulse(std::uint32_t instance, const std::string& name) {
 // while recording; recording starts after `lead` ticks.
 std::filesystem::path record_session(const Fixture& f, int lead) {
   SynthesisService s(60);
-  s.load_scene(f.pkg);
+  s.load_package(f.pkg);
   s.engine().create_instance("plate");
   s.engine().create_instance("plate");
   EXPECT_TRUE(s.handle(impulse(1, "open")).ok());
@@ -66,19 +71,14 @@ std::filesystem::path record_session(const Fixture& f, int lead) {
   return path;
 }
 
-ReplayReport replay(const Fixture& f, const std::filesystem::path& rec) {
-  SynthesisService s(60);
-  s.load_scene(f.pkg);
-  return replay_check(s.engine(), read_recording(rec));
+std::vector<v1::RecordEntry> read_entries(const std::filesystem::path& rec) {
+  return core::read_recording_file(rec).entries;
 }
 
-std::string error_of(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const RecordingError& e) {
-    return e.what();
-  }
-  return "(no error)";
+ReplayReport replay(const Fixture& f, const std::filesystem::path& rec) {
+  SynthesisService s(60);
+  s.load_package(f.pkg);
+  return replay_check(s.engine(), read_entries(rec));
 }
 
 TEST(Recording, FileStartsWithMagicAndHeaderNamingThePackage) {
@@ -88,7 +88,7 @@ TEST(Recording, FileStartsWithMagicAndHeaderNamingThePackage) {
   std::string magic(8, '\0');
   in.read(magic.data(), 8);
   EXPECT_EQ(magic, "PHCREC1\n");
-  const auto entries = read_recording(rec);
+  const auto entries = read_entries(rec);
   const auto& h = entries.front().header();
   EXPECT_EQ(h.format_version(), 1u);
   ASSERT_EQ(h.scenes_size(), 1);
@@ -126,15 +126,15 @@ TEST(Recording, RecordingStartedMidSessionReplaysFromTheSnapshots) {
 TEST(Recording, ReplayReportsTheFirstDifferingFrame) {
   const Fixture f("tamper");
   const auto rec = record_session(f, 0);
-  auto entries = read_recording(rec);
+  auto entries = read_entries(rec);
   for (auto& e : entries) {
     if (e.has_frame() && e.frame().frame() == 12 && e.frame().instance() == 2) {
       e.mutable_frame()->set_q_u(1, std::nextafter(e.frame().q_u(1), 1.0f));
     }
   }
   SynthesisService s(60);
-  s.load_scene(f.pkg);
-  EXPECT_EQ(error_of([&] {
+  s.load_package(f.pkg);
+  EXPECT_EQ(error_of<RecordingError>([&] {
               replay_check(s.engine(), entries);
             }).rfind("replay-check: frame 12 of instance 2 differs: q_u[1] = ", 0),
             0u);
@@ -143,54 +143,77 @@ TEST(Recording, ReplayReportsTheFirstDifferingFrame) {
 TEST(Recording, TruncatedFinalRecordEndsTheListCleanly) {
   const Fixture f("truncated");
   const auto rec = record_session(f, 0);
-  const auto full = read_recording(rec).size();
+  const auto full = core::read_recording_file(rec);
+  EXPECT_FALSE(full.truncated);
   std::filesystem::resize_file(rec, std::filesystem::file_size(rec) - 5);
-  const auto cut = read_recording(rec);
-  EXPECT_EQ(cut.size(), full - 1);
+  const auto cut = core::read_recording_file(rec);
+  EXPECT_TRUE(cut.truncated);
+  EXPECT_EQ(cut.entries.size(), full.entries.size() - 1);
   SynthesisService s(60);
-  s.load_scene(f.pkg);
-  EXPECT_NO_THROW(replay_check(s.engine(), cut));
+  s.load_package(f.pkg);
+  EXPECT_NO_THROW(replay_check(s.engine(), cut.entries));
+}
+
+// Writes the magic and then `records` as they are.
+void write_raw(const std::filesystem::path& path, const std::string& records) {
+  std::ofstream out(path, std::ios::binary);
+  out << "PHCREC1\n" << records;
+}
+
+std::string delimited(const v1::RecordEntry& e) {
+  std::string out;
+  core::append_record(e, out);
+  return out;
 }
 
 TEST(Recording, ReaderRejectsWhatIsNotARecording) {
   const Fixture f("reject");
+  auto read = [](const std::filesystem::path& p) {
+    return error_of<RecordingError>([&] { core::read_recording_file(p); });
+  };
   const auto missing = f.dir / "missing.phcrec";
-  EXPECT_EQ(error_of([&] {
-              read_recording(missing);
-            }).rfind("recording '" + missing.string() + "': cannot open", 0),
-            0u);
+  EXPECT_EQ(read(missing), "recording '" + missing.string() + "': cannot open: No such file or directory");
   const auto junk = f.dir / "junk.phcrec";
   std::ofstream(junk) << "PHCREC0\nxxxx";
-  EXPECT_EQ(error_of([&] { read_recording(junk); }),
-            "recording '" + junk.string() + "': not a recording (expected the magic \"PHCREC1\\n\")");
+  EXPECT_EQ(read(junk), "recording '" + junk.string() +
+                            "': not a Phasecast recording (expected the magic \"PHCREC1\\n\")");
+  const auto empty = f.dir / "empty.phcrec";
+  write_raw(empty, "");
+  EXPECT_EQ(read(empty),
+            "recording '" + empty.string() + "': expected a RecordingHeader as the first record");
   const auto no_header = f.dir / "noheader.phcrec";
-  {
-    std::ofstream out(no_header, std::ios::binary);
-    v1::RecordEntry e;
-    e.mutable_frame()->set_instance(1);
-    const std::string body = e.SerializeAsString();
-    out << "PHCREC1\n" << static_cast<char>(body.size()) << body;
-  }
-  EXPECT_EQ(error_of([&] { read_recording(no_header); }),
+  v1::RecordEntry frame;
+  frame.mutable_frame()->set_instance(1);
+  write_raw(no_header, delimited(frame));
+  EXPECT_EQ(read(no_header),
             "recording '" + no_header.string() + "': expected a RecordingHeader as the first record");
+  const auto future = f.dir / "future.phcrec";
+  v1::RecordEntry header;
+  header.mutable_header()->set_format_version(2);
+  write_raw(future, delimited(header));
+  EXPECT_EQ(read(future),
+            "recording '" + future.string() + "': format version 2 is not supported (expected 1)");
   const auto corrupt = f.dir / "corrupt.phcrec";
-  {
-    std::ofstream out(corrupt, std::ios::binary);
-    out << "PHCREC1\n" << '\x03' << "\xff\xff\xff";
-  }
-  EXPECT_EQ(error_of([&] { read_recording(corrupt); }),
-            "recording '" + corrupt.string() + "': record 0 does not parse as a RecordEntry");
+  write_raw(corrupt, "\x03\xff\xff\xff");
+  EXPECT_EQ(read(corrupt),
+            "recording '" + corrupt.string() + "': record 0 at byte 8 does not parse as a RecordEntry");
+  const auto huge = f.dir / "huge.phcrec";
+  header.mutable_header()->set_format_version(1);
+  write_raw(huge, delimited(header) + "\x80\x80\x80\x80\x01");  // 2^28 bytes, more than kMaxRecordBytes
+  EXPECT_EQ(read(huge), fmt::format("recording '{}': record 1 at byte {} claims 268435456 bytes (expected at "
+                                    "most 67108864)",
+                                    huge.string(), 8 + delimited(header).size()));
 }
 
 TEST(Recording, ReplayRefusesAPackageOfAnotherHash) {
   const Fixture f("hash");
   const auto rec = record_session(f, 0);
-  auto entries = read_recording(rec);
+  auto entries = read_entries(rec);
   entries.front().mutable_header()->mutable_scenes(0)->set_content_hash(1);
   SynthesisService s(60);
-  s.load_scene(f.pkg);
+  s.load_package(f.pkg);
   EXPECT_EQ(
-      error_of([&] { replay_check(s.engine(), entries); }),
+      error_of<RecordingError>([&] { replay_check(s.engine(), entries); }),
       fmt::format("replay-check: scene 'plate' was recorded from plate.h5 with hash 0000000000000001, but "
                   "plate.h5 has hash {:016x} (expected the same package)",
                   core::file_content_hash(f.pkg)));
@@ -199,12 +222,12 @@ TEST(Recording, ReplayRefusesAPackageOfAnotherHash) {
 TEST(Recording, CannotRecordTwiceOrToAnUnwritablePath) {
   const Fixture f("twice");
   SynthesisService s(60);
-  s.load_scene(f.pkg);
+  s.load_package(f.pkg);
   s.start_recording(f.dir / "a.phcrec");
-  EXPECT_EQ(error_of([&] { s.start_recording(f.dir / "b.phcrec"); }),
+  EXPECT_EQ(error_of<RecordingError>([&] { s.start_recording(f.dir / "b.phcrec"); }),
             "already recording to '" + (f.dir / "a.phcrec").string() + "' (expected record_stop first)");
   s.stop_recording();
-  EXPECT_EQ(error_of([&] { s.start_recording(f.dir / "no" / "such" / "dir.phcrec"); }),
+  EXPECT_EQ(error_of<RecordingError>([&] { s.start_recording(f.dir / "no" / "such" / "dir.phcrec"); }),
             "record: cannot create '" + (f.dir / "no" / "such" / "dir.phcrec").string() +
                 "': No such file or directory");
 }
@@ -212,7 +235,7 @@ TEST(Recording, CannotRecordTwiceOrToAnUnwritablePath) {
 TEST(Recording, WriteFailureEndsTheRecordingButNotTheStream) {
   const Fixture f("write_failure");
   SynthesisService s(60);
-  s.load_scene(f.pkg);
+  s.load_package(f.pkg);
   s.engine().create_instance("plate");
   const auto path = f.dir / "full.phcrec";
   s.start_recording(path);

@@ -1,6 +1,7 @@
 // The request service without sockets: several scenes, listings, limits, and
 // the rejection paths of snapshots and replays.
 
+#include "error_of.h"
 #include "phasecast/server/recording.h"
 #include "phasecast/server/synthesis_service.h"
 #include "phasecast/server/wire.h"
@@ -13,6 +14,8 @@
 
 namespace phasecast::server {
 namespace {
+
+using phasecast::testing::error_of;
 
 using Clock = std::chrono::steady_clock;
 
@@ -31,21 +34,11 @@ struct TwoScenes {
   }
 };
 
-template <class Fn>
-std::string error_of(Fn&& fn) {
-  try {
-    fn();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-
 TEST(Service, ServesSeveralScenesWithTheirOwnRanks) {
   const TwoScenes f("two");
   SynthesisService s(60);
-  s.load_scene(f.plate);
-  s.load_scene(f.tall);
+  s.load_package(f.plate);
+  s.load_package(f.tall);
   v1::Request list;
   list.mutable_list_scenes();
   const auto scenes = s.handle(list).scenes();
@@ -75,7 +68,7 @@ TEST(Service, ServesSeveralScenesWithTheirOwnRanks) {
 TEST(Service, CreateInstanceIsBounded) {
   const TwoScenes f("bounded");
   SynthesisService s(60);
-  s.load_scene(f.plate);
+  s.load_package(f.plate);
   s.set_max_instances(2);
   v1::Request create;
   create.mutable_create_instance()->set_scene("plate");
@@ -89,13 +82,13 @@ TEST(Service, CreateInstanceIsBounded) {
 TEST(Service, UnknownPackageFailsWithThePath) {
   SynthesisService s(60);
   const auto missing = testing::scratch_dir("server_svc_missing") / "nope.h5";
-  EXPECT_NE(error_of([&] { s.load_scene(missing); }).find(missing.string()), std::string::npos);
+  EXPECT_NE(error_of([&] { s.load_package(missing); }).find(missing.string()), std::string::npos);
 }
 
 TEST(Service, SnapshotsRoundTripAndBadOnesAreRefused) {
   const TwoScenes f("snapshot");
   SynthesisService s(60);
-  s.load_scene(f.plate);
+  s.load_package(f.plate);
   auto& e = s.engine();
   const auto id = e.create_instance("plate");
   e.schedule_impulse(id, 2);
@@ -118,13 +111,13 @@ TEST(Service, SnapshotsRoundTripAndBadOnesAreRefused) {
 
 std::vector<v1::RecordEntry> small_recording(const TwoScenes& f) {
   SynthesisService s(60);
-  s.load_scene(f.plate);
+  s.load_package(f.plate);
   s.engine().create_instance("plate");
   const auto path = f.dir / "small.phcrec";
   s.start_recording(path);
   for (int i = 0; i < 3; ++i) s.tick(Clock::now());
   s.stop_recording();
-  return read_recording(path);
+  return core::read_recording_file(path).entries;
 }
 
 TEST(Service, ReplayRefusesEntriesOutOfOrder) {
@@ -133,7 +126,7 @@ TEST(Service, ReplayRefusesEntriesOutOfOrder) {
   ASSERT_EQ(entries.size(), 5u);  // header, created, 3 frames
   auto run = [&](const std::vector<v1::RecordEntry>& es) {
     SynthesisService s(60);
-    s.load_scene(f.plate);
+    s.load_package(f.plate);
     return error_of([&] { replay_check(s.engine(), es); });
   };
   EXPECT_EQ(run(entries), "(no error)");
@@ -147,6 +140,59 @@ TEST(Service, ReplayRefusesEntriesOutOfOrder) {
   auto unknown = entries;
   unknown[4].mutable_frame()->set_instance(5);
   EXPECT_EQ(run(unknown), "replay-check: unknown instance 5 (expected one of the 1 existing instances)");
+}
+
+// One request of each kind straight through the service: each reply carries
+// its own result, refusals keep their one-line texts.
+TEST(Service, AnswersEachRequestKindWithItsResult) {
+  const TwoScenes f("kinds");
+  SynthesisService s(60);
+  s.load_package(f.plate);
+  s.set_record_dir(f.dir);
+  auto ask = [&](const std::function<void(v1::Request&)>& fill) {
+    v1::Request r;
+    r.set_id(5);
+    fill(r);
+    return s.handle(r);
+  };
+  const auto created = ask([](v1::Request& r) { r.mutable_create_instance()->set_scene("plate"); });
+  EXPECT_EQ(created.result_case(), v1::Reply::kCreated);
+  EXPECT_EQ(created.created().topic(), "inst/1/");
+  const auto impulse = ask([](v1::Request& r) {
+    r.mutable_impulse()->set_instance(1);
+    r.mutable_impulse()->set_name("open");
+  });
+  EXPECT_EQ(impulse.result_case(), v1::Reply::kImpulse);
+  EXPECT_EQ(impulse.impulse().at_frame(), 0u);
+  const auto scenes = ask([](v1::Request& r) { r.mutable_list_scenes(); });
+  ASSERT_EQ(scenes.scenes().scenes_size(), 1);
+  EXPECT_EQ(ask([](v1::Request& r) { r.mutable_list_instances(); }).instances().instances_size(), 1);
+  const auto basis = ask([](v1::Request& r) {
+    r.mutable_basis()->set_scene("plate");
+    r.mutable_basis()->set_part(v1::TRIANGLES);
+  });
+  EXPECT_EQ(basis.result_case(), v1::Reply::kBasis);
+  EXPECT_EQ(basis.basis().total_bytes(), basis.basis().data().size());
+  EXPECT_EQ(ask([](v1::Request& r) { r.mutable_record_stop(); }).error(),
+            "record_stop: not recording (expected a record_start first)");
+  const auto started = ask([](v1::Request& r) { r.mutable_record_start()->set_path("kinds.phcrec"); });
+  EXPECT_TRUE(started.record().recording());
+  EXPECT_EQ(started.record().path(), (f.dir / "kinds.phcrec").string());
+  s.tick(Clock::now());
+  const auto stats = ask([](v1::Request& r) { r.mutable_stats(); }).stats();
+  EXPECT_EQ(stats.ticks(), 1u);
+  EXPECT_EQ(stats.impulses_applied(), 1u);
+  EXPECT_TRUE(stats.recording());
+  EXPECT_EQ(stats.instances_size(), 1);
+  auto destroy = [](v1::Request& r) { r.mutable_destroy_instance()->set_instance(1); };
+  const auto destroyed = ask(destroy);
+  EXPECT_EQ(destroyed.destroyed().frame(), 1u);
+  EXPECT_EQ(ask(destroy).error(),
+            "destroy_instance: unknown instance 1 (expected one of the 0 existing instances)");
+  EXPECT_EQ(ask([](v1::Request& r) { r.mutable_record_stop(); }).record().frames_written(), 1u);
+  const auto entries = core::read_recording_file(f.dir / "kinds.phcrec").entries;
+  ASSERT_EQ(entries.size(), 5u);  // header, created, impulse, frame, destroyed
+  EXPECT_EQ(entries[4].destroyed().frame(), 1u);
 }
 
 TEST(Service, ToolHasHelp) {

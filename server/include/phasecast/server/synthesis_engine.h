@@ -63,6 +63,7 @@ struct InstanceState {
 // One synthesized frame of one instance (the content of a published Frame).
 struct SynthesizedFrame {
   std::uint32_t instance = 0;
+  int scene = 0;  // index into SynthesisEngine::scenes(): the Frame names its scene
   std::uint64_t frame = 0;
   VectorXf q_u;                                       // r_u (eq. 6)
   VectorXf q_a;                                       // r_a (§4.2)
@@ -77,7 +78,6 @@ struct Instance {
   int scene = 0;
   std::uint64_t frame = 0;  // the next frame this instance produces
   InstanceState state;
-  SynthesizedFrame last;  // the frame produced by the latest tick
 };
 
 // An impulse applied by a tick, in application order (recordings store these).
@@ -96,7 +96,9 @@ struct RefusedImpulse {
   std::string error;
 };
 
+// Everything one tick produced.
 struct TickResult {
+  std::vector<SynthesizedFrame> frames;  // one per instance, in increasing id order
   std::vector<AppliedImpulse> applied;
   std::vector<RefusedImpulse> refused;
 };
@@ -130,14 +132,20 @@ class SynthesisEngine {
   std::uint64_t schedule_impulse(std::uint32_t instance, int palette_index,
                                  std::optional<std::uint64_t> at_frame = std::nullopt);
 
-  // Advances every instance by one frame, in increasing id order. Per
-  // instance: due impulses in (frame, arrival) order, then the frame is
-  // synthesized into `Instance::last`, then time advances (end-of-IRF rules).
+  // Advances every instance by one frame, in increasing id order, and returns
+  // the frames made and the impulses applied or refused. Per instance: due
+  // impulses in (frame, arrival) order, then the frame is synthesized, then
+  // time advances (end-of-IRF rules).
   TickResult tick();
+  // The same, replacing the contents of `out`. A caller ticking in a loop
+  // keeps one TickResult so the frames' q_u/q_a storage is reused instead of
+  // allocated anew for every instance every tick.
+  void tick(TickResult& out);
 
  private:
+  void apply_due_impulses(Instance& inst, TickResult& out);
   void apply_impulse(Instance& inst, int entry);
-  void synthesize(Instance& inst) const;
+  void synthesize(const Instance& inst, SynthesizedFrame& out) const;
   void advance(Instance& inst) const;
 
   struct Pending {

@@ -46,7 +46,7 @@ class SynthesisService {
 
   // Reads and validates a package (core::PackageError on any problem) and
   // adds its scene; `blend_lambda` overrides the package's eq. 12 lambda.
-  void load_scene(const std::filesystem::path& package, std::optional<double> blend_lambda = std::nullopt);
+  void load_package(const std::filesystem::path& package, std::optional<double> blend_lambda = std::nullopt);
 
   SynthesisEngine& engine() { return engine_; }
   const ServiceStats& stats() const { return stats_; }
@@ -75,12 +75,23 @@ class SynthesisService {
   const std::string& recording_error() const { return recording_error_; }
 
  private:
+  // answer() fills the reply for the request's kind with one of the functions
+  // after it; each throws (EngineError, RequestError, RecordingError) to refuse.
   void answer(const v1::Request& request, v1::Reply& reply);
   void impulse(const v1::Impulse& request, v1::ImpulseAccepted& out);
   void list_scenes(v1::SceneList& out) const;
+  void list_instances(v1::Reply& reply) const;
+  void create_instance(const v1::CreateInstance& request, v1::InstanceInfo& out);
+  void destroy_instance(const v1::DestroyInstance& request, v1::InstanceInfo& out);
   void basis(const v1::BasisRequest& request, v1::BasisChunk& out) const;
+  void record_start(const v1::RecordStart& request, v1::RecordStatus& out);
+  void record_stop(v1::RecordStatus& out);
+  void report_stats(v1::Stats& out) const;
+
   void instance_info(std::uint32_t id, v1::InstanceInfo& out) const;
   void record_created(std::uint32_t id);
+  void record_destroyed(const v1::InstanceInfo& info);
+  void record_impulses(const std::vector<AppliedImpulse>& applied);
   const std::vector<PublishedFrame>& tick_and_record(std::chrono::steady_clock::time_point now);
 
   double rate_hz_;
@@ -92,7 +103,8 @@ class SynthesisService {
   std::string recording_error_;
   std::size_t max_instances_ = kDefaultMaxInstances;
   std::vector<PublishedFrame> published_;
-  v1::Frame frame_;  // reused across ticks
+  TickResult tick_result_;  // reused across ticks, like frame_, to keep its storage
+  v1::Frame frame_;         // reused across ticks
 };
 
 }  // namespace phasecast::server
