@@ -29,7 +29,7 @@ void add_reduce_command(CLI::App& app) {
   phasecast::tools::add_reduce_options(cmd, o->reduce);
   phasecast::tools::add_appearance_options(cmd, o->appearance);
   cmd->callback([o] {
-    const auto scene = phasecast::precompute::load_scene(o->scene);
+    const auto scene = phasecast::precompute::load_scene_file(o->scene);
     phasecast::tools::run_reduce_stage(scene, o->reduce, o->appearance, o->orbits, o->output);
   });
 }

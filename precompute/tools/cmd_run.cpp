@@ -31,7 +31,7 @@ void add_run_command(CLI::App& app) {
   cmd->callback([o] {
     // Bad appearance options fail before the sampling hours, not after.
     if (!o->appearance.skip) phasecast::precompute::check_appearance_stage_options(o->appearance.stage);
-    const auto scene = phasecast::precompute::load_scene(o->scene);
+    const auto scene = phasecast::precompute::load_scene_file(o->scene);
     auto sample = o->sample;
     if (sample.work_dir.empty()) sample.work_dir = o->output + ".work";
     const std::filesystem::path orbits = std::filesystem::path(sample.work_dir) / "orbits.h5";

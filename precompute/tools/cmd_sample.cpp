@@ -24,7 +24,7 @@ void add_sample_command(CLI::App& app) {
   cmd->add_option("-o,--output", o->output, "orbit store to write (.h5)")->required();
   phasecast::tools::add_sample_options(cmd, o->sample);
   cmd->callback([o] {
-    const auto scene = phasecast::precompute::load_scene(o->scene);
+    const auto scene = phasecast::precompute::load_scene_file(o->scene);
     phasecast::tools::run_sample_stage(scene, o->sample, o->output);
   });
 }

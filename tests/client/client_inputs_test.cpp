@@ -1,6 +1,7 @@
 // Rejection paths of the client's inputs: bases, frames, recordings, sizes,
 // camera overrides, endpoints; and the small helpers (sequence gaps, PSNR).
 
+#include "error_of.h"
 #include "phasecast/client/camera.h"
 #include "phasecast/client/client_basis.h"
 #include "phasecast/client/frame_sources.h"
@@ -8,6 +9,7 @@
 #include "phasecast/client/image_io.h"
 #include "phasecast/client/network.h"
 #include "phasecast/client/render_backend.h"
+#include "phasecast/core/recording.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
 #include "test_peer.h"
@@ -23,17 +25,9 @@
 namespace phasecast::client {
 namespace {
 
-using ::testing::HasSubstr;
+using phasecast::testing::error_of;
 
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
+using ::testing::HasSubstr;
 
 class ClientInputs : public ::testing::Test {
  protected:
@@ -106,9 +100,9 @@ TEST_F(ClientInputs, RecordingRoundTripsAndStopsAtATruncatedRecord) {
   const auto dir = testing::scratch_dir("client_recording");
   const auto stream = testing::irf_stream(package_, 1);
   testing::write_recording(dir / "s.rec", "plate", "plate.h5", 99, stream);
-  Recording rec = read_recording(dir / "s.rec");
+  Recording rec = core::read_recording_file(dir / "s.rec");
   EXPECT_FALSE(rec.truncated);
-  EXPECT_EQ(rec.header.scenes(0).content_hash(), 99u);
+  EXPECT_EQ(rec.header().scenes(0).content_hash(), 99u);
   auto frames = recorded_frames(rec, std::nullopt, "s.rec");
   ASSERT_EQ(frames.size(), stream.size());
   EXPECT_EQ(frames[7].q_u[0], stream[7].q_u(0));
@@ -116,20 +110,23 @@ TEST_F(ClientInputs, RecordingRoundTripsAndStopsAtATruncatedRecord) {
   // Cut the file inside its last record: that record is dropped and flagged.
   const auto size = std::filesystem::file_size(dir / "s.rec");
   std::filesystem::resize_file(dir / "s.rec", size - 5);
-  rec = read_recording(dir / "s.rec");
+  rec = core::read_recording_file(dir / "s.rec");
   EXPECT_TRUE(rec.truncated);
   EXPECT_EQ(recorded_frames(rec, std::nullopt, "s.rec").size(), stream.size() - 1);
   EXPECT_EQ(error_of([&] { recorded_frames(rec, 5u, "s.rec"); }), "recording s.rec: no frames of instance 5");
 }
 
+// The full set of rejections is in tests/server/recording_test.cpp; these are
+// the ones --replay meets most, through the same core reader.
 TEST_F(ClientInputs, RecordingsThatAreNotRecordingsAreRejected) {
   const auto dir = testing::scratch_dir("client_bad_recording");
+  auto read = [](const std::filesystem::path& p) { return error_of([&] { core::read_recording_file(p); }); };
   std::ofstream(dir / "bad.rec") << "PHCREC2\nxxxx";
-  EXPECT_EQ(error_of([&] { read_recording(dir / "bad.rec"); }),
-            fmt::format("recording {}: not a Phasecast recording (expected the magic \"PHCREC1\\n\")",
+  EXPECT_EQ(read(dir / "bad.rec"),
+            fmt::format("recording '{}': not a Phasecast recording (expected the magic \"PHCREC1\\n\")",
                         (dir / "bad.rec").string()));
-  EXPECT_EQ(error_of([&] { read_recording(dir / "missing.rec"); }),
-            fmt::format("recording {}: cannot open the file", (dir / "missing.rec").string()));
+  EXPECT_EQ(read(dir / "missing.rec"), fmt::format("recording '{}': cannot open: No such file or directory",
+                                                   (dir / "missing.rec").string()));
   {
     std::ofstream out(dir / "noheader.rec", std::ios::binary);
     v1::RecordEntry e;
@@ -137,15 +134,15 @@ TEST_F(ClientInputs, RecordingsThatAreNotRecordingsAreRejected) {
     const auto bytes = e.SerializeAsString();
     out << "PHCREC1\n" << static_cast<char>(bytes.size()) << bytes;
   }
-  EXPECT_EQ(error_of([&] { read_recording(dir / "noheader.rec"); }),
-            fmt::format("recording {}: the first record is not a header (expected a RecordingHeader)",
+  EXPECT_EQ(read(dir / "noheader.rec"),
+            fmt::format("recording '{}': expected a RecordingHeader as the first record",
                         (dir / "noheader.rec").string()));
   {
     std::ofstream out(dir / "garbage.rec", std::ios::binary);
     out << "PHCREC1\n" << static_cast<char>(3) << "\xff\xff\xff";
   }
-  EXPECT_EQ(error_of([&] { read_recording(dir / "garbage.rec"); }),
-            fmt::format("recording {}: the record at byte 8 does not parse as a RecordEntry",
+  EXPECT_EQ(read(dir / "garbage.rec"),
+            fmt::format("recording '{}': record 0 at byte 8 does not parse as a RecordEntry",
                         (dir / "garbage.rec").string()));
 }
 

@@ -12,13 +12,13 @@
 
 namespace {
 
-using phasecast::precompute::load_scene;
+using phasecast::precompute::load_scene_file;
 
 const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
 
 // Frames of `scene` under palette entry `entry` (impulse once, then forcing).
 void simulate_frames(benchmark::State& state, const char* scene_name, const char* entry) {
-  const auto scene = load_scene(kScenes / (std::string(scene_name) + ".toml"));
+  const auto scene = load_scene_file(kScenes / (std::string(scene_name) + ".toml"));
   const auto& e = scene.palette.at(static_cast<size_t>(scene.palette_index(entry)));
   auto sim = make_simulator(scene);
   sim->impulse(e.alpha_impulse);
@@ -48,7 +48,7 @@ BENCHMARK(BM_ToyDashboardFrame)->Unit(benchmark::kMillisecond)->Iterations(20);
 
 // u = U_u q_u for the cloth_door mesh at rank r (float, as on the client).
 void BM_ClothDoorReducedReconstruction(benchmark::State& state) {
-  const auto scene = load_scene(kScenes / "cloth_door.toml");
+  const auto scene = load_scene_file(kScenes / "cloth_door.toml");
   const auto rows = 3 * scene.model.vertices();
   const auto r = static_cast<Eigen::Index>(state.range(0));
   std::mt19937 rng(1);

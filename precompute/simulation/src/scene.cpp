@@ -1,14 +1,15 @@
 #include "phasecast/precompute/simulation/scene.h"
 
 #include "phasecast/precompute/simulation/obj_mesh.h"
-#include "phasecast/precompute/simulation/tet_mesh.h"
 #include "phasecast/precompute/simulation/scene_fields.h"
+#include "phasecast/precompute/simulation/tet_mesh.h"
 
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <functional>
 #include <map>
 #include <utility>
 
@@ -147,12 +148,9 @@ Lame plane_stress(double young, double poisson) {
   return {young / (2 * (1 + poisson)), young * poisson / (1 - poisson * poisson)};
 }
 
-void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
-  BodyInfo info;
-  info.name = body.string("name");
-  const char* mesh_keys[] = {"grid", "obj", "polyline", "tetgen"};
-  std::string mesh_key;
-  for (const char* k : mesh_keys) {
+// The body's one mesh table (grid, obj, polyline or tetgen) as geometry.
+BodyGeometry body_geometry(Fields& body, const std::filesystem::path& dir, std::string& mesh_key) {
+  for (const char* k : {"grid", "obj", "polyline", "tetgen"}) {
     if (body.has(k)) {
       if (!mesh_key.empty()) body.fail(k, fmt::format("one mesh per body (already has '{}')", mesh_key));
       mesh_key = k;
@@ -164,8 +162,12 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
                    : mesh_key == "polyline" ? polyline_geometry(body.table("polyline"))
                                             : tetgen_geometry(body.table("tetgen"), dir);
   if (g.triangles.rows() > 0) check_manifold(g.triangles, body, mesh_key);
+  return g;
+}
 
-  // Assemble points, welding those within weld_radius of the named earlier body.
+// Appends the body's points to the model, welding those within weld_radius
+// of the named earlier body; returns each local point's model vertex.
+std::vector<int> add_points(Scene& scene, Fields& body, const BodyGeometry& g) {
   std::vector<int> weld_targets;
   double weld_radius = 0;
   if (const auto weld = body.optional_string("weld_to")) {
@@ -188,60 +190,68 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
       m.pinned.push_back(0);
     }
     global[i] = match;
-    info.vertices.push_back(match);
   }
-  const auto gid = [&](int local) { return global[static_cast<size_t>(local)]; };
+  return global;
+}
 
-  const double density = body.positive("density");
-  const double young = body.positive("young");
-  const double poisson = body.number("poisson", 0.3);
-  if (!(poisson >= 0 && poisson < 0.5)) body.fail("poisson", "a number in [0, 0.5)");
-  const double drag = body.number("drag", 0.0);
-  if (drag < 0) body.fail("drag", "a number >= 0");
-  const auto energies = body.strings("energies");
-  if (energies.empty()) body.fail("energies", "at least one of membrane, bending, rod, tet_fem");
+struct Material {
+  double density, young, poisson, drag;
+};
+
+Material read_material(Fields& body) {
+  Material mat{};
+  mat.density = body.positive("density");
+  mat.young = body.positive("young");
+  mat.poisson = body.number("poisson", 0.3);
+  if (!(mat.poisson >= 0 && mat.poisson < 0.5)) body.fail("poisson", "a number in [0, 0.5)");
+  mat.drag = body.number("drag", 0.0);
+  if (mat.drag < 0) body.fail("drag", "a number >= 0");
+  return mat;
+}
+
+using Gid = std::function<int(int)>;
+
+void add_energy(DeformableModel& m, Fields& body, const std::string& e, const BodyGeometry& g,
+                const Material& mat, const Gid& gid) {
   const bool triangles = g.triangles.rows() > 0 && g.tets.rows() == 0;
-  try {
-    for (const auto& e : energies) {
-      if (e == "membrane" || e == "bending") {
-        if (!triangles) body.fail("energies", fmt::format("'{}' only on triangle meshes (grid or obj)", e));
-        if (e == "membrane") {
-          for (Eigen::Index t = 0; t < g.triangles.rows(); ++t) {
-            add_membrane(m, {gid(g.triangles(t, 0)), gid(g.triangles(t, 1)), gid(g.triangles(t, 2))},
-                         plane_stress(young, poisson));
-          }
-        } else {
-          Eigen::MatrixXi tris(g.triangles.rows(), 3);
-          for (Eigen::Index t = 0; t < tris.rows(); ++t)
-            for (int k = 0; k < 3; ++k) tris(t, k) = gid(g.triangles(t, k));
-          const double bending = body.positive("bending");
-          for (const auto& h : mesh_hinges(tris)) add_hinge(m, h, bending);
-        }
-      } else if (e == "rod") {
-        if (g.segments.empty()) body.fail("energies", "'rod' only on polyline meshes");
-        const double radius = body.positive("radius");
-        const double area = kPi * radius * radius, inertia = kPi * std::pow(radius, 4) / 4;
-        for (const auto& s : g.segments) add_rod_stretch(m, gid(s[0]), gid(s[1]), young * area);
-        for (size_t k = 0; k + 1 < g.segments.size(); ++k) {
-          add_rod_bend(m, gid(g.segments[k][0]), gid(g.segments[k][1]), gid(g.segments[k + 1][1]),
-                       young * inertia);
-        }
-      } else if (e == "tet_fem") {
-        if (g.tets.rows() == 0) body.fail("energies", "'tet_fem' only on tetgen meshes");
-        for (Eigen::Index t = 0; t < g.tets.rows(); ++t) {
-          add_tet(m, {gid(g.tets(t, 0)), gid(g.tets(t, 1)), gid(g.tets(t, 2)), gid(g.tets(t, 3))},
-                  lame_from_young(young, poisson));
-        }
-      } else {
-        body.fail("energies",
-                  fmt::format("energy names among membrane, bending, rod, tet_fem ('{}' is unknown)", e));
+  if (e == "membrane" || e == "bending") {
+    if (!triangles) body.fail("energies", fmt::format("'{}' only on triangle meshes (grid or obj)", e));
+    if (e == "membrane") {
+      for (Eigen::Index t = 0; t < g.triangles.rows(); ++t) {
+        add_membrane(m, {gid(g.triangles(t, 0)), gid(g.triangles(t, 1)), gid(g.triangles(t, 2))},
+                     plane_stress(mat.young, mat.poisson));
       }
+    } else {
+      Eigen::MatrixXi tris(g.triangles.rows(), 3);
+      for (Eigen::Index t = 0; t < tris.rows(); ++t)
+        for (int k = 0; k < 3; ++k) tris(t, k) = gid(g.triangles(t, k));
+      const double bending = body.positive("bending");
+      for (const auto& h : mesh_hinges(tris)) add_hinge(m, h, bending);
     }
-  } catch (const std::invalid_argument& e) {
-    throw SceneError(fmt::format("{}: field '{}': {}", body.file(), body.path(mesh_key), e.what()));
+  } else if (e == "rod") {
+    if (g.segments.empty()) body.fail("energies", "'rod' only on polyline meshes");
+    const double radius = body.positive("radius");
+    const double area = kPi * radius * radius, inertia = kPi * std::pow(radius, 4) / 4;
+    for (const auto& s : g.segments) add_rod_stretch(m, gid(s[0]), gid(s[1]), mat.young * area);
+    for (size_t k = 0; k + 1 < g.segments.size(); ++k) {
+      add_rod_bend(m, gid(g.segments[k][0]), gid(g.segments[k][1]), gid(g.segments[k + 1][1]),
+                   mat.young * inertia);
+    }
+  } else if (e == "tet_fem") {
+    if (g.tets.rows() == 0) body.fail("energies", "'tet_fem' only on tetgen meshes");
+    for (Eigen::Index t = 0; t < g.tets.rows(); ++t) {
+      add_tet(m, {gid(g.tets(t, 0)), gid(g.tets(t, 1)), gid(g.tets(t, 2)), gid(g.tets(t, 3))},
+              lame_from_young(mat.young, mat.poisson));
+    }
+  } else {
+    body.fail("energies",
+              fmt::format("energy names among membrane, bending, rod, tet_fem ('{}' is unknown)", e));
   }
+}
 
-  // Lumped masses: each element gives its vertices equal shares of its mass.
+// Lumped masses: each element gives its vertices equal shares of its mass;
+// triangles also carry the body's air drag.
+void lump_masses(DeformableModel& m, const BodyGeometry& g, const Material& mat, const Gid& gid) {
   const auto lump = [&](int v, double share) { m.mass[v] += share; };
   if (g.tets.rows() > 0) {
     for (Eigen::Index t = 0; t < g.tets.rows(); ++t) {
@@ -249,36 +259,60 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
       for (int k = 0; k < 3; ++k)
         Dm.col(k) =
             g.points[static_cast<size_t>(g.tets(t, k + 1))] - g.points[static_cast<size_t>(g.tets(t, 0))];
-      for (int k = 0; k < 4; ++k) lump(gid(g.tets(t, k)), density * std::abs(Dm.determinant()) / 24);
+      for (int k = 0; k < 4; ++k) lump(gid(g.tets(t, k)), mat.density * std::abs(Dm.determinant()) / 24);
     }
-  } else if (triangles) {
+  } else if (g.triangles.rows() > 0) {
     for (Eigen::Index t = 0; t < g.triangles.rows(); ++t) {
       const auto p = [&](int k) { return g.points[static_cast<size_t>(g.triangles(t, k))]; };
       const double area = 0.5 * (p(1) - p(0)).cross(p(2) - p(0)).norm();
-      for (int k = 0; k < 3; ++k) lump(gid(g.triangles(t, k)), density * area / 3);
-      if (drag > 0)
-        m.drag.push_back({{gid(g.triangles(t, 0)), gid(g.triangles(t, 1)), gid(g.triangles(t, 2))}, drag});
+      for (int k = 0; k < 3; ++k) lump(gid(g.triangles(t, k)), mat.density * area / 3);
+      if (mat.drag > 0)
+        m.drag.push_back(
+            {{gid(g.triangles(t, 0)), gid(g.triangles(t, 1)), gid(g.triangles(t, 2))}, mat.drag});
     }
   } else {
     for (const auto& s : g.segments) {
       const double len = (g.points[static_cast<size_t>(s[1])] - g.points[static_cast<size_t>(s[0])]).norm();
-      lump(gid(s[0]), density * len / 2);
-      lump(gid(s[1]), density * len / 2);
+      lump(gid(s[0]), mat.density * len / 2);
+      lump(gid(s[1]), mat.density * len / 2);
     }
   }
+}
 
-  if (body.has("pin")) {
-    Fields pin = body.table("pin");
-    const Eigen::Vector3d lo = pin.vec3("min"), hi = pin.vec3("max");
-    pin.finish();
-    int count = 0;
-    for (int v : info.vertices) {
-      const Eigen::Vector3d p = m.rest.segment<3>(3 * v);
-      if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all())
-        m.pinned[static_cast<size_t>(v)] = 1, ++count;
-    }
-    if (count == 0) pin.fail("min", "a box containing at least one vertex of the body");
+void pin_vertices(DeformableModel& m, Fields& body, const std::vector<int>& vertices) {
+  if (!body.has("pin")) return;
+  Fields pin = body.table("pin");
+  const Eigen::Vector3d lo = pin.vec3("min"), hi = pin.vec3("max");
+  pin.finish();
+  int count = 0;
+  for (int v : vertices) {
+    const Eigen::Vector3d p = m.rest.segment<3>(3 * v);
+    if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all())
+      m.pinned[static_cast<size_t>(v)] = 1, ++count;
   }
+  if (count == 0) pin.fail("min", "a box containing at least one vertex of the body");
+}
+
+void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
+  BodyInfo info;
+  info.name = body.string("name");
+  std::string mesh_key;
+  const BodyGeometry g = body_geometry(body, dir, mesh_key);
+  const std::vector<int> global = add_points(scene, body, g);
+  info.vertices = global;
+  const Gid gid = [&global](int local) { return global[static_cast<size_t>(local)]; };
+
+  DeformableModel& m = scene.model;
+  const Material mat = read_material(body);
+  const auto energies = body.strings("energies");
+  if (energies.empty()) body.fail("energies", "at least one of membrane, bending, rod, tet_fem");
+  try {
+    for (const auto& e : energies) add_energy(m, body, e, g, mat, gid);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(fmt::format("{}: field '{}': {}", body.file(), body.path(mesh_key), e.what()));
+  }
+  lump_masses(m, g, mat, gid);
+  pin_vertices(m, body, info.vertices);
 
   info.first_surface_triangle = static_cast<int>(m.surface.rows());
   info.surface_triangles = static_cast<int>(g.triangles.rows());
@@ -374,7 +408,7 @@ int Scene::palette_index(const std::string& entry) const {
       fmt::format("{}: unknown palette entry '{}' (expected one of: {})", source.string(), entry, known));
 }
 
-Scene load_scene(const std::filesystem::path& path) {
+Scene load_scene_file(const std::filesystem::path& path) {
   toml::table root;
   try {
     root = toml::parse_file(path.string());

@@ -5,10 +5,10 @@
 
 #include "phasecast/precompute/appearance/appearance_stage.h"
 #include "phasecast/core/package.h"
-#include "phasecast/precompute/sampling/orbit_store.h"
-#include "phasecast/precompute/package/package_builder.h"
-#include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/appearance/transfer.h"
+#include "phasecast/precompute/package/package_builder.h"
+#include "phasecast/precompute/sampling/orbit_store.h"
+#include "phasecast/precompute/simulation/scene.h"
 #include "run_tool.h"
 #include "scene_files.h"
 
@@ -106,7 +106,7 @@ TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
   ASSERT_TRUE(p.appearance.has_value());
   const auto store = precompute::read_orbit_store(pkg_path + ".work/orbits.h5");
   ASSERT_EQ(p.portrait.nodes(), store.frames());  // nothing dropped: node n is frame n
-  const auto scene = precompute::load_scene(tiny_scene_path());
+  const auto scene = precompute::load_scene_file(tiny_scene_path());
   const int V = scene.model.vertices();
   ASSERT_EQ(p.mesh.points(), 2 * V + 24);
 
@@ -148,7 +148,7 @@ TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
 }
 
 TEST(AppearanceStage, ClothHasTwoSidesSharingTheirVertexRows) {
-  const auto scene = precompute::load_scene(tiny_scene_path());
+  const auto scene = precompute::load_scene_file(tiny_scene_path());
   const int V = scene.model.vertices();
   const auto F = scene.model.surface.rows();
   const auto m = precompute::scene_mesh(scene);

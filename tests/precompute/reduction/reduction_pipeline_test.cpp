@@ -1,11 +1,11 @@
 // Streamed model reduction from an orbit store file, orbit filtering, and the
 // package assembled from them.
 
+#include "phasecast/precompute/package/package_builder.h"
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 #include "phasecast/precompute/sampling/irf_sampler.h"
 #include "phasecast/precompute/sampling/orbit_filter.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
-#include "phasecast/precompute/package/package_builder.h"
 #include "run_tool.h"
 #include "scene_files.h"
 #include "synthetic_package.h"
@@ -47,7 +47,7 @@ OrbitStore low_rank_store(const Scene& scene, int N) {
 
 class Reduction : public ::testing::Test {
  protected:
-  Scene scene = load_scene(tiny_scene_path());
+  Scene scene = load_scene_file(tiny_scene_path());
   PaletteRules rules = make_palette_rules(scene);
 };
 
@@ -192,7 +192,7 @@ TEST_F(Reduction, SampledOrbitsBecomeAValidPackage) {
 
 TEST_F(Reduction, OrbitsOfAnotherSceneAreRejected) {
   const auto dir = scratch_dir("reduce_mismatch");
-  const auto other = load_scene(testing::edited_tiny_scene(dir, "cells = [5, 7]", "cells = [4, 7]"));
+  const auto other = load_scene_file(testing::edited_tiny_scene(dir, "cells = [5, 7]", "cells = [4, 7]"));
   const auto store = simulate_schedule(other, parse_schedule("open 0.1", other));
   write_orbit_store(store, dir / "orbits.h5");
   const OrbitDisplacementSource A(dir / "orbits.h5");

@@ -1,8 +1,9 @@
 // phasecast-precompute import on a small OBJ-sequence fixture: a square sheet
 // translating at a known speed (open) and then at rest (stop).
 
-#include "phasecast/precompute/simulation/obj_mesh.h"
+#include "error_of.h"
 #include "phasecast/precompute/sampling/orbit_import.h"
+#include "phasecast/precompute/simulation/obj_mesh.h"
 #include "run_tool.h"
 
 #include <gtest/gtest.h>
@@ -11,6 +12,8 @@
 
 namespace phasecast::precompute {
 namespace {
+
+using phasecast::testing::error_of;
 
 const char* kManifest = R"(scene = "external_sheet"
 dt = 0.1
@@ -60,15 +63,6 @@ std::filesystem::path make_fixture(const std::string& name, const std::string& m
     write_obj(dir / "stop_0" / ("f" + std::to_string(k) + ".obj"), square(0.06), square_triangles());
   std::ofstream(dir / "manifest.toml") << manifest;
   return dir / "manifest.toml";
-}
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no error)";
 }
 
 TEST(Import, ObjSequencesBecomeAnOrbitStore) {

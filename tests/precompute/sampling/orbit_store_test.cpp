@@ -1,6 +1,7 @@
 // The orbit store round-trips exactly and rejects files that are not orbit stores.
 
 #include "phasecast/precompute/sampling/orbit_store.h"
+#include "error_of.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
@@ -12,20 +13,13 @@
 namespace phasecast::precompute {
 namespace {
 
+using phasecast::testing::error_of;
+
 const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
 
 OrbitStore tiny_orbit() {
-  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/cloth_door.toml");
   return simulate_schedule(s, parse_schedule("open 0.3; stop 0.2", s));
-}
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no error)";
 }
 
 TEST(OrbitStore, RoundTripsExactly) {

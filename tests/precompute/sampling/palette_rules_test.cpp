@@ -19,7 +19,7 @@ using testing::tiny_scene_path;
 
 std::string error_of(const std::filesystem::path& scene) {
   try {
-    make_palette_rules(load_scene(scene));
+    make_palette_rules(load_scene_file(scene));
   } catch (const SceneError& e) {
     return e.what();
   }
@@ -27,7 +27,7 @@ std::string error_of(const std::filesystem::path& scene) {
 }
 
 TEST(PaletteRules, DoorAllowsOnlyOmegaSteps) {
-  const auto rules = make_palette_rules(load_scene(tiny_scene_path()));
+  const auto rules = make_palette_rules(load_scene_file(tiny_scene_path()));
   const int close = 0, stop = 1, open = 2;
   ASSERT_EQ(rules.size(), 3);
   EXPECT_EQ(rules.successors(-1), (std::vector<int>{close, open}));
@@ -47,7 +47,7 @@ TEST(PaletteRules, DoorAllowsOnlyOmegaSteps) {
 TEST(PaletteRules, EntryWithoutAfterMayFollowAnything) {
   const auto dir = scratch_dir("rules_no_after");
   const auto rules =
-      make_palette_rules(load_scene(edited_tiny_scene(dir, "after = [\"close\", \"open\"]\n", "")));
+      make_palette_rules(load_scene_file(edited_tiny_scene(dir, "after = [\"close\", \"open\"]\n", "")));
   EXPECT_EQ(rules.transitions.col(1).sum(), 4);
 }
 
@@ -91,7 +91,7 @@ TEST(PaletteRules, TmaxBelowOneFrameAboveTminIsRejected) {
 TEST(PaletteRules, TminNotBelowTmaxIsRejectedByTheSceneParser) {
   const auto dir = scratch_dir("rules_tmin");
   try {
-    load_scene(edited_tiny_scene(dir, "t_min = 0.4\nt_max = 2.0", "t_min = 3\nt_max = 2.0"));
+    load_scene_file(edited_tiny_scene(dir, "t_min = 0.4\nt_max = 2.0", "t_min = 3\nt_max = 2.0"));
     FAIL() << "expected a SceneError";
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("t_min"), std::string::npos) << e.what();
@@ -122,7 +122,7 @@ std::vector<int> checked_chain(const PaletteRules& rules, std::uint64_t seed, in
 }
 
 TEST(IrfDraws, NeverViolateThePaletteRulesAndStayDeterministic) {
-  const auto rules = make_palette_rules(load_scene(tiny_scene_path()));
+  const auto rules = make_palette_rules(load_scene_file(tiny_scene_path()));
   std::vector<int> used(3, 0);
   for (int chain = 0; chain < 20; ++chain) {
     for (int e : checked_chain(rules, 7, chain, 50)) ++used[static_cast<size_t>(e)];
@@ -150,7 +150,7 @@ TEST(IrfDraws, MaxInARowLimitsRunsOfAGroup) {
   replace("after = [\"rest\", \"stop\"]\nt_min = 0.2\nt_max = 1.0472\non_end = \"stop\"",
           "after = [\"rest\", \"stop\"]\nt_min = 0.2\nt_max = 1.0472\ngroup = \"swing\"\non_end = \"stop\"");
   std::ofstream(dir / "scene.toml") << text;
-  const auto rules = make_palette_rules(load_scene(dir / "scene.toml"));
+  const auto rules = make_palette_rules(load_scene_file(dir / "scene.toml"));
   EXPECT_EQ(rules.group[0], rules.group[2]);
   EXPECT_NE(rules.group[0], rules.group[1]);
   EXPECT_FALSE(rules.allowed_after({1, 1}, 1));
@@ -169,7 +169,7 @@ TEST(IrfDraws, MaxInARowLimitsRunsOfAGroup) {
 TEST(PaletteRules, NegativeMaxInARowIsRejected) {
   const auto dir = scratch_dir("rules_bad_in_a_row");
   try {
-    load_scene(edited_tiny_scene(dir, "t_min = 0.4\n", "t_min = 0.4\nmax_in_a_row = -1\n"));
+    load_scene_file(edited_tiny_scene(dir, "t_min = 0.4\n", "t_min = 0.4\nmax_in_a_row = -1\n"));
     FAIL() << "expected a SceneError";
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("max_in_a_row"), std::string::npos) << e.what();

@@ -38,7 +38,7 @@ void expect_identical(const OrbitStore& a, const OrbitStore& b) {
 
 class Sampler : public ::testing::Test {
  protected:
-  Scene scene = load_scene(tiny_scene_path());
+  Scene scene = load_scene_file(tiny_scene_path());
   PaletteRules rules = make_palette_rules(scene);
 };
 

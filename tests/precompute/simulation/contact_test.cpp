@@ -68,7 +68,7 @@ alpha_forcing = [0, 0, 0]
 )";
   const auto path = testing::scratch_dir(self_collision ? "sheets_on" : "sheets_off") / "sheets.toml";
   std::ofstream(path) << text;
-  return load_scene(path);
+  return load_scene_file(path);
 }
 
 struct SheetOutcome {
@@ -119,7 +119,7 @@ TEST(SelfCollision, ClothDoorLongRunHasNoIntersectingTrianglePairs) {
   text << in.rdbuf();
   const auto path = testing::scratch_dir("cloth_door_long") / "cloth_door.toml";
   std::ofstream(path) << std::regex_replace(text.str(), std::regex("cells = \\[5, 7\\]"), "cells = [10, 14]");
-  const Scene scene = load_scene(path);
+  const Scene scene = load_scene_file(path);
   ASSERT_EQ(scene.model.vertices(), 11 * 15);
   const OrbitStore orbit = simulate_schedule(
       scene, parse_schedule("open 1.2; stop 1; close 1.2; open 0.6; close 0.6; open 0.4; stop 1", scene));

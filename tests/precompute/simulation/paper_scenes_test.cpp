@@ -2,8 +2,8 @@
 // the package kinematics, and short runs move plausibly and stay finite.
 
 #include "phasecast/precompute/sampling/obj_frames.h"
-#include "phasecast/precompute/simulation/obj_mesh.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "phasecast/precompute/simulation/obj_mesh.h"
 #include "phasecast/precompute/simulation/scene.h"
 #include "run_tool.h"
 
@@ -23,13 +23,13 @@ TEST(PaperScenes, EveryShippedSceneLoads) {
   for (const char* name : {"cloth_door", "plant_pot", "toy_dashboard"}) {
     for (const auto& dir : {kScenes, kScenes / "tiny"}) {
       const auto path = dir / (std::string(name) + ".toml");
-      EXPECT_NO_THROW(load_scene(path)) << path;
+      EXPECT_NO_THROW(load_scene_file(path)) << path;
     }
   }
 }
 
 TEST(PaperScenes, PlantLeavesAreWeldedToTheStem) {
-  const Scene s = load_scene(kScenes / "tiny/plant_pot.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/plant_pot.toml");
   ASSERT_EQ(s.bodies.size(), 3u);
   const auto& stem = s.bodies[0].vertices;
   EXPECT_EQ(stem.size(), 8u);
@@ -49,7 +49,7 @@ TEST(PaperScenes, PlantLeavesAreWeldedToTheStem) {
 }
 
 TEST(PaperScenes, PushedPotSwaysThePlant) {
-  const Scene s = load_scene(kScenes / "tiny/plant_pot.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/plant_pot.toml");
   const OrbitStore o = simulate_schedule(s, parse_schedule("right 0.4; stop 0.4", s));
   ASSERT_TRUE(o.positions.allFinite());
   const int top = s.bodies[0].vertices.back();
@@ -71,7 +71,7 @@ double enclosed_volume(const ObjMesh& m) {
 }
 
 TEST(PaperScenes, ToyIsTetMeshedByTetGenFillingTheBunny) {
-  const Scene s = load_scene(kScenes / "tiny/toy_dashboard.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/toy_dashboard.toml");
   ASSERT_GT(s.model.tets.size(), 60u);
   double volume = 0;
   for (const auto& t : s.model.tets) {
@@ -87,7 +87,7 @@ TEST(PaperScenes, ToyIsTetMeshedByTetGenFillingTheBunny) {
 }
 
 TEST(PaperScenes, DashboardJoltsReturnToRest) {
-  const Scene s = load_scene(kScenes / "tiny/toy_dashboard.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/toy_dashboard.toml");
   const auto left = entry_kinematics(s, s.palette_index("left"));
   EXPECT_FLOAT_EQ(left.axis[2], -1.0f);
   EXPECT_FLOAT_EQ(left.rate, 1.0f);
@@ -113,7 +113,7 @@ namespace phasecast::precompute {
 namespace {
 
 TEST(PaperScenes, PlantStemTravelsThroughTheStoreAndObjFrames) {
-  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/plant_pot.toml");
+  const Scene s = load_scene_file(PHASECAST_SCENES_DIR "/tiny/plant_pot.toml");
   const OrbitStore o = simulate_schedule(s, parse_schedule("right 0.04", s));
   ASSERT_EQ(o.segments.rows(), 7);
   const auto path = testing::scratch_dir("plant_segments") / "plant.h5";
@@ -134,7 +134,7 @@ namespace {
 // Fig. 8: opening the door (cloth side first) presses the cloth onto the board;
 // closing throws it away from the board.
 TEST(PaperScenes, DoorDragPressesClothOnOpeningAndLiftsItOnClosing) {
-  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/cloth_door.toml");
+  const Scene s = load_scene_file(PHASECAST_SCENES_DIR "/tiny/cloth_door.toml");
   const OrbitStore o = simulate_schedule(s, parse_schedule("open 0.8; close 0.8", s));
   const double board = s.model.obstacles[0].max.z() + s.model.thickness;
   const auto mean_gap = [&](int frame) {
@@ -168,7 +168,7 @@ double fastest_after_idle_frames(const Scene& scene, double settle_seconds) {
 }
 
 TEST(PaperScenes, SettledToyRestsOnItsBase) {
-  const Scene s = load_scene(PHASECAST_SCENES_DIR "/tiny/toy_dashboard.toml");
+  const Scene s = load_scene_file(PHASECAST_SCENES_DIR "/tiny/toy_dashboard.toml");
   EXPECT_DOUBLE_EQ(s.simulation.settle, 0.6);
   EXPECT_GT(fastest_after_idle_frames(s, 0), 0.01);  // unsettled, it drops onto its base
   EXPECT_LT(fastest_after_idle_frames(s, s.simulation.settle), 1e-4);

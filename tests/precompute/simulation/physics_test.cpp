@@ -243,7 +243,7 @@ Eigen::VectorXd alpha(double wy) {
 }
 
 TEST(Integrator, RerunIsBitIdentical) {
-  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene scene = load_scene_file(kScenes / "tiny/cloth_door.toml");
   const auto run = [&] {
     auto sim = make_simulator(scene);
     sim->impulse(alpha(-1.5));
@@ -262,7 +262,7 @@ TEST(Integrator, RerunIsBitIdentical) {
 TEST(Integrator, DampingOnlyDissipatesEnergy) {
   // The tiny cloth released from a swing with the support at rest: no work
   // is done on it, so total mechanical energy must never increase.
-  Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  Scene scene = load_scene_file(kScenes / "tiny/cloth_door.toml");
   scene.model.obstacles.clear();
   auto sim = make_simulator(scene);
   SimState s = sim->rest_state();
@@ -285,7 +285,7 @@ TEST(Integrator, DampingOnlyDissipatesEnergy) {
 
 TEST(Integrator, LargeImpulsesStayFiniteAndBounded) {
   // 35 rad/s moves the far cloth corner at 26 m/s: centrifugal 90 g, Coriolis and an impulsive start.
-  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene scene = load_scene_file(kScenes / "tiny/cloth_door.toml");
   auto sim = make_simulator(scene);
   sim->impulse(alpha(-35));
   for (int i = 0; i < 20; ++i) sim->step(alpha(0));
@@ -299,7 +299,7 @@ TEST(Integrator, LargeImpulsesStayFiniteAndBounded) {
 }
 
 TEST(Integrator, ImpulsesBeyondMaxSpeedAreRejected) {
-  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene scene = load_scene_file(kScenes / "tiny/cloth_door.toml");
   auto sim = make_simulator(scene);
   try {
     sim->impulse(alpha(1e6));
@@ -313,7 +313,7 @@ TEST(Integrator, ImpulsesBeyondMaxSpeedAreRejected) {
 }
 
 TEST(Integrator, NonFiniteOrMissizedPaletteParametersAreRejected) {
-  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene scene = load_scene_file(kScenes / "tiny/cloth_door.toml");
   auto sim = make_simulator(scene);
   try {
     sim->impulse(alpha(std::nan("")));
@@ -330,7 +330,7 @@ TEST(Integrator, NonFiniteOrMissizedPaletteParametersAreRejected) {
 }
 
 TEST(Integrator, DoorStopsAtTheEndOfItsRange) {
-  const Scene scene = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene scene = load_scene_file(kScenes / "tiny/cloth_door.toml");
   auto sim = make_simulator(scene);
   sim->impulse(alpha(-1.5));
   for (int i = 0; i < 100; ++i) sim->step(alpha(-1.5));  // 2 s at 1.5 rad/s would be 172 degrees

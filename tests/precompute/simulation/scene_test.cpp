@@ -3,6 +3,7 @@
 // the file and the field.
 
 #include "phasecast/precompute/simulation/scene.h"
+#include "error_of.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "run_tool.h"
 
@@ -14,10 +15,12 @@
 namespace phasecast::precompute {
 namespace {
 
+using phasecast::testing::error_of;
+
 const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
 
 TEST(Scene, TinyClothDoorLoads) {
-  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/cloth_door.toml");
   EXPECT_EQ(s.name, "cloth_door_tiny");
   EXPECT_EQ(s.model.vertices(), 6 * 8);
   EXPECT_EQ(s.model.membranes.size(), 2u * 5 * 7);
@@ -31,7 +34,7 @@ TEST(Scene, TinyClothDoorLoads) {
 }
 
 TEST(Scene, DoorPaletteMapsToRotationalKinematicsWithItsRange) {
-  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/cloth_door.toml");
   const auto open = entry_kinematics(s, s.palette_index("open"));
   EXPECT_TRUE(open.rotational);
   EXPECT_FLOAT_EQ(open.rate, 1.5f);
@@ -43,7 +46,7 @@ TEST(Scene, DoorPaletteMapsToRotationalKinematicsWithItsRange) {
 }
 
 TEST(Scene, ScheduleParsesEntriesAndDurations) {
-  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/cloth_door.toml");
   const auto items = parse_schedule("open 1.5; stop 2;close 0.5 ;", s);
   ASSERT_EQ(items.size(), 3u);
   EXPECT_EQ(items[0].entry, 2);
@@ -51,17 +54,8 @@ TEST(Scene, ScheduleParsesEntriesAndDurations) {
   EXPECT_EQ(items[2].entry, 0);
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-
 TEST(Scene, BadSchedulesAreRejectedWithTheItem) {
-  const Scene s = load_scene(kScenes / "tiny/cloth_door.toml");
+  const Scene s = load_scene_file(kScenes / "tiny/cloth_door.toml");
   EXPECT_NE(error_of([&] {
               parse_schedule("open 1; slam 2", s);
             }).find("unknown palette entry 'slam' (expected one of: close, stop, open)"),
@@ -109,14 +103,14 @@ std::string edited(std::string text, const std::string& from, const std::string&
 
 std::string rejection(const std::string& name, const std::string& text) {
   const auto path = write_scene(name, text);
-  std::string message = error_of([&] { load_scene(path); });
+  std::string message = error_of([&] { load_scene_file(path); });
   EXPECT_EQ(message.find('\n'), std::string::npos) << "one line: " << message;
   EXPECT_EQ(message.rfind(path.string(), 0), 0u) << "names the file: " << message;
   return message.substr(std::min(message.size(), path.string().size()));
 }
 
 TEST(SceneErrors, ValidBaseLoads) {
-  EXPECT_NO_THROW(load_scene(write_scene("valid", kValid)));
+  EXPECT_NO_THROW(load_scene_file(write_scene("valid", kValid)));
 }
 
 TEST(SceneErrors, MissingField) {
@@ -181,7 +175,7 @@ std::string obj_scene(const std::string& name, const std::string& obj) {
       name, edited(kValid, "grid = { origin = [0, 0, 0], u = [1, 0, 0], v = [0, -1, 0], cells = [2, 2] }",
                    "obj = { path = \"m.obj\" }"));
   std::ofstream(path.parent_path() / "m.obj") << obj;
-  std::string message = error_of([&] { load_scene(path); });
+  std::string message = error_of([&] { load_scene_file(path); });
   EXPECT_EQ(message.find('\n'), std::string::npos) << message;
   return message.substr(std::min(message.size(), path.string().size()));
 }

@@ -60,7 +60,7 @@ struct Scene {
 };
 
 // Parses and validates a scene file and assembles its DeformableModel.
-Scene load_scene(const std::filesystem::path& path);
+Scene load_scene_file(const std::filesystem::path& path);
 
 // The rigid-support motion palette entry `entry` implies, in the package's terms.
 core::SupportKinematics entry_kinematics(const Scene& scene, int entry);
