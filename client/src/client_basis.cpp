@@ -1,5 +1,7 @@
 #include "phasecast/client/client_basis.h"
 
+#include "phasecast/core/package.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -59,8 +61,9 @@ void ClientBasis::validate(const std::string& source) const {
         "{}: basis part triangles refers to point {} (expected indices < S = {})", source, worst, S));
   }
   if (has_transfer()) {
-    expect_size(source, "mean_transfer", mean_transfer.size(), 48 * S, "48S");
-    expect_size(source, "U_a", U_a.size(), 48 * S * static_cast<std::size_t>(rank_a), "48S x r_a");
+    expect_size(source, "mean_transfer", mean_transfer.size(), core::kTransferPerPoint * S, "48S");
+    expect_size(source, "U_a", U_a.size(), core::kTransferPerPoint * S * static_cast<std::size_t>(rank_a),
+                "48S x r_a");
   } else if (rank_a != 0) {
     throw std::invalid_argument(fmt::format(
         "{}: r_a = {} but basis part mean_transfer is missing (expected 48S values)", source, rank_a));

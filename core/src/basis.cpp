@@ -45,10 +45,10 @@ constexpr std::array<BasisPartSpec, kBasisPartCount> kParts = {{
      [](const BasisSizes& s) { return dims(3 * s.points, s.rank_u); },
      [](const ScenePackage& p) { return bytes_of(p.reduction.U_u); }},
     {BasisPartId::mean_transfer, "mean_transfer", "float32", 4, true,  // M_bar, §4.2
-     [](const BasisSizes& s) { return dims(48 * s.points); },
+     [](const BasisSizes& s) { return dims(kTransferPerPoint * s.points); },
      [](const ScenePackage& p) { return bytes_of(p.appearance->mean_transfer); }},
     {BasisPartId::U_a, "U_a", "float32", 4, true,  // row-major
-     [](const BasisSizes& s) { return dims(48 * s.points, s.rank_a); },
+     [](const BasisSizes& s) { return dims(kTransferPerPoint * s.points, s.rank_a); },
      [](const ScenePackage& p) { return bytes_of(p.appearance->U_a); }},
 }};
 

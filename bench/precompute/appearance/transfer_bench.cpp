@@ -6,6 +6,7 @@
 // usual --benchmark_* flags. Ray figures are one thread (rays/s per core);
 // transfer figures are for one thread and for all cores.
 
+#include "phasecast/core/mesh_geometry.h"
 #include "phasecast/precompute/appearance/kmeans.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_appearance.h"
@@ -46,7 +47,7 @@ TransferMesh sheet_and_board(int n) {
       sheet.triangles.row(t++) << a, d, c;
     }
   }
-  sheet.normals = vertex_normals(sheet.positions, sheet.triangles);
+  sheet.normals = core::vertex_normals(sheet.positions, sheet.triangles);
   TransferMesh scene = make_double_sided(sheet);
   // The board: a 2-triangle quad behind the sheet facing it.
   const auto S = static_cast<std::uint32_t>(scene.positions.rows());

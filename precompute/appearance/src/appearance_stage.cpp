@@ -1,4 +1,5 @@
 #include "phasecast/precompute/appearance/appearance_stage.h"
+#include "phasecast/core/mesh_geometry.h"
 
 #include <fmt/format.h>
 
@@ -59,7 +60,7 @@ MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>&
                             const Eigen::Ref<const Eigen::RowVectorXf>& frame,
                             const TransferOptions& options) {
   const MatrixXfR x = deformed_scene_points(mesh, point_vertex, frame);
-  const MatrixXfR n = vertex_normals(x, mesh.triangles);
+  const MatrixXfR n = core::vertex_normals(x, mesh.triangles);
   return compute_transfer(x, mesh.triangles, n, options);  // §4.1, on the unreduced mesh
 }
 
@@ -83,7 +84,7 @@ AppearanceStageReport add_appearance(core::ScenePackage& pkg, const std::vector<
   report.clusters = kmeans(q_u, {o.clusters, o.seed, 100});  // §4.3: N_a clusters of the nodes
   const auto Na = static_cast<long>(report.clusters.representatives.size());
   const Eigen::Index S = pkg.mesh.points();
-  MatrixXfR fields(Na, 48 * S);
+  MatrixXfR fields(Na, core::kTransferPerPoint * S);
   TransferOptions transfer = o.transfer;
   transfer.progress = nullptr;  // one tick per representative is the stage's progress
   if (progress) progress("appearance transfer", 0, Na);

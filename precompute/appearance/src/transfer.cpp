@@ -18,8 +18,8 @@
 namespace phasecast::precompute {
 namespace {
 
-constexpr int kSh = 16;
-constexpr int kPerPoint = 48;      // 3 channels x 16 SH coefficients
+constexpr int kSh = core::kShCoefficients;
+constexpr int kPerPoint = core::kShChannels * core::kShCoefficients;
 constexpr int kMaxRays = 1 << 20;  // bounds memory: a direction and its 16 Y_k take 140 bytes
 
 // A front-face hit kept from the first pass so that every bounce gathers from
@@ -155,36 +155,6 @@ MatrixXfR sphere_directions(int count) {
     d(i, 2) = static_cast<float>(z);
   }
   return d;
-}
-
-MatrixXfR vertex_normals(const MatrixXfR& P, const MatrixXuR& F) {
-  // Angle weights (Thuermer & Wuethrich 1998): independent of how polygons
-  // were split into triangles, so a cube corner gets the diagonal.
-  Eigen::MatrixXd n = Eigen::MatrixXd::Zero(P.rows(), 3);
-  for (Eigen::Index f = 0; f < F.rows(); ++f) {
-    const std::array<Eigen::Vector3d, 3> x{P.row(F(f, 0)).cast<double>().transpose(),
-                                           P.row(F(f, 1)).cast<double>().transpose(),
-                                           P.row(F(f, 2)).cast<double>().transpose()};
-    const Eigen::Vector3d face = (x[1] - x[0]).cross(x[2] - x[0]);
-    if (!(face.norm() > 0)) continue;  // degenerate: no direction to contribute
-    const Eigen::Vector3d unit = face.normalized();
-    for (int j = 0; j < 3; ++j) {
-      const Eigen::Vector3d e1 = x[static_cast<size_t>((j + 1) % 3)] - x[static_cast<size_t>(j)];
-      const Eigen::Vector3d e2 = x[static_cast<size_t>((j + 2) % 3)] - x[static_cast<size_t>(j)];
-      const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
-      n.row(F(f, j)) += angle * unit.transpose();
-    }
-  }
-  MatrixXfR out(P.rows(), 3);
-  for (Eigen::Index i = 0; i < P.rows(); ++i) {
-    const double len = n.row(i).norm();
-    if (len > 0) {
-      out.row(i) = (n.row(i) / len).cast<float>();
-    } else {
-      out.row(i) << 0, 0, 1;
-    }
-  }
-  return out;
 }
 
 namespace {

@@ -1,9 +1,12 @@
 // OBJ input and HDF5 output of the standalone transfer tool (docs/transfer.md).
+
+#include "phasecast/core/package.h"
 // OBJ files are read by the one reader of the simulation stage (obj_mesh.h).
 
 #include "phasecast/precompute/appearance/transfer_file.h"
 
 #include "phasecast/core/hdf5_file.h"
+#include "phasecast/core/mesh_geometry.h"
 #include "phasecast/precompute/simulation/obj_mesh.h"
 
 #include <fmt/format.h>
@@ -27,32 +30,22 @@ TransferMesh load_obj_mesh(const std::filesystem::path& path) {
   TransferMesh mesh;
   mesh.positions = obj.vertices.cast<float>();
   mesh.triangles = obj.triangles.cast<std::uint32_t>();
-  mesh.normals = vertex_normals(mesh.positions, mesh.triangles);
+  mesh.normals = core::vertex_normals(mesh.positions, mesh.triangles);
   return mesh;
 }
 
 TransferMesh make_double_sided(const TransferMesh& mesh) {
-  const Eigen::Index S = mesh.positions.rows(), F = mesh.triangles.rows();
-  TransferMesh out;
-  out.positions.resize(2 * S, 3);
-  out.positions << mesh.positions, mesh.positions;
-  out.normals.resize(2 * S, 3);
-  out.normals << mesh.normals, -mesh.normals;
-  out.triangles.resize(2 * F, 3);
-  out.triangles.topRows(F) = mesh.triangles;
-  const auto offset = static_cast<std::uint32_t>(S);
-  for (Eigen::Index f = 0; f < F; ++f) {
-    // Reversed winding over the copies: the back face looks the other way.
-    out.triangles.row(F + f) << mesh.triangles(f, 0) + offset, mesh.triangles(f, 2) + offset,
-        mesh.triangles(f, 1) + offset;
-  }
+  TransferMesh out = mesh;
+  std::vector<int> all(static_cast<size_t>(mesh.positions.rows()));
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  core::add_back_side(out.positions, out.normals, out.triangles, all);
   return out;
 }
 
 void write_transfer_file(const TransferFile& file, const std::filesystem::path& path) {
   const auto S = static_cast<std::uint64_t>(file.positions.rows());
   if (file.normals.rows() != file.positions.rows() || file.transfer.rows() != file.positions.rows() ||
-      file.transfer.cols() != 48) {
+      file.transfer.cols() != core::kTransferPerPoint) {
     throw std::invalid_argument(fmt::format(
         "{}: transfer file needs S x 3 positions and normals and S x 48 transfer", path.string()));
   }
@@ -88,7 +81,7 @@ TransferFile read_transfer_file(const std::filesystem::path& path) {
     const auto rows = static_cast<Eigen::Index>(S);
     out.positions.resize(rows, 3);
     out.normals.resize(rows, 3);
-    out.transfer.resize(rows, 48);
+    out.transfer.resize(rows, core::kTransferPerPoint);
     r.read_into("/positions", out.positions.data(), out.positions.size());
     r.read_into("/normals", out.normals.data(), out.normals.size());
     r.read_into("/transfer", out.transfer.data(), out.transfer.size());

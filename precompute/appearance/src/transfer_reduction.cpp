@@ -1,5 +1,7 @@
 #include "phasecast/precompute/appearance/transfer_reduction.h"
 
+#include "phasecast/core/package.h"
+
 #include <fmt/format.h>
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -15,7 +17,7 @@ constexpr Eigen::Index kBlock = 4096;  // columns of A_a^T converted to double a
 constexpr double kResolvable = 1e-6;   // sigma below this fraction of sigma_1: Gram round-off
 
 void check(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions& o) {
-  if (X.rows() == 0 || X.cols() == 0 || X.cols() % 48 != 0) {
+  if (X.rows() == 0 || X.cols() == 0 || X.cols() % core::kTransferPerPoint != 0) {
     throw std::invalid_argument(fmt::format(
         "reduce_transfer: fields must be N_a x 48S with N_a, S >= 1, got {} x {}", X.rows(), X.cols()));
   }

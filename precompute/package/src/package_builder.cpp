@@ -1,5 +1,7 @@
 #include "phasecast/precompute/package/package_builder.h"
 
+#include "phasecast/core/mesh_geometry.h"
+
 #include "phasecast/precompute/sampling/scene_palette.h"
 
 #include "phasecast/precompute/reduction/phase_portrait.h"
@@ -70,37 +72,6 @@ std::vector<int> back_side_vertices(const DeformableModel& model) {
   return out;
 }
 
-// Appends the back side of the sheets: copied points with flipped normals and
-// the sheet triangles with reversed winding over them.
-void add_back_side(core::SceneMesh& m, const DeformableModel& model, const std::vector<int>& back) {
-  const Eigen::Index V = model.vertices(), B = static_cast<Eigen::Index>(back.size());
-  std::vector<std::int64_t> copy_of(static_cast<size_t>(V), -1);
-  m.rest_positions.conservativeResize(V + B, 3);
-  m.normals.conservativeResize(V + B, 3);
-  for (Eigen::Index i = 0; i < B; ++i) {
-    const int v = back[static_cast<size_t>(i)];
-    copy_of[static_cast<size_t>(v)] = V + i;
-    for (int k = 0; k < 3; ++k) {
-      m.rest_positions(V + i, k) = m.rest_positions(v, k);
-      m.normals(V + i, k) = -m.normals(v, k);
-    }
-  }
-  std::vector<std::uint32_t> tris;
-  for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
-    const auto a = copy_of[static_cast<size_t>(model.surface(t, 0))];
-    const auto b = copy_of[static_cast<size_t>(model.surface(t, 1))];
-    const auto c = copy_of[static_cast<size_t>(model.surface(t, 2))];
-    if (a < 0 || b < 0 || c < 0) continue;
-    // Sheet triangle: same vertices, reversed winding, so its front faces the other way.
-    tris.insert(tris.end(), {static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(c),
-                             static_cast<std::uint32_t>(b)});
-  }
-  const Eigen::Index F = m.triangles.rows(), added = static_cast<Eigen::Index>(tris.size() / 3);
-  m.triangles.conservativeResize(F + added, 3);
-  for (Eigen::Index t = 0; t < added; ++t)
-    for (int k = 0; k < 3; ++k) m.triangles(F + t, k) = tris[static_cast<size_t>(3 * t + k)];
-}
-
 void check_matches(const Scene& scene, const OrbitIndex& o) {
   std::vector<std::string> names;
   for (const auto& e : scene.palette) names.push_back(e.name);
@@ -158,23 +129,8 @@ core::SceneMesh scene_mesh(const Scene& scene) {
   core::SceneMesh m;
   m.rest_positions = Eigen::Map<const RowMatrix<double>>(model.rest.data(), V, 3).cast<float>();
   m.triangles = model.surface.cast<std::uint32_t>();
-  // Area-weighted vertex normals of the simulated surface (front side).
-  RowMatrix<double> n = RowMatrix<double>::Zero(V, 3);
-  for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
-    const Eigen::Vector3d a = m.rest_positions.row(model.surface(t, 0)).cast<double>();
-    const Eigen::Vector3d b = m.rest_positions.row(model.surface(t, 1)).cast<double>();
-    const Eigen::Vector3d c = m.rest_positions.row(model.surface(t, 2)).cast<double>();
-    const Eigen::RowVector3d face = (b - a).cross(c - a).transpose();
-    for (int k = 0; k < 3; ++k) n.row(model.surface(t, k)) += face;
-  }
-  m.normals.resize(V, 3);
-  for (Eigen::Index i = 0; i < V; ++i) {
-    const double len = n.row(i).norm();
-    for (int k = 0; k < 3; ++k) {
-      m.normals(i, k) = len > 0 ? static_cast<float>(n(i, k) / len) : (k == 2 ? 1.0f : 0.0f);
-    }
-  }
-  add_back_side(m, model, back_side_vertices(model));
+  m.normals = core::vertex_normals(m.rest_positions, m.triangles);  // front side
+  core::add_back_side(m.rest_positions, m.normals, m.triangles, back_side_vertices(model));
   m.deformable.assign(static_cast<size_t>(m.rest_positions.rows()), 1);
   for (const auto& box : model.obstacles) add_box(m, box.min, box.max);
   m.deformable.resize(static_cast<size_t>(m.rest_positions.rows()), 0);

@@ -3,6 +3,7 @@
 // inspect reports, transfer taken on the unreduced orbit-store meshes of the
 // cluster nodes, both sides of the cloth, determinism and one-line errors.
 
+#include "phasecast/core/mesh_geometry.h"
 #include "phasecast/precompute/appearance/appearance_stage.h"
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/appearance/transfer.h"
@@ -124,7 +125,7 @@ TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
       for (int k = 0; k < 3; ++k) x(v, k) = x(V + v, k) = store.positions(node, 3 * v + k);
     }
     const MatrixXfR direct = precompute::compute_transfer(
-        x, p.mesh.triangles, precompute::vertex_normals(x, p.mesh.triangles), options);
+        x, p.mesh.triangles, core::vertex_normals(x, p.mesh.triangles), options);
     const MatrixXfR staged = precompute::transfer_at_frame(p.mesh, precompute::scene_point_vertices(scene),
                                                            store.positions.row(node), options);
     EXPECT_TRUE(direct == staged) << "node " << node;

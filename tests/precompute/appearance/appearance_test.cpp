@@ -2,6 +2,7 @@
 // q_u, shadowed transfer of each representative's deformed mesh, transfer
 // SVD and NRBF, written into a package that validates and reads back.
 
+#include "phasecast/core/mesh_geometry.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_appearance.h"
 #include "run_tool.h"
@@ -25,7 +26,7 @@ MatrixXfR transfer_fields(const core::ScenePackage& p, const KMeansResult& clust
                               p.reduction.U_u * p.portrait.q_u.row(clusters.representatives[j]).transpose();
     const MatrixXfR positions = Eigen::Map<const MatrixXfR>(x.data(), S, 3);
     const MatrixXfR T =
-        compute_transfer(positions, p.mesh.triangles, vertex_normals(positions, p.mesh.triangles), o);
+        compute_transfer(positions, p.mesh.triangles, core::vertex_normals(positions, p.mesh.triangles), o);
     fields.row(static_cast<Eigen::Index>(j)) = Eigen::Map<const Eigen::RowVectorXf>(T.data(), 48 * S);
   }
   return fields;

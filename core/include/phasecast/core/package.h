@@ -4,6 +4,7 @@
 // description of every dataset; the names here follow it and the paper.
 
 #include "phasecast/core/eigen_types.h"
+#include "phasecast/core/sh.h"
 
 #include <array>
 #include <cstdint>
@@ -16,10 +17,9 @@
 namespace phasecast::core {
 
 inline constexpr int kFormatVersion = 1;
-inline constexpr int kShCoefficients = 16;     // SH order 4 (bands 0..3)
-inline constexpr int kTransferPerPoint = 48;   // 3 colour channels x 16 SH coefficients
-inline constexpr int kKinematicsColumns = 11;  // columns of /palette/kinematics
-inline constexpr int kSupportFloats = 12;      // 3x4 support transform
+inline constexpr int kTransferPerPoint = kShChannels * kShCoefficients;  // 48 per scene point
+inline constexpr int kKinematicsColumns = 11;                            // columns of /palette/kinematics
+inline constexpr int kSupportFloats = 12;                                // 3x4 support transform
 
 // End-of-IRF rule of a palette entry (/palette/on_end): -1, -2, or a follow-up index.
 inline constexpr std::int32_t kEndRest = -1;

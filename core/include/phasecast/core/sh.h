@@ -9,7 +9,9 @@
 namespace phasecast::core {
 
 inline constexpr int kShBands = 4;
-using ShVector = std::array<float, 16>;
+inline constexpr int kShCoefficients = kShBands * kShBands;  // 16
+inline constexpr int kShChannels = 3;                        // RGB transfer vectors
+using ShVector = std::array<float, kShCoefficients>;
 
 // Y_k(x, y, z) for k = 0..15; (x, y, z) must be a unit vector.
 ShVector sh_basis(double x, double y, double z);

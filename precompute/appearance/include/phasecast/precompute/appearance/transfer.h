@@ -59,8 +59,4 @@ MatrixXfR sphere_directions(int count);
 MatrixXfR compute_transfer(const MatrixXfR& positions, const MatrixXuR& triangles, const MatrixXfR& normals,
                            const TransferOptions& options);
 
-// Angle-weighted vertex normals of a triangle mesh (#S by 3). Points in no
-// triangle, or only in degenerate ones, get (0, 0, 1).
-MatrixXfR vertex_normals(const MatrixXfR& positions, const MatrixXuR& triangles);
-
 }  // namespace phasecast::precompute
