@@ -1,14 +1,15 @@
 // phasecast-precompute import: orbits from an external simulator into an orbit store.
 
 #include "commands.h"
-#include "phasecast/precompute/sampling/orbit_import.h"
 #include "phasecast/core/progress.h"
+#include "phasecast/precompute/sampling/orbit_import.h"
 
 #include <fmt/format.h>
 
 #include <memory>
 #include <string>
 
+namespace phasecast::precompute::tools {
 namespace {
 
 struct ImportOptions {
@@ -37,3 +38,5 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("-o,--output", options->output, "orbit store to write (.h5)")->required();
   cmd->callback([options] { run_import(*options); });
 }
+
+}  // namespace phasecast::precompute::tools

@@ -6,14 +6,15 @@
 #include <memory>
 #include <string>
 
+namespace phasecast::precompute::tools {
 namespace {
 
 struct Options {
   std::string scene;
   std::string orbits;
   std::string output;
-  phasecast::tools::ReduceArgs reduce;
-  phasecast::tools::AppearanceArgs appearance;
+  ReduceArgs reduce;
+  AppearanceArgs appearance;
 };
 
 }  // namespace
@@ -26,10 +27,12 @@ void add_reduce_command(CLI::App& app) {
   cmd->add_option("scene", o->scene, "scene file (.toml) the orbits were sampled from")->required();
   cmd->add_option("orbits", o->orbits, "orbit store (.h5) from 'sample' or 'simulate'")->required();
   cmd->add_option("-o,--output", o->output, "scene package to write (.h5)")->required();
-  phasecast::tools::add_reduce_options(cmd, o->reduce);
-  phasecast::tools::add_appearance_options(cmd, o->appearance);
+  add_reduce_options(cmd, o->reduce);
+  add_appearance_options(cmd, o->appearance);
   cmd->callback([o] {
     const auto scene = phasecast::precompute::load_scene_file(o->scene);
-    phasecast::tools::run_reduce_stage(scene, o->reduce, o->appearance, o->orbits, o->output);
+    run_reduce_stage(scene, o->reduce, o->appearance, o->orbits, o->output);
   });
 }
+
+}  // namespace phasecast::precompute::tools

@@ -6,14 +6,15 @@
 #include <memory>
 #include <string>
 
+namespace phasecast::precompute::tools {
 namespace {
 
 struct Options {
   std::string scene;
   std::string output;
-  phasecast::tools::SampleArgs sample;
-  phasecast::tools::ReduceArgs reduce;
-  phasecast::tools::AppearanceArgs appearance;
+  SampleArgs sample;
+  ReduceArgs reduce;
+  AppearanceArgs appearance;
 };
 
 }  // namespace
@@ -25,9 +26,9 @@ void add_run_command(CLI::App& app) {
       "Build a scene package from a scene file: sample IRFs, reduce, then the appearance stage (resumable).");
   cmd->add_option("scene", o->scene, "scene file (.toml)")->required();
   cmd->add_option("-o,--output", o->output, "scene package to write (.h5)")->required();
-  phasecast::tools::add_sample_options(cmd, o->sample);
-  phasecast::tools::add_reduce_options(cmd, o->reduce);
-  phasecast::tools::add_appearance_options(cmd, o->appearance);
+  add_sample_options(cmd, o->sample);
+  add_reduce_options(cmd, o->reduce);
+  add_appearance_options(cmd, o->appearance);
   cmd->callback([o] {
     // Bad appearance options fail before the sampling hours, not after.
     if (!o->appearance.skip) phasecast::precompute::check_appearance_stage_options(o->appearance.stage);
@@ -35,7 +36,9 @@ void add_run_command(CLI::App& app) {
     auto sample = o->sample;
     if (sample.work_dir.empty()) sample.work_dir = o->output + ".work";
     const std::filesystem::path orbits = std::filesystem::path(sample.work_dir) / "orbits.h5";
-    phasecast::tools::run_sample_stage(scene, sample, orbits);
-    phasecast::tools::run_reduce_stage(scene, o->reduce, o->appearance, orbits, o->output);
+    run_sample_stage(scene, sample, orbits);
+    run_reduce_stage(scene, o->reduce, o->appearance, orbits, o->output);
   });
 }
+
+}  // namespace phasecast::precompute::tools

@@ -6,12 +6,13 @@
 #include <memory>
 #include <string>
 
+namespace phasecast::precompute::tools {
 namespace {
 
 struct Options {
   std::string scene;
   std::string output;
-  phasecast::tools::SampleArgs sample;
+  SampleArgs sample;
 };
 
 }  // namespace
@@ -22,9 +23,11 @@ void add_sample_command(CLI::App& app) {
       "sample", "Sample random IRF chains of a scene (checkpointed, resumable) into an orbit store (HDF5).");
   cmd->add_option("scene", o->scene, "scene file (.toml)")->required();
   cmd->add_option("-o,--output", o->output, "orbit store to write (.h5)")->required();
-  phasecast::tools::add_sample_options(cmd, o->sample);
+  add_sample_options(cmd, o->sample);
   cmd->callback([o] {
     const auto scene = phasecast::precompute::load_scene_file(o->scene);
-    phasecast::tools::run_sample_stage(scene, o->sample, o->output);
+    run_sample_stage(scene, o->sample, o->output);
   });
 }
+
+}  // namespace phasecast::precompute::tools

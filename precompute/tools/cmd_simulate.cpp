@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 
+namespace phasecast::precompute::tools {
 namespace {
 
 struct SimulateOptions {
@@ -55,3 +56,5 @@ void add_simulate_command(CLI::App& app) {
   cmd->add_option("--obj-dir", options->obj_dir, "also write one world-space OBJ per frame into this folder");
   cmd->callback([options] { run_simulate(*options); });
 }
+
+}  // namespace phasecast::precompute::tools

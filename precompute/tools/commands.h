@@ -4,13 +4,13 @@
 
 #include <CLI/CLI.hpp>
 
+namespace phasecast::precompute::tools {
+
 void add_simulate_command(CLI::App& app);
 void add_import_command(CLI::App& app);
 void add_sample_command(CLI::App& app);
 void add_reduce_command(CLI::App& app);
 void add_run_command(CLI::App& app);
-
-namespace phasecast::precompute::tools {
 // `transfer <mesh.obj> -o transfer.h5`: diffuse PRT of a static mesh (docs/transfer.md).
 void add_transfer_command(CLI::App& app);
 }  // namespace phasecast::precompute::tools

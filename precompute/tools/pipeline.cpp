@@ -8,7 +8,7 @@
 
 #include <chrono>
 
-namespace phasecast::tools {
+namespace phasecast::precompute::tools {
 namespace {
 
 // Sampling progress: IRFs done/total, state nodes and ETA (resumed IRFs do
@@ -125,12 +125,12 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
   auto& p = built.package;
   if (!appearance.skip) {
     core::ProgressBar transfer_bar("appearance transfer");
-    const auto report =
-        precompute::add_appearance(p, precompute::scene_point_vertices(scene), A,
-                                   precompute::package_node_frames(index.irfs, built.filter.kept),
-                                   appearance.stage, [&transfer_bar](const char*, long done, long total) {
-                                     transfer_bar.update(static_cast<int>(done), static_cast<int>(total));
-                                   });
+    const auto report = precompute::run_appearance_stage(
+        p, precompute::scene_point_vertices(scene), A,
+        precompute::package_node_frames(index.irfs, built.filter.kept), appearance.stage,
+        [&transfer_bar](const char*, long done, long total) {
+          transfer_bar.update(static_cast<int>(done), static_cast<int>(total));
+        });
     transfer_bar.finish();
     core::validate_package(p, scene.name);
     fmt::print(
@@ -148,4 +148,4 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
       p.attributes.beta);
 }
 
-}  // namespace phasecast::tools
+}  // namespace phasecast::precompute::tools

@@ -2,15 +2,15 @@
 // Options and stages shared by the sample, reduce and run subcommands.
 
 #include "phasecast/precompute/appearance/appearance_stage.h"
-#include "phasecast/precompute/sampling/irf_sampler.h"
 #include "phasecast/precompute/package/package_builder.h"
+#include "phasecast/precompute/sampling/irf_sampler.h"
 
 #include <CLI/CLI.hpp>
 
 #include <filesystem>
 #include <string>
 
-namespace phasecast::tools {
+namespace phasecast::precompute::tools {
 
 struct SampleArgs {
   precompute::SamplingOptions sampling;
@@ -40,4 +40,4 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& args,
                       const AppearanceArgs& appearance, const std::filesystem::path& orbits,
                       const std::filesystem::path& package);
 
-}  // namespace phasecast::tools
+}  // namespace phasecast::precompute::tools

@@ -13,12 +13,13 @@ int main(int argc, char** argv) {
       "Phasecast offline precompute: simulate scenes, import external orbits, compute radiance "
       "transfer, build scene packages."};
   app.require_subcommand(1);
-  add_simulate_command(app);
-  add_import_command(app);
-  phasecast::precompute::tools::add_transfer_command(app);
-  add_sample_command(app);
-  add_reduce_command(app);
-  add_run_command(app);
+  namespace tools = phasecast::precompute::tools;
+  tools::add_simulate_command(app);
+  tools::add_import_command(app);
+  tools::add_transfer_command(app);
+  tools::add_sample_command(app);
+  tools::add_reduce_command(app);
+  tools::add_run_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -222,7 +222,7 @@ Eigen::VectorXf unshadowed_transfer(const MatrixXfR& normals) {
   return M;
 }
 
-void build_appearance(ScenePackage& p, const PlateOptions& o) {
+void fit_appearance_model(ScenePackage& p, const PlateOptions& o) {
   const auto& pp = p.portrait;
   const int N = pp.nodes(), Na = std::min(o.clusters, N);
   core::Appearance a;
@@ -299,7 +299,7 @@ core::ScenePackage make_plate_package(const PlateOptions& o) {
   principal_axes(p, plate_modes(p, o.rank_u));
   velocities_and_cache(p);
   if (o.appearance) {
-    build_appearance(p, o);
+    fit_appearance_model(p, o);
   } else {
     p.portrait.q_a.resize(p.portrait.nodes(), 0);
   }

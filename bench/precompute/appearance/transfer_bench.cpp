@@ -171,7 +171,7 @@ void BM_BuildAppearance(benchmark::State& state) {
   for (Eigen::Index i = 0; i < fields.size(); ++i) {
     fields.data()[i] = static_cast<float>(static_cast<double>(rng() >> 11) * 0x1.0p-53);
   }
-  for (auto _ : state) benchmark::DoNotOptimize(build_appearance(q, clusters, fields, {}).q_a.data());
+  for (auto _ : state) benchmark::DoNotOptimize(fit_appearance_model(q, clusters, fields, {}).q_a.data());
   state.counters["S"] = static_cast<double>(scene().positions.rows());
   state.counters["N_a"] = 64;
 }

@@ -64,7 +64,7 @@ MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>&
   return compute_transfer(x, mesh.triangles, n, options);  // §4.1, on the unreduced mesh
 }
 
-AppearanceStageReport add_appearance(core::ScenePackage& pkg, const std::vector<int>& point_vertex,
+AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const std::vector<int>& point_vertex,
                                      const OrbitDisplacementSource& orbits,
                                      const std::vector<std::int64_t>& node_frames,
                                      const AppearanceStageOptions& o,
@@ -96,7 +96,7 @@ AppearanceStageReport add_appearance(core::ScenePackage& pkg, const std::vector<
     fields.row(j) = Eigen::Map<const Eigen::RowVectorXf>(T.data(), T.size());  // S x 48 row-major = 48S
     if (progress) progress("appearance transfer", j + 1, Na);
   }
-  AppearanceModel model = build_appearance(q_u, report.clusters, fields, o.appearance);  // §4.2, §4.3
+  AppearanceModel model = fit_appearance_model(q_u, report.clusters, fields, o.appearance);  // §4.2, §4.3
   report.leave_one_out = model.leave_one_out;
   pkg.appearance = std::move(model.appearance);
   pkg.portrait.q_a = std::move(model.q_a);

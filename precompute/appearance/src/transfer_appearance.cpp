@@ -6,15 +6,15 @@
 
 namespace phasecast::precompute {
 
-AppearanceModel build_appearance(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
+AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
                                  const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& o) {
   const auto Na = static_cast<Eigen::Index>(clusters.representatives.size());
   if (Na == 0 || fields.rows() != Na) {
     throw std::invalid_argument(fmt::format(
-        "build_appearance: expected one transfer field per cluster ({}), got {}", Na, fields.rows()));
+        "fit_appearance_model: expected one transfer field per cluster ({}), got {}", Na, fields.rows()));
   }
   if (static_cast<Eigen::Index>(clusters.labels.size()) != q_u.rows()) {
-    throw std::invalid_argument(fmt::format("build_appearance: clusters label {} nodes but q_u has {}",
+    throw std::invalid_argument(fmt::format("fit_appearance_model: clusters label {} nodes but q_u has {}",
                                             clusters.labels.size(), q_u.rows()));
   }
   MatrixXfR centers(Na, q_u.cols());
@@ -22,7 +22,7 @@ AppearanceModel build_appearance(const Eigen::Ref<const MatrixXfR>& q_u, const K
     const auto node = clusters.representatives[static_cast<size_t>(j)];
     if (node < 0 || node >= q_u.rows()) {
       throw std::invalid_argument(fmt::format(
-          "build_appearance: representative {} is node {}, expected 0..{}", j, node, q_u.rows() - 1));
+          "fit_appearance_model: representative {} is node {}, expected 0..{}", j, node, q_u.rows() - 1));
     }
     centers.row(j) = q_u.row(node);
   }

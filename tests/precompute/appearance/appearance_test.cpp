@@ -36,7 +36,7 @@ TEST(Appearance, FillsAValidPackage) {
   core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
   const auto clusters = kmeans(p.portrait.q_u, {.clusters = 8, .seed = 3});
   const MatrixXfR fields = transfer_fields(p, clusters);
-  const auto model = build_appearance(p.portrait.q_u, clusters, fields, {.reduction = {.eps_a = 1e-3}});
+  const auto model = fit_appearance_model(p.portrait.q_u, clusters, fields, {.reduction = {.eps_a = 1e-3}});
   const auto& a = model.appearance;
   ASSERT_GE(a.rank(), 1);
   EXPECT_EQ(a.clusters(), 8);
@@ -65,7 +65,7 @@ TEST(Appearance, FillsAValidPackage) {
 TEST(Appearance, OneClusterHasRankZero) {
   core::ScenePackage p = testing::make_plate_package({.grid = 4, .appearance = false});
   const auto clusters = kmeans(p.portrait.q_u, {.clusters = 1});
-  const auto model = build_appearance(p.portrait.q_u, clusters, transfer_fields(p, clusters), {});
+  const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters), {});
   EXPECT_EQ(model.appearance.rank(), 0);
   EXPECT_EQ(model.q_a.rows(), p.portrait.nodes());
   EXPECT_EQ(model.q_a.cols(), 0);
@@ -79,10 +79,10 @@ TEST(Appearance, RejectsMismatchedFields) {
   core::ScenePackage p = testing::make_plate_package({.grid = 4, .appearance = false});
   const auto clusters = kmeans(p.portrait.q_u, {.clusters = 3});
   try {
-    build_appearance(p.portrait.q_u, clusters, MatrixXfR::Zero(2, 48 * p.mesh.points()), {});
+    fit_appearance_model(p.portrait.q_u, clusters, MatrixXfR::Zero(2, 48 * p.mesh.points()), {});
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_STREQ(e.what(), "build_appearance: expected one transfer field per cluster (3), got 2");
+    EXPECT_STREQ(e.what(), "fit_appearance_model: expected one transfer field per cluster (3), got 2");
   }
 }
 

@@ -3,7 +3,7 @@
 // nodes in q_u, diffuse transfer on the UNREDUCED deformed mesh of each
 // cluster's representative node (read from the orbit store, not U_u q_u), then
 // the reduced transfer basis U_a and the NRBF q_a of every node
-// (build_appearance). Fills /appearance, /portrait/q_a and eps_a of a package.
+// (fit_appearance_model). Fills /appearance, /portrait/q_a and eps_a of a package.
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/reduction/displacement_reduction.h"
@@ -68,7 +68,7 @@ struct AppearanceStageReport {
 //   @param[in] node_frames  package_node_frames(...) of that reduction
 // Throws std::invalid_argument for bad options (N_a above the node count
 // included) and OrbitStoreError when a frame cannot be read.
-AppearanceStageReport add_appearance(core::ScenePackage& package, const std::vector<int>& point_vertex,
+AppearanceStageReport run_appearance_stage(core::ScenePackage& package, const std::vector<int>& point_vertex,
                                      const OrbitDisplacementSource& orbits,
                                      const std::vector<std::int64_t>& node_frames,
                                      const AppearanceStageOptions& options,

@@ -9,7 +9,7 @@
 // the pipeline that owns the orbits:
 //   1. clusters = kmeans(q_u, {N_a, seed})
 //   2. fields.row(j) = compute_transfer(mesh of node clusters.representatives[j]) flattened
-//   3. model = build_appearance(q_u, clusters, fields, options)
+//   3. model = fit_appearance_model(q_u, clusters, fields, options)
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/appearance/kmeans.h"
@@ -36,7 +36,7 @@ struct AppearanceModel {
 //                        (layout of compute_transfer's rows, flattened)
 //   @param[in] options   reduction rank rule and NRBF parameters
 // Throws std::invalid_argument when the shapes disagree.
-AppearanceModel build_appearance(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
+AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
                                  const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& options);
 
 }  // namespace phasecast::precompute
