@@ -1,6 +1,7 @@
 #include "phasecast/precompute/package/package_builder.h"
 
 #include "phasecast/core/mesh_geometry.h"
+#include "phasecast/core/phase_space.h"
 
 #include "phasecast/precompute/sampling/scene_palette.h"
 
@@ -101,12 +102,14 @@ OrbitIndex read_orbit_index(const std::filesystem::path& path) {
     o.irfs.start = r.vector<std::int32_t>("/irfs/start");
     o.irfs.length = r.vector<std::int32_t>("/irfs/length");
     o.irfs.palette = r.vector<std::int32_t>("/irfs/palette");
+    o.irfs.continues = r.vector<std::uint8_t>("/irfs/continues");
     r.require_shape("/frames/support", h5::Dtype::f32, {0, core::kSupportFloats});
     o.support = r.matrix<float>("/frames/support");
     // IRFs must tile the frames in order (as validate_orbit_store checks for a loaded store).
     std::int64_t next = 0;
     for (size_t i = 0; i < o.irfs.size(); ++i) {
-      if (i >= o.irfs.length.size() || i >= o.irfs.palette.size() || o.irfs.start[i] != next ||
+      if (i >= o.irfs.length.size() || i >= o.irfs.palette.size() || i >= o.irfs.continues.size() ||
+          o.irfs.start[i] != next || (i == 0 && o.irfs.continues[i] != 0) ||
           o.irfs.length[i] < 1 || o.irfs.palette[i] < 0 ||
           o.irfs.palette[i] >= static_cast<std::int32_t>(o.palette_names.size())) {
         throw OrbitStoreError(
@@ -166,7 +169,8 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
   PackageBuild out;
   core::ScenePackage& pkg = out.package;
   // Eq. 8 and beta over every sampled node, then filtering in that metric.
-  const MatrixXfR qdot_all = reduced_velocities(basis.q_u, orbits.irfs.start, orbits.irfs.length, orbits.dt);
+  const MatrixXfR qdot_all =
+      core::orbit_velocities(basis.q_u, orbits.irfs.start, orbits.irfs.length, orbits.irfs.continues, orbits.dt);
   const double beta_all = o.beta > 0 ? o.beta : default_beta(basis.q_u, qdot_all);
   out.filter = filter_orbits(basis.q_u, qdot_all, beta_all, orbits.irfs, o.filter);
   // Kept IRFs, renumbered: their nodes become consecutive rows.

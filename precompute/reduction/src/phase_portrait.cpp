@@ -9,26 +9,6 @@
 
 namespace phasecast::precompute {
 
-MatrixXfR reduced_velocities(const MatrixXfR& q_u, const std::vector<std::int32_t>& irf_start,
-                             const std::vector<std::int32_t>& irf_length, double dt) {
-  if (!(dt > 0)) throw std::invalid_argument("reduced_velocities: dt must be positive");
-  if (irf_start.size() != irf_length.size()) {
-    throw std::invalid_argument("reduced_velocities: irf_start and irf_length differ in length");
-  }
-  const auto inv_dt = static_cast<float>(1.0 / dt);
-  MatrixXfR qdot = MatrixXfR::Zero(q_u.rows(), q_u.cols());
-  for (size_t i = 0; i < irf_start.size(); ++i) {
-    const Eigen::Index s = irf_start[i], n = irf_length[i];
-    if (s < 0 || n < 1 || s + n > q_u.rows()) {
-      throw std::invalid_argument("reduced_velocities: IRF " + std::to_string(i) + " lies outside q_u");
-    }
-    if (n == 1) continue;
-    qdot.middleRows(s, n - 1) = (q_u.middleRows(s + 1, n - 1) - q_u.middleRows(s, n - 1)) * inv_dt;
-    qdot.row(s + n - 1) = (q_u.row(s + n - 1) - q_u.row(s + n - 2)) * inv_dt;
-  }
-  return qdot;
-}
-
 double default_beta(const MatrixXfR& q_u, const MatrixXfR& qdot_u) {
   if (q_u.rows() == 0) return 1.0;
   const double max_q = q_u.rowwise().squaredNorm().maxCoeff();

@@ -1,5 +1,7 @@
 #include "phasecast/precompute/sampling/orbit_import.h"
 
+#include "phasecast/core/phase_space.h"
+
 #include "phasecast/precompute/simulation/obj_mesh.h"
 #include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/scene_fields.h"
@@ -59,24 +61,24 @@ MatrixXfR positions_row(const ObjMesh& m) {
   return row;
 }
 
-}  // namespace
+// One [[irf]] of the manifest: its palette entry, whether it continues the
+// previous IRF's motion (eq. 8 needs it), and its frames in order.
+struct ImportedIrf {
+  int entry = 0;
+  std::uint8_t continues = 0;
+  std::vector<std::filesystem::path> files;
+};
 
-OrbitStore import_orbits(const std::filesystem::path& manifest,
-                         const std::function<void(int, int)>& progress) {
-  toml::table root;
+toml::table parse_manifest(const std::filesystem::path& manifest) {
   try {
-    root = toml::parse_file(manifest.string());
+    return toml::parse_file(manifest.string());
   } catch (const toml::parse_error& e) {
     throw SceneError(fmt::format("{}:{}:{}: {}", manifest.string(), e.source().begin.line,
                                  e.source().begin.column, e.description()));
   }
-  const auto dir = manifest.parent_path();
-  Fields top(root, manifest.string(), "");
-  OrbitStore s;
-  s.source = "import";
-  s.scene = top.string("scene");
-  s.dt = top.positive("dt");
+}
 
+void read_palette(Fields& top, OrbitStore& s) {
   auto entries = top.tables("palette");
   if (entries.empty()) top.fail("palette", "at least one [[palette]] entry");
   std::vector<Eigen::Vector3d> alpha_i, alpha_f;
@@ -97,50 +99,56 @@ OrbitStore import_orbits(const std::filesystem::path& manifest,
     s.alpha_impulse.row(static_cast<Eigen::Index>(d)) = alpha_i[d].cast<float>().transpose();
     s.alpha_forcing.row(static_cast<Eigen::Index>(d)) = alpha_f[d].cast<float>().transpose();
   }
+}
 
-  // Collect every IRF's frame files first so progress knows the total.
+// Every IRF's frame files, collected first so progress knows the total.
+std::vector<ImportedIrf> plan_irfs(Fields& top, const OrbitStore& s, const std::filesystem::path& dir) {
   auto irfs = top.tables("irf");
   if (irfs.empty()) top.fail("irf", "at least one [[irf]]");
-  std::vector<std::pair<int, std::vector<std::filesystem::path>>> plan;
-  int total = 0;
+  std::vector<ImportedIrf> plan;
   for (auto& irf : irfs) {
     const std::string name = irf.string("palette");
     const auto it = std::find(s.palette_names.begin(), s.palette_names.end(), name);
     if (it == s.palette_names.end()) irf.fail("palette", "the name of a [[palette]] entry");
-    plan.emplace_back(static_cast<int>(it - s.palette_names.begin()), obj_frames(irf, dir));
-    total += static_cast<int>(plan.back().second.size());
+    ImportedIrf p;
+    p.entry = static_cast<int>(it - s.palette_names.begin());
+    p.continues = irf.flag("continues", false) ? 1 : 0;
+    if (p.continues && plan.empty()) irf.fail("continues", "false for the first [[irf]] (nothing precedes it)");
+    p.files = obj_frames(irf, dir);
+    plan.push_back(std::move(p));
     irf.finish();
   }
-  const bool has_rest = top.has("rest");
-  const auto rest_path = has_rest ? dir / top.string("rest") : plan.front().second.front();
-  const ObjMesh rest = read_obj(rest_path);
-  std::vector<int> pinned_list;
-  if (top.has("pinned")) {
-    const auto* list = root["pinned"].as_array();
-    if (!list) top.fail("pinned", "an array of vertex indices");
-    for (double p : top.numbers("pinned", list->size())) {
-      if (p < 0 || p >= static_cast<double>(rest.vertices.rows()) || p != std::floor(p)) {
-        top.fail("pinned", fmt::format("vertex indices in [0, {})", rest.vertices.rows()));
-      }
-      pinned_list.push_back(static_cast<int>(p));
-    }
-  }
-  top.finish();
+  return plan;
+}
 
+std::vector<int> read_pinned(Fields& top, const toml::table& root, Eigen::Index vertices) {
+  std::vector<int> pinned;
+  if (!top.has("pinned")) return pinned;
+  const auto* list = root["pinned"].as_array();
+  if (!list) top.fail("pinned", "an array of vertex indices");
+  for (double p : top.numbers("pinned", list->size())) {
+    if (p < 0 || p >= static_cast<double>(vertices) || p != std::floor(p))
+      top.fail("pinned", fmt::format("vertex indices in [0, {})", vertices));
+    pinned.push_back(static_cast<int>(p));
+  }
+  return pinned;
+}
+
+// Reads every frame of the plan into the store; each must have the rest mesh's topology.
+void read_frames(const std::vector<ImportedIrf>& plan, const ObjMesh& rest, const std::filesystem::path& rest_path,
+                 OrbitStore& s, const std::function<void(int, int)>& progress) {
+  int total = 0;
+  for (const auto& p : plan) total += static_cast<int>(p.files.size());
   const auto V = rest.vertices.rows();
-  s.rest_positions = positions_row(rest).reshaped<Eigen::RowMajor>(V, 3);
-  s.triangles = rest.triangles.cast<std::uint32_t>();
-  s.pinned.assign(static_cast<size_t>(V), 0);
-  for (int p : pinned_list) s.pinned[static_cast<size_t>(p)] = 1;
   s.positions.resize(total, 3 * V);
-  s.velocities.resize(total, 3 * V);
   s.support = MatrixXfR::Zero(total, core::kSupportFloats);
   int n = 0;
-  for (const auto& [entry, files] : plan) {
+  for (const auto& p : plan) {
     s.irf_start.push_back(n);
-    s.irf_length.push_back(static_cast<std::int32_t>(files.size()));
-    s.irf_palette.push_back(entry);
-    for (const auto& file : files) {
+    s.irf_length.push_back(static_cast<std::int32_t>(p.files.size()));
+    s.irf_palette.push_back(p.entry);
+    s.irf_continues.push_back(p.continues);
+    for (const auto& file : p.files) {
       const ObjMesh m = read_obj(file);
       if (m.vertices.rows() != V || m.triangles != rest.triangles) {
         throw SceneError(
@@ -150,22 +158,39 @@ OrbitStore import_orbits(const std::filesystem::path& manifest,
                         m.triangles.rows()));
       }
       s.positions.row(n) = positions_row(m);
-      s.frame_palette.push_back(entry);
+      s.frame_palette.push_back(p.entry);
       s.support(n, 0) = s.support(n, 5) = s.support(n, 10) = 1;  // identity 3x4
       ++n;
       if (progress) progress(n, total);
     }
-    const int first = s.irf_start.back(), len = s.irf_length.back();
-    for (int f = first; f < first + len; ++f) {
-      if (f > first) {
-        s.velocities.row(f) = (s.positions.row(f) - s.positions.row(f - 1)) / static_cast<float>(s.dt);
-      } else if (len > 1) {
-        s.velocities.row(f) = (s.positions.row(f + 1) - s.positions.row(f)) / static_cast<float>(s.dt);
-      } else {
-        s.velocities.row(f).setZero();
-      }
-    }
   }
+}
+
+}  // namespace
+
+OrbitStore import_orbits(const std::filesystem::path& manifest,
+                         const std::function<void(int, int)>& progress) {
+  const toml::table root = parse_manifest(manifest);
+  const auto dir = manifest.parent_path();
+  Fields top(root, manifest.string(), "");
+  OrbitStore s;
+  s.source = "import";
+  s.scene = top.string("scene");
+  s.dt = top.positive("dt");
+  read_palette(top, s);
+  const std::vector<ImportedIrf> plan = plan_irfs(top, s, dir);
+  const auto rest_path = top.has("rest") ? dir / top.string("rest") : plan.front().files.front();
+  const ObjMesh rest = read_obj(rest_path);
+  const std::vector<int> pinned = read_pinned(top, root, rest.vertices.rows());
+  top.finish();
+
+  const auto V = rest.vertices.rows();
+  s.rest_positions = positions_row(rest).reshaped<Eigen::RowMajor>(V, 3);
+  s.triangles = rest.triangles.cast<std::uint32_t>();
+  s.pinned.assign(static_cast<size_t>(V), 0);
+  for (int p : pinned) s.pinned[static_cast<size_t>(p)] = 1;
+  read_frames(plan, rest, rest_path, s, progress);
+  s.velocities = core::orbit_velocities(s.positions, s.irf_start, s.irf_length, s.irf_continues, s.dt);
   validate_orbit_store(s, manifest.string());
   return s;
 }

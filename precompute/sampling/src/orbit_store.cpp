@@ -53,9 +53,11 @@ void validate_orbit_store(const OrbitStore& s, const std::string& source) {
     fail("/frames/support", fmt::format("expected {} x 12 finite transforms", N));
   }
   const size_t n_irf = s.irf_start.size();
-  if (n_irf == 0 || s.irf_length.size() != n_irf || s.irf_palette.size() != n_irf) {
-    fail("/irfs/start", "expected one or more IRFs with start, length and palette of equal counts");
+  if (n_irf == 0 || s.irf_length.size() != n_irf || s.irf_palette.size() != n_irf ||
+      s.irf_continues.size() != n_irf) {
+    fail("/irfs/start", "expected one or more IRFs with start, length, palette and continues of equal counts");
   }
+  if (s.irf_continues[0] != 0) fail("/irfs/continues", "the first IRF cannot continue an earlier one");
   std::int32_t next = 0;
   for (size_t i = 0; i < n_irf; ++i) {
     if (s.irf_start[i] != next || s.irf_length[i] < 1) {
@@ -99,6 +101,7 @@ void write_orbit_store(const OrbitStore& s, const std::filesystem::path& path) {
       f.write("/irfs/start", s.irf_start);
       f.write("/irfs/length", s.irf_length);
       f.write("/irfs/palette", s.irf_palette);
+      f.write("/irfs/continues", s.irf_continues);
     });
   } catch (const h5::Failure& e) {
     throw OrbitStoreError(fmt::format("{}: cannot write: {}", path.string(), e.what()));
@@ -138,6 +141,7 @@ OrbitStore read_orbit_store(const std::filesystem::path& path) {
     s.irf_start = r.vector<std::int32_t>("/irfs/start");
     s.irf_length = r.vector<std::int32_t>("/irfs/length");
     s.irf_palette = r.vector<std::int32_t>("/irfs/palette");
+    s.irf_continues = r.vector<std::uint8_t>("/irfs/continues");
     validate_orbit_store(s, path.string());
     return s;
   } catch (const h5::Failure& e) {

@@ -67,6 +67,13 @@ std::optional<std::string> Fields::optional_string(const std::string& key) {
   return string(key);
 }
 
+bool Fields::flag(const std::string& key, bool fallback) {
+  if (!has(key)) return fallback;
+  const toml::node* n = node(key);
+  if (!n->is_boolean()) fail(key, "true or false");
+  return n->as_boolean()->get();
+}
+
 double Fields::number(const std::string& key) {
   const toml::node* n = node(key);
   const auto v = n ? as_number(*n) : std::nullopt;

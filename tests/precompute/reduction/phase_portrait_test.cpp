@@ -1,6 +1,7 @@
-// Eq. 8 velocities at IRF boundaries, the beta default, and the IRF cache (§5.2)
+// Eq. 8 velocities at IRF starts and ends, the beta default, and the IRF cache (§5.2)
 // against a brute-force search.
 
+#include "phasecast/core/phase_space.h"
 #include "phasecast/precompute/reduction/phase_portrait.h"
 
 #include <gtest/gtest.h>
@@ -10,28 +11,44 @@
 namespace phasecast::precompute {
 namespace {
 
-TEST(ReducedVelocities, ForwardInsideBackwardAtTheEnd) {
-  MatrixXfR q(5, 1);
-  q << 0, 1, 3, 10, 20;  // IRF 0: nodes 0..2, IRF 1: nodes 3..4
-  const MatrixXfR v = reduced_velocities(q, {0, 3}, {3, 2}, 0.5);
-  EXPECT_FLOAT_EQ(v(0, 0), 2);   // (1 - 0) / 0.5
-  EXPECT_FLOAT_EQ(v(1, 0), 4);   // (3 - 1) / 0.5
-  EXPECT_FLOAT_EQ(v(2, 0), 4);   // last node of IRF 0: backward, never across the switch
-  EXPECT_FLOAT_EQ(v(3, 0), 20);  // (20 - 10) / 0.5
-  EXPECT_FLOAT_EQ(v(4, 0), 20);  // orbit end: backward
+// Eq. 8 with the impulse between an IRF's first and second node: the first
+// node keeps the velocity the impulse finds (the backward difference from the
+// IRF it continues), never the jump the impulse causes.
+TEST(OrbitVelocities, IrfStartsKeepThePreImpulseVelocity) {
+  MatrixXfR q(6, 1);
+  // IRF 0: nodes 0..2 from rest; IRF 1 continues it at node 3, where an
+  // impulse turns a motion of +1 per node into +10 per node.
+  q << 0, 1, 2, 3, 13, 23;
+  const MatrixXfR v = core::orbit_velocities(q, {0, 3}, {3, 3}, {0, 1}, 0.5);
+  EXPECT_FLOAT_EQ(v(0, 0), 0);   // starts from the settled rest
+  EXPECT_FLOAT_EQ(v(1, 0), 2);   // (2 - 1) / 0.5
+  EXPECT_FLOAT_EQ(v(2, 0), 2);   // (3 - 2) / 0.5: node 3 continues the motion, no switch yet
+  EXPECT_FLOAT_EQ(v(3, 0), 2);   // (3 - 2) / 0.5: the state before the impulse, not (13 - 3) / 0.5
+  EXPECT_FLOAT_EQ(v(4, 0), 20);  // (23 - 13) / 0.5
+  EXPECT_FLOAT_EQ(v(5, 0), 20);  // orbit end: backward
 }
 
-TEST(ReducedVelocities, SingleNodeIrfHasZeroVelocity) {
+TEST(OrbitVelocities, AnIrfFromRestStartsStillAndItsPredecessorEndsBackward) {
+  MatrixXfR q(5, 1);
+  q << 0, 1, 3, 50, 51;  // IRF 1 (nodes 3..4) restarts from rest: node 3 is not after node 2
+  const MatrixXfR v = core::orbit_velocities(q, {0, 3}, {3, 2}, {0, 0}, 1.0);
+  EXPECT_FLOAT_EQ(v(2, 0), 2);  // backward: never across to an unrelated orbit
+  EXPECT_FLOAT_EQ(v(3, 0), 0);
+  EXPECT_FLOAT_EQ(v(4, 0), 1);
+}
+
+TEST(OrbitVelocities, SingleNodeIrfFromRestHasZeroVelocity) {
   MatrixXfR q(1, 2);
   q << 1, 2;
-  EXPECT_TRUE(reduced_velocities(q, {0}, {1}, 0.1).isZero());
+  EXPECT_TRUE(core::orbit_velocities(q, {0}, {1}, {0}, 0.1).isZero());
 }
 
-TEST(ReducedVelocities, RejectsBadInput) {
+TEST(OrbitVelocities, RejectsBadInput) {
   MatrixXfR q = MatrixXfR::Zero(3, 1);
-  EXPECT_THROW(reduced_velocities(q, {0}, {4}, 0.1), std::invalid_argument);
-  EXPECT_THROW(reduced_velocities(q, {0}, {3}, 0.0), std::invalid_argument);
-  EXPECT_THROW(reduced_velocities(q, {0, 1}, {3}, 0.1), std::invalid_argument);
+  EXPECT_THROW(core::orbit_velocities(q, {0}, {4}, {0}, 0.1), std::invalid_argument);
+  EXPECT_THROW(core::orbit_velocities(q, {0}, {3}, {0}, 0.0), std::invalid_argument);
+  EXPECT_THROW(core::orbit_velocities(q, {0, 1}, {3}, {0}, 0.1), std::invalid_argument);
+  EXPECT_THROW(core::orbit_velocities(q, {0}, {3}, {1}, 0.1), std::invalid_argument);  // nothing before node 0
 }
 
 TEST(DefaultBeta, BalancesPositionAndVelocityRanges) {

@@ -41,6 +41,7 @@ OrbitStore low_rank_store(const Scene& scene, int N) {
   s.irf_start = {0, 400};
   s.irf_length = {400, N - 400};
   s.irf_palette = {0, 1};
+  s.irf_continues = {0, 1};
   std::fill(s.frame_palette.begin() + 400, s.frame_palette.end(), 1);
   return s;
 }

@@ -19,7 +19,7 @@ def main(tool: str, scene: str, path: str) -> None:
     with h5py.File(path, "r") as f:
         a = f.attrs
         assert text(a["format"]) == "phasecast-orbits"
-        assert int(a["format_version"]) == 1 and a["format_version"].dtype == np.int32
+        assert int(a["format_version"]) == 2 and a["format_version"].dtype == np.int32
         assert text(a["scene"]) == "plant_pot_tiny"
         assert text(a["source"]) == "phasecast-simulator"
         assert abs(float(a["dt"]) - 0.02) < 1e-12
@@ -49,6 +49,8 @@ def main(tool: str, scene: str, path: str) -> None:
         start, length, pal = f["irfs/start"][:], f["irfs/length"][:], f["irfs/palette"][:]
         assert start.dtype == length.dtype == pal.dtype == np.int32
         assert list(start) == [0, 10] and list(length) == [10, 5] and list(pal) == [2, 1]
+        cont = f["irfs/continues"][:]
+        assert cont.dtype == np.uint8 and list(cont) == [0, 1]  # a schedule is one continuous orbit
         # Positions are in the support frame: pinned stem vertices never move.
         pinned = f["mesh/pinned"][:].astype(bool)
         P = f["frames/positions"][:].reshape(N, V, 3)

@@ -75,8 +75,11 @@ TEST(Import, ObjSequencesBecomeAnOrbitStore) {
   EXPECT_EQ(s.irf_palette, (std::vector<std::int32_t>{0, 1}));
   EXPECT_EQ(s.pinned, (std::vector<std::uint8_t>{1, 0, 0, 0}));
   EXPECT_FLOAT_EQ(s.positions(3, 0), 0.06f);
-  // Finite differences: 0.02 m per 0.1 s along x in "open", forward at its first frame; zero while stopped.
-  for (int f = 0; f < 4; ++f) EXPECT_NEAR(s.velocities(f, 0), 0.2f, 1e-5) << f;
+  // Eq. 8: 0.02 m per 0.1 s along x in "open"; its first frame starts from rest (the
+  // manifest does not say it continues anything), so it has no pre-impulse velocity.
+  EXPECT_EQ(s.irf_continues, (std::vector<std::uint8_t>{0, 0}));
+  EXPECT_NEAR(s.velocities(0, 0), 0.0f, 1e-6);
+  for (int f = 1; f < 4; ++f) EXPECT_NEAR(s.velocities(f, 0), 0.2f, 1e-5) << f;
   EXPECT_NEAR(s.velocities(4, 0), 0.0f, 1e-6);
   EXPECT_NEAR(s.velocities(5, 0), 0.0f, 1e-6);
   EXPECT_TRUE(s.kinematics[0].rotational);

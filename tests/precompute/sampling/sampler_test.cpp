@@ -104,6 +104,7 @@ TEST_F(Sampler, ResumeDropsAnIrfWrittenAfterTheLastStateCheckpoint) {
   torn.irf_start.push_back(extra_start);
   torn.irf_length.push_back(1);
   torn.irf_palette.push_back(1);
+  torn.irf_continues.push_back(1);
   torn.frame_palette.push_back(1);
   torn.positions.conservativeResize(torn.frames() + 1, Eigen::NoChange);
   torn.positions.bottomRows(1).setZero();

@@ -10,6 +10,8 @@
 #include <Eigen/Core>
 
 #include <cmath>
+#include <cstdint>
+#include <vector>
 
 namespace phasecast::core {
 
@@ -29,5 +31,19 @@ inline Eigen::MatrixXf phase_points(const MatrixXfR& q, const MatrixXfR& qdot, d
   x.rightCols(q.cols()) = qdot * static_cast<float>(std::sqrt(beta));
   return x;
 }
+
+// Eq. 8: the velocity of every state node of a set of orbits (one row per
+// node, IRFs tiling the rows), by first-order differences in the paper's
+// convention: forward differences (x^{k+1} - x^k) / dt along an IRF, and the
+// one-sided backward difference (x^k - x^{k-1}) / dt "for the orbit's final
+// state, and prior to IRF discontinuities". The discontinuity of an IRF lies
+// between its first node (the state the impulse finds) and its second, so its
+// first node gets the velocity it arrived with: the backward difference from
+// the previous IRF when it continues that IRF's motion (`irf_continues`), zero
+// when it starts from the settled rest. This is the state the run-time lookup
+// (§5.2) compares with, the velocity before the impulse.
+MatrixXfR orbit_velocities(const MatrixXfR& x, const std::vector<std::int32_t>& irf_start,
+                           const std::vector<std::int32_t>& irf_length,
+                           const std::vector<std::uint8_t>& irf_continues, double dt);
 
 }  // namespace phasecast::core

@@ -15,6 +15,7 @@ struct IrfList {
   std::vector<std::int32_t> start;
   std::vector<std::int32_t> length;
   std::vector<std::int32_t> palette;
+  std::vector<std::uint8_t> continues;  // 1: continues the previous IRF's motion (orbit_store.h)
 
   size_t size() const { return start.size(); }
 };

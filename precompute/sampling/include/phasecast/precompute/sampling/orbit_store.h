@@ -17,7 +17,7 @@
 
 namespace phasecast::precompute {
 
-inline constexpr int kOrbitStoreVersion = 1;
+inline constexpr int kOrbitStoreVersion = 2;  // 2: /irfs/continues
 
 class OrbitStoreError : public std::runtime_error {
  public:
@@ -46,6 +46,10 @@ struct OrbitStore {
   std::vector<std::int32_t> irf_start;
   std::vector<std::int32_t> irf_length;
   std::vector<std::int32_t> irf_palette;
+  // 1: the IRF continues the previous one's motion (its first frame follows the
+  // previous IRF's last frame by one step); 0: it starts from the settled rest.
+  // Eq. 8's velocity at an IRF start is the pre-impulse one, so it needs this.
+  std::vector<std::uint8_t> irf_continues;
 
   int frames() const { return static_cast<int>(positions.rows()); }
   int vertices() const { return static_cast<int>(rest_positions.rows()); }

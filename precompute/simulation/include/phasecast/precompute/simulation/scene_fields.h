@@ -26,6 +26,7 @@ class Fields {
 
   std::string string(const std::string& key);
   std::optional<std::string> optional_string(const std::string& key);
+  bool flag(const std::string& key, bool fallback);  // true or false
   double number(const std::string& key);
   double number(const std::string& key, double fallback);
   double positive(const std::string& key);
