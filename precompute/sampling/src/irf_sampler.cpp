@@ -98,6 +98,7 @@ void truncate_store(OrbitStore& s, int irfs) {
   s.irf_start.resize(n);
   s.irf_length.resize(n);
   s.irf_palette.resize(n);
+  s.irf_continues.resize(n);
   s.frame_palette.resize(static_cast<size_t>(frames));
   s.positions.conservativeResize(frames, Eigen::NoChange);
   s.velocities.conservativeResize(frames, Eigen::NoChange);
@@ -133,30 +134,42 @@ OrbitStore resume_chain(const Scene& scene, const SamplingOptions& o, int chain,
   return store;
 }
 
-// The chain's history after its first `irfs` IRFs, by replaying the draws;
-// they must reproduce the checkpointed entries (else the scene's rules changed).
-std::vector<int> replay_history(const PaletteRules& rules, const SamplingOptions& o, int chain,
-                                const OrbitStore& store, int irfs) {
+// Where a chain stands after its first `irfs` IRFs: its history and the
+// support coordinate, by replaying the draws. They must reproduce the
+// checkpointed entries and lengths (else the scene's rules changed).
+struct ChainPosition {
   std::vector<int> history;
+  double at = 0;
+};
+
+ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, int chain,
+                           const OrbitStore& store, int irfs) {
+  ChainPosition p;
   for (int i = 0; i < irfs; ++i) {
-    const IrfDraw d = draw_irf(rules, o.seed, chain, i, history);
-    if (d.entry != store.irf_palette[static_cast<size_t>(i)]) {
+    const IrfDraw d = draw_irf(rules, o.seed, chain, i, p.history, p.at);
+    const auto k = static_cast<size_t>(i);
+    if (d.entry != store.irf_palette[k] || d.frames != store.irf_length[k]) {
       throw SamplingError(fmt::format(
-          "{}: checkpointed IRF {} is entry {} but the palette rules now draw {} (was the "
-          "scene changed?)",
-          chain_store(o.work_dir, chain).string(), i, store.irf_palette[static_cast<size_t>(i)], d.entry));
+          "{}: checkpointed IRF {} is entry {} for {} frames but the palette rules now draw {} for {} (was "
+          "the scene changed?)",
+          chain_store(o.work_dir, chain).string(), i, store.irf_palette[k], store.irf_length[k], d.entry,
+          d.frames));
     }
-    if (d.from_rest) history.clear();
-    history.push_back(d.entry);
+    if (d.from_rest) p.history.clear(), p.at = 0;
+    p.history.push_back(d.entry);
+    p.at = rules.advance(d.entry, p.at, d.frames);
   }
-  return history;
+  return p;
 }
 
 OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o, int chain,
                      Shared& sh) {
   auto sim = make_simulator(scene);
+  // Chains start from the settled rest, as simulate_schedule (the truth the
+  // validator compares with) and the server's rest node do.
+  const SimState rest = settled_rest_state(scene, *sim);
   Checkpoint c;
-  c.state = sim->rest_state();
+  c.state = rest;
   sim->reset(c.state);
   OrbitStore store = resume_chain(scene, o, chain, c, *sim);
   {
@@ -165,16 +178,17 @@ OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const Sampli
     sh.progress.nodes += store.frames();
     if (o.progress) o.progress(sh.progress);
   }
-  std::vector<int> history = replay_history(rules, o, chain, store, c.irfs);
+  ChainPosition at = replay_chain(rules, o, chain, store, c.irfs);
   for (int i = c.irfs; i < o.irfs_per_chain; ++i) {
     if (sh.stop) break;
-    const IrfDraw draw = draw_irf(rules, o.seed, chain, i, history);
+    const IrfDraw draw = draw_irf(rules, o.seed, chain, i, at.history, at.at);
     if (draw.from_rest) {
-      sim->reset(sim->rest_state());
-      history.clear();
+      sim->reset(rest);
+      at = ChainPosition{};
     }
-    history.push_back(draw.entry);
-    record_irf(*sim, scene, draw.entry, draw.frames, store);
+    at.history.push_back(draw.entry);
+    record_irf(*sim, scene, draw.entry, draw.frames, store, {}, !draw.from_rest);
+    at.at = rules.advance(draw.entry, at.at, draw.frames);
     c.irfs = i + 1;
     c.previous = draw.entry;
     c.state = sim->state();
@@ -196,6 +210,7 @@ void append_store(OrbitStore& all, const OrbitStore& s) {
     all.irf_start.push_back(static_cast<std::int32_t>(first) + s.irf_start[i]);
     all.irf_length.push_back(s.irf_length[i]);
     all.irf_palette.push_back(s.irf_palette[i]);
+    all.irf_continues.push_back(s.irf_continues[i]);
   }
   all.frame_palette.insert(all.frame_palette.end(), s.frame_palette.begin(), s.frame_palette.end());
   all.positions.conservativeResize(first + n, s.positions.cols());
@@ -209,22 +224,25 @@ void append_store(OrbitStore& all, const OrbitStore& s) {
 }  // namespace
 
 IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
-                 const std::vector<int>& history) {
+                 const std::vector<int>& history, double at) {
   std::uint64_t word = splitmix(splitmix(splitmix(seed) ^ static_cast<std::uint64_t>(chain)) ^
                                 static_cast<std::uint64_t>(irf));
   IrfDraw d;
   const int previous = history.empty() ? -1 : history.back();
   const int follow_up = previous >= 0 ? rules.on_end[static_cast<size_t>(previous)] : core::kEndRest;
-  if (follow_up >= 0 && rules.allowed_after(history, follow_up)) {
+  if (follow_up >= 0 && rules.allowed_at(history, follow_up, at)) {
     d.entry = follow_up;  // the named follow-up
   } else {
     std::vector<int> next;
     for (int e = 0; e < rules.size(); ++e) {
-      if (rules.allowed_after(history, e)) next.push_back(e);
+      if (rules.allowed_at(history, e, at)) next.push_back(e);
     }
     if (next.empty()) {  // nothing may follow: back to rest
       d.from_rest = true;
-      next = rules.successors(-1);
+      at = 0;
+      for (int e : rules.successors(-1)) {
+        if (rules.reachable_frames(e, at) >= 1) next.push_back(e);
+      }
       if (next.empty())
         throw SamplingError("palette rules: no entry may start from rest (add \"rest\" to an 'after')");
     }
@@ -232,9 +250,9 @@ IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int i
   }
   word = splitmix(word);
   const auto e = static_cast<size_t>(d.entry);
-  d.frames =
-      rules.min_frames[e] +
-      static_cast<int>(word % static_cast<std::uint64_t>(rules.max_frames[e] - rules.min_frames[e] + 1));
+  const int longest = rules.reachable_frames(d.entry, at);
+  const int shortest = std::min(rules.min_frames[e], longest);
+  d.frames = shortest + static_cast<int>(word % static_cast<std::uint64_t>(longest - shortest + 1));
   return d;
 }
 

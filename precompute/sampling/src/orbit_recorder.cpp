@@ -73,12 +73,13 @@ OrbitStore empty_orbit_store(const Scene& scene) {
 }
 
 void record_irf(Simulator& simulator, const Scene& scene, int entry, int frames, OrbitStore& store,
-                const std::function<void()>& on_frame) {
+                const std::function<void()>& on_frame, bool continues) {
   const auto& e = scene.palette.at(static_cast<size_t>(entry));
   const Eigen::Index first = store.frames(), n = 3 * static_cast<Eigen::Index>(simulator.vertices());
   store.irf_start.push_back(static_cast<std::int32_t>(first));
   store.irf_length.push_back(frames);
   store.irf_palette.push_back(entry);
+  store.irf_continues.push_back(continues && first > 0 ? 1 : 0);
   // One resize per IRF: rows are filled in place.
   store.positions.conservativeResize(first + frames, n);
   store.velocities.conservativeResize(first + frames, n);
@@ -108,10 +109,16 @@ void settle(Simulator& simulator, double seconds) {
   }
 }
 
+SimState settled_rest_state(const Scene& scene, Simulator& simulator) {
+  simulator.reset(simulator.rest_state());
+  settle(simulator, scene.simulation.settle);
+  return simulator.state();
+}
+
 OrbitStore simulate_schedule(const Scene& scene, const std::vector<ScheduleItem>& schedule,
                              const ProgressCallback& progress) {
   auto simulator = make_simulator(scene);
-  settle(*simulator, scene.simulation.settle);
+  settled_rest_state(scene, *simulator);
   OrbitStore store = empty_orbit_store(scene);
   int total = 0, done = 0;
   for (const auto& item : schedule) total += frames_for(item.duration, scene.simulation.frame_dt);

@@ -51,6 +51,25 @@ bool PaletteRules::allowed_after(const std::vector<int>& history, int to) const 
   return run < limit;
 }
 
+int PaletteRules::reachable_frames(int entry, double at) const {
+  const auto e = static_cast<size_t>(entry);
+  const double w = support_rate[e];
+  if (!(range_max > range_min) || std::abs(w) < 1e-12) return max_frames[e];
+  const double room = w > 0 ? range_max - at : at - range_min;
+  // A whole frame of motion must fit: a door at its stop cannot open further.
+  const double frames = std::floor(room / (std::abs(w) * frame_dt) + 1e-6);
+  return static_cast<int>(std::clamp(frames, 0.0, static_cast<double>(max_frames[e])));
+}
+
+bool PaletteRules::allowed_at(const std::vector<int>& history, int to, double at) const {
+  return allowed_after(history, to) && reachable_frames(to, at) >= 1;
+}
+
+double PaletteRules::advance(int entry, double at, int frames) const {
+  const double moved = at + support_rate[static_cast<size_t>(entry)] * frames * frame_dt;
+  return range_max > range_min ? std::clamp(moved, range_min, range_max) : moved;
+}
+
 PaletteRules make_palette_rules(const Scene& scene) {
   const int D = static_cast<int>(scene.palette.size());
   const double dt = scene.simulation.frame_dt;
@@ -75,7 +94,11 @@ PaletteRules make_palette_rules(const Scene& scene) {
     while (g < d && scene.palette[static_cast<size_t>(g)].group != e.group) ++g;
     rules.group.push_back(g == d ? d : rules.group[static_cast<size_t>(g)]);
     rules.max_in_a_row.push_back(e.max_in_a_row);
+    rules.support_rate.push_back(e.alpha_forcing.dot(scene.support.axis));
   }
+  rules.range_min = scene.support.range_min;
+  rules.range_max = scene.support.range_max;
+  rules.frame_dt = dt;
   for (int d = 0; d < D; ++d) {
     const auto& e = scene.palette[static_cast<size_t>(d)];
     if (e.on_end == "rest") {

@@ -41,7 +41,7 @@ TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
   const auto r = run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("r_u = "), std::string::npos) << r.out;
-  EXPECT_NE(r.err.find("sample IRFs: 6/6 (100%), 210 state nodes"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("sample IRFs: 6/6 (100%), "), std::string::npos) << r.err;
   const auto inspect = run_tool("phasecast-inspect", {pkg});
   ASSERT_EQ(inspect.exit_code, 0) << inspect.err;
   EXPECT_NE(inspect.out.find("n_irf = 6 IRFs"), std::string::npos) << inspect.out;

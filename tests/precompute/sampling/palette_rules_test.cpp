@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <numbers>
+
 #include <cmath>
 #include <fstream>
 
@@ -83,7 +85,7 @@ TEST(PaletteRules, UnknownFollowUpIsRejected) {
 TEST(PaletteRules, TmaxBelowOneFrameAboveTminIsRejected) {
   const auto dir = scratch_dir("rules_tmax");
   const auto msg =
-      error_of(edited_tiny_scene(dir, "t_min = 0.4\nt_max = 2.0", "t_min = 0.405\nt_max = 0.415"));
+      error_of(edited_tiny_scene(dir, "t_min = 0.4\nt_max = 3.0", "t_min = 0.405\nt_max = 0.415"));
   EXPECT_NE(msg.find("palette entry 'stop': field 't_max': expected at least one frame"), std::string::npos)
       << msg;
 }
@@ -91,7 +93,7 @@ TEST(PaletteRules, TmaxBelowOneFrameAboveTminIsRejected) {
 TEST(PaletteRules, TminNotBelowTmaxIsRejectedByTheSceneParser) {
   const auto dir = scratch_dir("rules_tmin");
   try {
-    load_scene_file(edited_tiny_scene(dir, "t_min = 0.4\nt_max = 2.0", "t_min = 3\nt_max = 2.0"));
+    load_scene_file(edited_tiny_scene(dir, "t_min = 0.4\nt_max = 3.0", "t_min = 4\nt_max = 3.0"));
     FAIL() << "expected a SceneError";
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("t_min"), std::string::npos) << e.what();
@@ -99,26 +101,56 @@ TEST(PaletteRules, TminNotBelowTmaxIsRejectedByTheSceneParser) {
   }
 }
 
-// Draws `irfs` IRFs of one chain, checking every rule on the way; returns the entries.
-std::vector<int> checked_chain(const PaletteRules& rules, std::uint64_t seed, int chain, int irfs) {
+// Draws `irfs` IRFs of one chain as the sampler does (the support coordinate
+// advanced kinematically), checking every rule on the way, the support's
+// range included; returns the entries and, in `stops`, the door angle at
+// which each IRF holding the support still began.
+std::vector<int> checked_chain(const PaletteRules& rules, std::uint64_t seed, int chain, int irfs,
+                               std::vector<double>* stops = nullptr) {
   std::vector<int> history, entries;
+  double at = 0;
   for (int irf = 0; irf < irfs; ++irf) {
-    const IrfDraw d = draw_irf(rules, seed, chain, irf, history);
-    if (d.from_rest) history.clear();
+    const IrfDraw d = draw_irf(rules, seed, chain, irf, history, at);
+    if (d.from_rest) history.clear(), at = 0;
+    const auto e = static_cast<size_t>(d.entry);
     EXPECT_TRUE(rules.allowed_after(history, d.entry)) << "chain " << chain << " IRF " << irf;
     if (!history.empty() && rules.on_end[static_cast<size_t>(history.back())] >= 0 &&
-        rules.allowed_after(history, rules.on_end[static_cast<size_t>(history.back())])) {
+        rules.allowed_at(history, rules.on_end[static_cast<size_t>(history.back())], at)) {
       EXPECT_EQ(d.entry, rules.on_end[static_cast<size_t>(history.back())]);
     }
-    EXPECT_GE(d.frames, rules.min_frames[static_cast<size_t>(d.entry)]);
-    EXPECT_LE(d.frames, rules.max_frames[static_cast<size_t>(d.entry)]);
-    const IrfDraw again = draw_irf(rules, seed, chain, irf, history);
+    // §3.5: never an IRF whose support cannot move, never past the range's end.
+    const int reach = rules.reachable_frames(d.entry, at);
+    EXPECT_GE(reach, 1) << "chain " << chain << " IRF " << irf << ": entry " << d.entry << " at " << at;
+    EXPECT_LE(d.frames, reach);
+    EXPECT_GE(d.frames, std::min(rules.min_frames[e], reach));
+    EXPECT_LE(d.frames, rules.max_frames[e]);
+    const IrfDraw again = draw_irf(rules, seed, chain, irf, history, at);
     EXPECT_EQ(again.entry, d.entry);
     EXPECT_EQ(again.frames, d.frames);
+    if (stops && rules.support_rate[e] == 0) stops->push_back(at);
     history.push_back(d.entry);
     entries.push_back(d.entry);
+    at = rules.advance(d.entry, at, d.frames);
+    EXPECT_GE(at, rules.range_min - 1e-9);
+    EXPECT_LE(at, rules.range_max + 1e-9);
   }
   return entries;
+}
+
+TEST(IrfDraws, TheDoorIsNeverDrivenIntoItsStopsAndIsReachedAtEveryAngle) {
+  const auto rules = make_palette_rules(load_scene_file(tiny_scene_path()));
+  ASSERT_NEAR(rules.range_max, std::numbers::pi / 2, 1e-9);
+  std::vector<double> stops;
+  for (int chain = 0; chain < 20; ++chain) checked_chain(rules, 3, chain, 30, &stops);
+  // The door stops at angles spread over its range: every 15-degree band is visited.
+  std::vector<int> band(6, 0);
+  for (double a : stops) ++band[static_cast<size_t>(std::min(5.0, a / (std::numbers::pi / 12)))];
+  for (size_t b = 0; b < band.size(); ++b) EXPECT_GT(band[b], 0) << "band " << b;
+  // At the closed stop, closing is never drawn; at the open stop, opening is not.
+  const int close = 0, open = 2;
+  EXPECT_EQ(rules.reachable_frames(close, 0.0), 0);
+  EXPECT_EQ(rules.reachable_frames(open, rules.range_max), 0);
+  EXPECT_FALSE(rules.allowed_at({}, close, 0.0));
 }
 
 TEST(IrfDraws, NeverViolateThePaletteRulesAndStayDeterministic) {

@@ -41,15 +41,17 @@ struct SamplingOptions {
 };
 
 // The chain-th chain's decision for its `irf`-th IRF given its history (the
-// entries since it last left rest, oldest first): the entry and its length in
-// frames. A pure function of (seed, chain, irf, history), so resumes replay it exactly.
+// entries since it last left rest, oldest first) and the support coordinate
+// `at` where the IRF starts: the entry and its length in frames. Entries the
+// support's range blocks are never drawn, and T is clipped to the remaining
+// range (§3.5). A pure function of its arguments, so resumes replay it exactly.
 struct IrfDraw {
   int entry = 0;
   int frames = 1;
-  bool from_rest = false;  // no entry may follow `previous`: the chain restarts from the rest state
+  bool from_rest = false;  // no entry may follow: the chain restarts from the settled rest state
 };
 IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
-                 const std::vector<int>& history);
+                 const std::vector<int>& history, double at = 0);
 
 // Throws SamplingError naming the bad option (chains, IRFs per chain, jobs >= 1).
 void check_sampling_options(const SamplingOptions& options);

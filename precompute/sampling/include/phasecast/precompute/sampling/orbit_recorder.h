@@ -30,15 +30,20 @@ using ProgressCallback = std::function<void(int, int)>;
 OrbitStore empty_orbit_store(const Scene& scene);
 
 // Simulates one IRF of `frames` frames from the simulator's current state and
-// appends it; `on_frame` runs after every simulated frame.
+// appends it; `on_frame` runs after every simulated frame. `continues`: the
+// simulator was not reset since the store's last IRF (ignored for the first).
 void record_irf(Simulator& simulator, const Scene& scene, int entry, int frames, OrbitStore& store,
-                const std::function<void()>& on_frame = {});
+                const std::function<void()>& on_frame = {}, bool continues = true);
 
 // Relaxes the simulator towards static equilibrium under gravity with the
 // support at rest: `seconds / frame_dt` steps, each followed by zeroing the
 // velocities, so every step is a damped Newton move towards equilibrium
 // (a toy sags onto its base instead of bouncing at the start of the first IRF).
 void settle(Simulator& simulator, double seconds);
+
+// The rest state settled for the scene's simulation.settle seconds: where
+// sampled chains, simulated schedules and (through its rest node) the server start.
+SimState settled_rest_state(const Scene& scene, Simulator& simulator);
 
 // Runs the schedule from the rest state, settled for the scene's simulation.settle seconds.
 OrbitStore simulate_schedule(const Scene& scene, const std::vector<ScheduleItem>& schedule,

@@ -18,6 +18,14 @@ struct PaletteRules {
   std::vector<int> max_frames;       // D: longest IRF in frames (>= min_frames)
   std::vector<int> group;            // D: group index (entries named alike share one)
   std::vector<int> max_in_a_row;     // D: at most this many IRFs of the entry's group in a row (0: unlimited)
+  // The support's range (§3.5: "the cloth's door has a 90 degree range of
+  // motion, so IRFs with nonzero omega need be at most 90/|omega| s"). The
+  // support coordinate (rad or m along the axis) is advanced kinematically, so
+  // the draws stay a pure function of the chain's entries and lengths.
+  std::vector<double> support_rate;  // D: held support velocity along the axis (alpha_F . axis)
+  double range_min = 0;              // range_min == range_max: unlimited
+  double range_max = 0;
+  double frame_dt = 0;
 
   int size() const { return static_cast<int>(on_end.size()); }
   // Whether entry `to` may follow entry `from` (-1: from rest).
@@ -27,6 +35,14 @@ struct PaletteRules {
   // Whether entry `to` may follow `history` (the chain's entries since it last
   // left rest, oldest first): allowed after its last entry and within max_in_a_row.
   bool allowed_after(const std::vector<int>& history, int to) const;
+  // The longest IRF of `entry`, in frames, that the range allows from support
+  // coordinate `at` (max_frames[entry] when unlimited or when the entry holds
+  // the support still); 0 when the entry cannot move the support at all.
+  int reachable_frames(int entry, double at) const;
+  // allowed_after(history, to), and `to` can move the support from `at`.
+  bool allowed_at(const std::vector<int>& history, int to, double at) const;
+  // The support coordinate after `frames` frames of `entry` from `at`.
+  double advance(int entry, double at, int frames) const;
 };
 
 // Checks the names in `after` and `on_end` against the palette and that a
