@@ -126,9 +126,8 @@ void come_to_rest(const SceneModel& s, InstanceState& st) {
 // End of the IRF of entry d (/palette/on_end): rest, or continue blended on
 // the nearest IRF of the same entry (hold: the forcing persists) or of the
 // follow-up entry.
-void end_of_irf(const SceneModel& s, InstanceState& st) {
+void end_of_irf(const SceneModel& s, InstanceState& st, std::int32_t rule) {
   const int d = st.palette_index;
-  const std::int32_t rule = s.data->palette.on_end[at(d)];
   const int next = rule == core::kEndHold ? d : rule;
   const int irf = next >= 0 ? s.data->portrait.nearest_irf(current_node(s, st), next) : -1;
   if (irf < 0) {
@@ -143,6 +142,12 @@ void end_of_irf(const SceneModel& s, InstanceState& st) {
 bool range_reached(const core::SupportKinematics& k, double s) {
   if (k.pulse_tau > 0 || k.rate == 0) return false;
   return k.rate > 0 ? s >= k.range_max : s <= k.range_min;
+}
+
+// Whether the entry moves a limited support that has not reached the end of
+// its range in the entry's direction.
+bool drives_within_range(const core::SupportKinematics& k, double s) {
+  return k.pulse_tau == 0 && k.rate != 0 && k.range_max > k.range_min && !range_reached(k, s);
 }
 
 // Displacement pulse of a jolt (pulse_tau > 0): rate * tau e^(-tau / pulse_tau),
@@ -411,8 +416,15 @@ void SynthesisEngine::advance(Instance& inst) const {
   }
   ++st.irf_t;
   const bool ended = static_cast<int>(st.irf_t) >= pkg.portrait.irf_length[at(st.irf)];
-  const bool stopped = range_reached(k, st.support_s) && pkg.palette.on_end[at(st.palette_index)] >= 0;
-  if (ended || stopped) end_of_irf(s, st);
+  const std::int32_t rule = pkg.palette.on_end[at(st.palette_index)];
+  if (range_reached(k, st.support_s) && rule >= 0) {
+    end_of_irf(s, st, rule);  // the door reached its stop: the follow-up (stop)
+  } else if (ended) {
+    // A sampled IRF is only as long as the sampler drew it; while the entry
+    // still drives the support within its range (the door is opening and has
+    // not reached its stop) the interaction persists on the same entry.
+    end_of_irf(s, st, drives_within_range(k, st.support_s) ? core::kEndHold : rule);
+  }
 }
 
 void SynthesisEngine::apply_due_impulses(Instance& inst, TickResult& out) {

@@ -149,16 +149,24 @@ TEST(Engine, BlendOffsetDecaysOntoTheTargetIrf) {
   EXPECT_LT(residual.norm(), 2e-3f * offset.norm());
 }
 
-TEST(Engine, FollowUpEntryStartsAtTheEndOfTheIrfThenComesToRest) {
+TEST(Engine, TheDoorKeepsOpeningUntilItsStopThenTheFollowUpThenRest) {
   const auto& pkg = *default_plate();
   auto e = engine_with(default_plate());
   const auto id = e.create_instance("plate");
   e.schedule_impulse(id, kOpen);
-  auto opening = tick_frame(e, id);
-  const int len = pkg.portrait.irf_length[static_cast<size_t>(opening.irf)];
-  for (int t = 1; t < len; ++t) opening = tick_frame(e, id);
-  EXPECT_EQ(opening.irf_t, static_cast<std::uint32_t>(len - 1));
-  const auto stop = tick_frame(e, id);  // on_end(open) = stop: the door stops
+  const auto& k = pkg.palette.kinematics[kOpen];
+  // An open IRF that runs out before the door reaches its stop is continued
+  // by another open IRF: the interaction persists while the door can move.
+  auto stop = tick_frame(e, id);
+  int frames = 0, irfs = 0;
+  for (; stop.palette_index == kOpen && frames < 10000; stop = tick_frame(e, id)) {
+    ++frames;
+    irfs += stop.irf_t == 0;
+  }
+  const double swept = frames * pkg.attributes.dt * k.rate;  // on_end(open) = stop, at the range end
+  EXPECT_NEAR(swept, k.range_max, k.rate * pkg.attributes.dt + 1e-6) << "the door opened " << swept << " rad";
+  EXPECT_GT(frames, pkg.portrait.irf_length[static_cast<size_t>(pkg.portrait.nearest_irf(0, kOpen))]);
+  EXPECT_GE(irfs, 2);
   EXPECT_EQ(stop.palette_index, kStop);
   EXPECT_EQ(pkg.portrait.irf_palette[static_cast<size_t>(stop.irf)], kStop);
   EXPECT_EQ(stop.irf_t, 0u);
@@ -362,7 +370,8 @@ std::string run_schedule(const Package& pkg) {
   std::string bytes;
   for (int f = 0; f < 400; ++f) {
     const auto r = e.tick();
-    if (f == 120) e.schedule_impulse(2, kClose);  // the open door is stopping by then
+    if (f == 120) e.schedule_impulse(2, kStop);  // the door is still opening: stop it
+    if (f == 200) e.schedule_impulse(2, kClose);
     for (const auto& l : r.frames) {
       bytes.append(reinterpret_cast<const char*>(l.q_u.data()),
                    sizeof(float) * static_cast<size_t>(l.q_u.size()));
