@@ -11,6 +11,8 @@ void add_import_command(CLI::App& app);
 void add_sample_command(CLI::App& app);
 void add_reduce_command(CLI::App& app);
 void add_run_command(CLI::App& app);
+// `validate scene.toml package.h5`: playback against the full simulation (docs/validation.md).
+void add_validate_command(CLI::App& app);
 // `transfer <mesh.obj> -o transfer.h5`: diffuse PRT of a static mesh (docs/transfer.md).
 void add_transfer_command(CLI::App& app);
 }  // namespace phasecast::precompute::tools

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   tools::add_sample_command(app);
   tools::add_reduce_command(app);
   tools::add_run_command(app);
+  tools::add_validate_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

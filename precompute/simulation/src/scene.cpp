@@ -444,6 +444,11 @@ Scene load_scene_file(const std::filesystem::path& path) {
   auto entries = top.tables("palette");
   if (entries.empty()) top.fail("palette", "at least one [[palette]] entry");
   for (auto& e : entries) scene.palette.push_back(read_entry(e, scene));
+  if (top.has("validation")) {
+    Fields v = top.table("validation");
+    scene.standard_schedule = v.string("schedule");
+    v.finish();
+  }
   top.finish();
   for (int v = 0; v < scene.model.vertices(); ++v) {
     if (!(scene.model.mass[v] > 0)) {

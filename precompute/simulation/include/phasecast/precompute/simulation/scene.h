@@ -54,6 +54,9 @@ struct Scene {
   DeformableModel model;
   std::vector<BodyInfo> bodies;
   std::vector<PaletteEntry> palette;
+  // [validation] schedule: the interaction `phasecast-precompute validate`
+  // plays by default ("open 0.8; stop 1.5; ..."); parsed where it is used.
+  std::string standard_schedule;
 
   // Index of the palette entry `name`; throws SceneError listing the known names.
   int palette_index(const std::string& entry) const;

@@ -1,0 +1,175 @@
+// phasecast-precompute validate: playback fidelity of a package against the
+// full simulation of the same schedules (docs/validation.md).
+
+#include "commands.h"
+#include "phasecast/core/progress.h"
+#include "phasecast/precompute/sampling/palette_rules.h"
+#include "phasecast/precompute/validation/playback.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <fstream>
+#include <memory>
+#include <string>
+
+namespace phasecast::precompute::tools {
+namespace {
+
+struct ValidateOptions {
+  std::string scene;
+  std::string package;
+  std::vector<std::string> schedules;
+  int random = 0;
+  std::uint64_t seed = 1;
+  int items = 6;
+  std::string json;
+  bool no_intersections = false;
+};
+
+// Targets of the playback-fidelity issue, used for the summary's pass counts.
+constexpr double kMotionLow = 0.67, kMotionHigh = 1.5, kJumpRatio = 2.0;
+
+// A segment "moves" when the simulated scene moves in it at least 30 % of the
+// schedule's typical per-frame motion: those are the ones a user watches.
+bool moving(const SegmentFigures& s, double typical) {
+  return s.frames > 1 && s.simulated_motion >= 0.3 * typical;
+}
+
+double typical_motion(const ScheduleFigures& g) {
+  double sum = 0;
+  int n = 0;
+  for (const auto& s : g.segments) sum += s.simulated_motion * (s.frames - 1), n += s.frames - 1;
+  return n ? sum / n : 0;
+}
+
+void print_schedule(const ScheduleFigures& g) {
+  fmt::print("  {:<8} {:>6} {:>7} {:>7} {:>12}  {}\n", "segment", "frames", "NRMSE", "motion", "sim mm/frame",
+             "");
+  const double typical = typical_motion(g);
+  for (const auto& s : g.segments) {
+    fmt::print("  {:<8} {:>6} {:>7.3f} {:>7.3f} {:>12.3f}  {}{}\n", s.entry, s.frames, s.nrmse,
+               s.motion_ratio, 1e3 * s.simulated_motion, moving(s, typical) ? "moving" : "",
+               s.refused.empty() ? "" : " REFUSED: " + s.refused);
+  }
+  int within = 0;
+  for (const auto& s : g.switches) within += s.ratio() <= kJumpRatio;
+  std::vector<double> ends = g.irf_end_speeds;
+  std::sort(ends.begin(), ends.end());
+  fmt::print(
+      "  whole: NRMSE {:.3f}, motion ratio {:.3f}; switches {} ({} with jump <= {}x local motion); "
+      "IRF ends {} (median speed {:.4f} m/s, simulation median {:.4f} m/s); self-intersecting: {} frames, "
+      "at most {} pairs\n",
+      g.nrmse, g.motion_ratio, g.switches.size(), within, kJumpRatio, ends.size(),
+      ends.empty() ? 0.0 : ends[ends.size() / 2], g.median_simulated_speed, g.frames_with_intersections,
+      g.max_intersecting_pairs);
+}
+
+struct Summary {
+  std::vector<double> nrmse;
+  int moving = 0, moving_within = 0, switches = 0, switches_within = 0, intersecting_frames = 0;
+};
+
+void add(Summary& s, const ScheduleFigures& g) {
+  s.nrmse.push_back(g.nrmse);
+  const double typical = typical_motion(g);
+  for (const auto& seg : g.segments) {
+    if (!moving(seg, typical)) continue;
+    ++s.moving;
+    s.moving_within += seg.motion_ratio >= kMotionLow && seg.motion_ratio <= kMotionHigh;
+  }
+  for (const auto& w : g.switches) ++s.switches, s.switches_within += w.ratio() <= kJumpRatio;
+  s.intersecting_frames += g.frames_with_intersections;
+}
+
+nlohmann::json summary_json(Summary s) {
+  std::sort(s.nrmse.begin(), s.nrmse.end());
+  return {{"median_nrmse", s.nrmse.empty() ? 0.0 : s.nrmse[s.nrmse.size() / 2]},
+          {"moving_segments", s.moving},
+          {"moving_segments_within", s.moving_within},
+          {"switches", s.switches},
+          {"switches_within", s.switches_within},
+          {"frames_with_intersections", s.intersecting_frames}};
+}
+
+void print_summary(const char* what, const nlohmann::json& j) {
+  fmt::print(
+      "{}: median NRMSE {:.3f}; moving segments with motion ratio in [{}, {}]: {}/{}; switches with "
+      "jump <= {}x local motion: {}/{}; served frames with self-intersections: {}\n",
+      what, j["median_nrmse"].get<double>(), kMotionLow, kMotionHigh, j["moving_segments_within"].get<int>(),
+      j["moving_segments"].get<int>(), kJumpRatio, j["switches_within"].get<int>(), j["switches"].get<int>(),
+      j["frames_with_intersections"].get<int>());
+}
+
+void run_validate(const ValidateOptions& o) {
+  const Scene scene = load_scene_file(o.scene);
+  auto package = std::make_shared<const core::ScenePackage>(core::read_package(o.package));
+  const PaletteRules rules = make_palette_rules(scene);
+  std::vector<std::pair<std::string, std::vector<ScheduleItem>>> work;
+  std::vector<std::string> given = o.schedules;
+  if (given.empty() && o.random == 0) {
+    if (scene.standard_schedule.empty())
+      throw std::invalid_argument(fmt::format(
+          "validate: {} has no [validation] schedule; expected --schedule \"...\" and/or --random K",
+          o.scene));
+    given.push_back(scene.standard_schedule);
+  }
+  for (const auto& text : given) work.emplace_back("given", parse_schedule(text, scene));
+  for (int k = 0; k < o.random; ++k)
+    work.emplace_back("random", random_schedule(rules, scene.simulation.frame_dt, o.seed, k, o.items));
+  fmt::print("validate {}: {} against the full simulation, {} schedule(s)\n", scene.name, o.package,
+             work.size());
+  nlohmann::json report = {{"scene", scene.name}, {"package", o.package}, {"seed", o.seed}};
+  Summary given_summary, random_summary;
+  for (size_t i = 0; i < work.size(); ++i) {
+    const auto& [kind, schedule] = work[i];
+    fmt::print("schedule {}/{} ({}): {}\n", i + 1, work.size(), kind, schedule_text(scene, schedule));
+    core::ProgressBar bar(fmt::format("simulate {}/{}", i + 1, work.size()));
+    ValidationOptions v;
+    v.intersections = !o.no_intersections;
+    v.progress = [&bar](int done, int total) { bar.update(done, total); };
+    const ScheduleFigures g = validate_schedule(scene, package, schedule, v);
+    bar.finish();
+    print_schedule(g);
+    add(kind == "given" ? given_summary : random_summary, g);
+    auto j = to_json(g);
+    j["kind"] = kind;
+    report["schedules"].push_back(std::move(j));
+  }
+  if (!given.empty()) print_summary("given schedules", report["summary_given"] = summary_json(given_summary));
+  if (o.random > 0)
+    print_summary("random schedules", report["summary_random"] = summary_json(random_summary));
+  if (!o.json.empty()) {
+    std::ofstream(o.json) << report.dump(2) << "\n";
+    fmt::print("wrote {}\n", o.json);
+  }
+}
+
+}  // namespace
+
+void add_validate_command(CLI::App& app) {
+  auto o = std::make_shared<ValidateOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "validate",
+      "Measure playback against the truth: simulate schedules with the full simulator, play the same entries "
+      "at "
+      "the same frames through the server's synthesis engine, and report NRMSE, motion ratios, blend jumps, "
+      "speeds at IRF ends and self-intersections.");
+  cmd->add_option("scene", o->scene, "scene file (.toml)")->required();
+  cmd->add_option("package", o->package, "scene package of that scene (.h5)")->required();
+  cmd->add_option(
+      "--schedule", o->schedules,
+      "schedule \"open 0.8; stop 1.5; ...\" (repeatable; default: the scene's [validation] schedule)");
+  cmd->add_option("--random", o->random,
+                  "also this many random schedules obeying the palette rules and range")
+      ->check(CLI::Range(0, 10000));
+  cmd->add_option("--seed", o->seed, "seed of the random schedules")->capture_default_str();
+  cmd->add_option("--items", o->items, "entries per random schedule")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  cmd->add_option("--json", o->json, "write every figure to this JSON file");
+  cmd->add_flag("--no-intersections", o->no_intersections, "skip the exact self-intersection count");
+  cmd->callback([o] { run_validate(*o); });
+}
+
+}  // namespace phasecast::precompute::tools

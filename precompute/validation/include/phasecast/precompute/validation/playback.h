@@ -1,0 +1,81 @@
+#pragma once
+// Playback fidelity (§3.5, §5): what the server plays against what the scene
+// does. A schedule of palette entries is simulated with the full simulator
+// (the truth) and the same entries are sent at the same frames to the real
+// synthesis engine; the served shapes x-bar + U_u q_u are compared with the
+// simulated ones frame by frame. This is the one room that reads both the
+// offline side (simulation, sampling) and the run-time side (server).
+
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "phasecast/precompute/sampling/palette_rules.h"
+#include "phasecast/precompute/simulation/scene.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace phasecast::precompute {
+
+// One schedule item as played: the frames it covers and how close the served
+// motion is to the simulated one there. Lengths are RMS per vertex (m).
+struct SegmentFigures {
+  std::string entry;
+  int first_frame = 0;
+  int frames = 0;
+  std::string refused;          // non-empty: the server refused the entry (the rule it broke)
+  double nrmse = 0;             // RMS(served - simulated) over RMS(simulated - the schedule's mean shape)
+  double motion_ratio = 0;      // sum |x(f+1) - x(f)|^2, served over simulated
+  double simulated_motion = 0;  // RMS per-vertex motion per frame of the simulation (m)
+};
+
+// A frame where the served IRF changes (an impulse, or an end-of-IRF rule).
+struct SwitchFigures {
+  int frame = 0;
+  double jump = 0;          // served |x(f) - x(f-1)|, RMS per vertex (m)
+  double local_motion = 0;  // simulated per-frame motion around f, RMS per vertex (m)
+  double ratio() const { return local_motion > 0 ? jump / local_motion : (jump > 0 ? 1e9 : 0); }
+};
+
+struct ScheduleFigures {
+  std::string schedule;  // "open 0.8; stop 1.5; ..."
+  int frames = 0;
+  double nrmse = 0;
+  double motion_ratio = 0;
+  std::vector<SegmentFigures> segments;
+  std::vector<SwitchFigures> switches;
+  std::vector<double> irf_end_speeds;  // RMS vertex speed (m/s) at the last node of each IRF played out
+  double median_simulated_speed = 0;   // RMS vertex speed (m/s), median over the simulated frames
+  int frames_with_intersections = 0;   // served frames with self-intersecting triangle pairs
+  int max_intersecting_pairs = 0;
+  // Per frame, RMS per-vertex distance (m) from the simulation's first frame
+  // (the settled rest), served and simulated: what scripts/plot-validation draws.
+  std::vector<double> served_trace;
+  std::vector<double> simulated_trace;
+};
+
+struct ValidationOptions {
+  bool intersections = true;  // count exact self-intersecting triangle pairs in served frames
+  ProgressCallback progress;  // simulated frames done / total
+};
+
+// Plays `schedule` both ways and measures. Impulses the server refuses are
+// reported in their segment (the served scene keeps doing what it did).
+ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core::ScenePackage> package,
+                                  const std::vector<ScheduleItem>& schedule,
+                                  const ValidationOptions& options = {});
+
+// The `index`-th random schedule of `items` entries: drawn as the sampler
+// draws (palette rules, the support's range, T in (t_min, t_max) clipped to
+// the range), from an independent random stream, starting from rest.
+std::vector<ScheduleItem> random_schedule(const PaletteRules& rules, double frame_dt, std::uint64_t seed,
+                                          int index, int items);
+
+std::string schedule_text(const Scene& scene, const std::vector<ScheduleItem>& schedule);
+
+nlohmann::json to_json(const ScheduleFigures& figures);
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,234 @@
+#include "phasecast/precompute/validation/playback.h"
+
+#include "phasecast/precompute/sampling/irf_sampler.h"
+#include "phasecast/precompute/simulation/self_collision.h"
+#include "phasecast/server/synthesis_engine.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace phasecast::precompute {
+namespace {
+
+int frames_of(double seconds, double dt) {
+  return static_cast<int>(std::lround(seconds / dt));
+}
+
+// RMS per vertex of a 3V vector.
+double rms(const Eigen::VectorXd& d) {
+  return d.size() ? std::sqrt(d.squaredNorm() / (static_cast<double>(d.size()) / 3)) : 0;
+}
+
+// The served shapes x-bar + U_u q_u of the simulated vertices, one row per
+// frame, and the IRF each frame played, from the real synthesis engine.
+struct Served {
+  Eigen::MatrixXd x;                 // N x 3V
+  std::vector<std::int32_t> irf;     // N: IRF played (-1 at rest)
+  std::vector<std::uint32_t> irf_t;  // N: node inside it
+  std::vector<std::string> refused;  // per schedule item
+};
+
+Served serve(std::shared_ptr<const core::ScenePackage> package, const std::vector<int>& starts,
+             const std::vector<ScheduleItem>& schedule, int frames, Eigen::Index coordinates) {
+  server::SynthesisEngine engine;
+  engine.add_scene(package, "validate", 0);
+  const std::uint32_t id = engine.create_instance(package->attributes.scene);
+  const VectorXf mean = package->reduction.mean_shape.head(coordinates);
+  const MatrixXfR U = package->reduction.U_u.topRows(coordinates);
+  Served s;
+  s.x.resize(frames, coordinates);
+  s.refused.resize(schedule.size());
+  size_t next = 0;
+  for (int f = 0; f < frames; ++f) {
+    for (; next < schedule.size() && starts[next] == f; ++next) {
+      try {
+        engine.schedule_impulse(id, schedule[next].entry, static_cast<std::uint64_t>(f));
+      } catch (const server::EngineError& e) {
+        s.refused[next] = e.what();
+      }
+    }
+    const server::TickResult made = engine.tick();
+    for (const auto& r : made.refused) {
+      for (size_t k = 0; k < schedule.size(); ++k)
+        if (starts[k] == static_cast<int>(r.frame)) s.refused[k] = r.error;
+    }
+    const auto& frame = made.frames.front();
+    s.x.row(f) = (mean + U * frame.q_u).cast<double>().transpose();
+    s.irf.push_back(frame.irf);
+    s.irf_t.push_back(frame.irf_t);
+  }
+  return s;
+}
+
+Eigen::VectorXd motion(const Eigen::MatrixXd& x, int f) {
+  return (x.row(f) - x.row(f - 1)).transpose();
+}
+
+SegmentFigures segment(const Eigen::MatrixXd& sim, const Eigen::MatrixXd& served, int first, int count,
+                       double scale) {
+  SegmentFigures g;
+  g.first_frame = first;
+  g.frames = count;
+  double error = 0, moved_sim = 0, moved_served = 0;
+  for (int f = first; f < first + count; ++f) {
+    error += (served.row(f) - sim.row(f)).squaredNorm();
+    if (f > first) {
+      moved_sim += motion(sim, f).squaredNorm();
+      moved_served += motion(served, f).squaredNorm();
+    }
+  }
+  const double V = static_cast<double>(sim.cols()) / 3;
+  g.nrmse = scale > 0 ? std::sqrt(error / count / V) / scale : 0;
+  g.motion_ratio = moved_sim > 0 ? moved_served / moved_sim : (moved_served > 0 ? 1e9 : 1);
+  g.simulated_motion = count > 1 ? std::sqrt(moved_sim / (count - 1) / V) : 0;
+  return g;
+}
+
+// Switches: frames whose IRF differs from the previous frame's, or restarts.
+std::vector<SwitchFigures> switches(const Eigen::MatrixXd& sim, const Served& served) {
+  std::vector<SwitchFigures> out;
+  const int N = static_cast<int>(sim.rows());
+  for (int f = 1; f < N; ++f) {
+    const auto k = static_cast<size_t>(f);
+    const bool restarted = served.irf[k] >= 0 && served.irf_t[k] == 0;  // an impulse chose the same IRF again
+    if (served.irf[k] == served.irf[k - 1] && !restarted) continue;
+    SwitchFigures s;
+    s.frame = f;
+    s.jump = rms(motion(served.x, f));
+    double local = 0;
+    int n = 0;
+    for (int g = std::max(1, f - 2); g <= std::min(N - 1, f + 2); ++g, ++n) local += rms(motion(sim, g));
+    s.local_motion = n ? local / n : 0;
+    out.push_back(s);
+  }
+  return out;
+}
+
+// Speeds at the last node of each IRF that was played to its end.
+std::vector<double> irf_end_speeds(const core::ScenePackage& p, const Served& served, double dt) {
+  std::vector<double> out;
+  for (size_t f = 1; f < served.irf.size(); ++f) {
+    const auto irf = served.irf[f];
+    if (irf < 0 ||
+        served.irf_t[f] + 1 != static_cast<std::uint32_t>(p.portrait.irf_length[static_cast<size_t>(irf)]))
+      continue;
+    if (f + 1 < served.irf.size() && served.irf[f + 1] == irf && served.irf_t[f + 1] == served.irf_t[f])
+      continue;  // held: counted once, where it was reached
+    out.push_back(rms(motion(served.x, static_cast<int>(f))) / dt);
+  }
+  return out;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+std::string schedule_text(const Scene& scene, const std::vector<ScheduleItem>& schedule) {
+  std::string s;
+  for (const auto& item : schedule)
+    s += fmt::format("{}{} {:.2f}", s.empty() ? "" : "; ",
+                     scene.palette[static_cast<size_t>(item.entry)].name, item.duration);
+  return s;
+}
+
+ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core::ScenePackage> package,
+                                  const std::vector<ScheduleItem>& schedule, const ValidationOptions& o) {
+  const double dt = scene.simulation.frame_dt;
+  if (std::abs(package->attributes.dt - dt) > 1e-9 || package->attributes.scene != scene.name) {
+    throw std::invalid_argument(
+        fmt::format("validate: package of scene '{}' at dt {} s does not match scene file '{}' at dt {} s",
+                    package->attributes.scene, package->attributes.dt, scene.name, dt));
+  }
+  const OrbitStore truth = simulate_schedule(scene, schedule, o.progress);
+  const Eigen::MatrixXd sim = truth.positions.cast<double>();
+  const int N = static_cast<int>(sim.rows());
+  std::vector<int> starts;
+  for (int f = 0; const auto& item : schedule) starts.push_back(f), f += frames_of(item.duration, dt);
+  const Served served = serve(package, starts, schedule, N, sim.cols());
+
+  ScheduleFigures out;
+  out.schedule = schedule_text(scene, schedule);
+  out.frames = N;
+  const Eigen::RowVectorXd mean = sim.colwise().mean();
+  const double scale =
+      std::sqrt((sim.rowwise() - mean).squaredNorm() / N / (static_cast<double>(sim.cols()) / 3));
+  const SegmentFigures all = segment(sim, served.x, 0, N, scale);
+  out.nrmse = all.nrmse;
+  out.motion_ratio = all.motion_ratio;
+  for (size_t k = 0; k < schedule.size(); ++k) {
+    SegmentFigures g = segment(sim, served.x, starts[k], frames_of(schedule[k].duration, dt), scale);
+    g.entry = scene.palette[static_cast<size_t>(schedule[k].entry)].name;
+    g.refused = served.refused[k];
+    out.segments.push_back(std::move(g));
+  }
+  for (int f = 0; f < N; ++f) {
+    out.served_trace.push_back(rms((served.x.row(f) - sim.row(0)).transpose()));
+    out.simulated_trace.push_back(rms((sim.row(f) - sim.row(0)).transpose()));
+  }
+  out.switches = switches(sim, served);
+  out.irf_end_speeds = irf_end_speeds(*package, served, dt);
+  std::vector<double> speeds;
+  for (int f = 1; f < N; ++f) speeds.push_back(rms(motion(sim, f)) / dt);
+  out.median_simulated_speed = median(speeds);
+  if (o.intersections) {
+    const Eigen::MatrixXi triangles = scene.model.surface;
+    for (int f = 0; f < N; ++f) {
+      const int pairs = count_intersecting_pairs(served.x.row(f).transpose(), triangles);
+      out.frames_with_intersections += pairs > 0;
+      out.max_intersecting_pairs = std::max(out.max_intersecting_pairs, pairs);
+    }
+  }
+  return out;
+}
+
+std::vector<ScheduleItem> random_schedule(const PaletteRules& rules, double frame_dt, std::uint64_t seed,
+                                          int index, int items) {
+  // Another stream than the sampler's chains (seed offset), the same rules.
+  const std::uint64_t stream = seed ^ 0x76616c6964617465ULL;  // "validate"
+  std::vector<ScheduleItem> out;
+  std::vector<int> history;
+  double at = 0;
+  for (int i = 0; i < items; ++i) {
+    const IrfDraw d = draw_irf(rules, stream, index, i, history, at);
+    if (d.from_rest) break;  // a user cannot put the scene back to rest
+    history.push_back(d.entry);
+    at = rules.advance(d.entry, at, d.frames);
+    out.push_back({d.entry, d.frames * frame_dt});
+  }
+  return out;
+}
+
+nlohmann::json to_json(const ScheduleFigures& g) {
+  nlohmann::json j = {{"schedule", g.schedule},
+                      {"frames", g.frames},
+                      {"nrmse", g.nrmse},
+                      {"motion_ratio", g.motion_ratio},
+                      {"irf_end_speeds", g.irf_end_speeds},
+                      {"median_simulated_speed", g.median_simulated_speed},
+                      {"frames_with_intersections", g.frames_with_intersections},
+                      {"max_intersecting_pairs", g.max_intersecting_pairs},
+                      {"served_trace", g.served_trace},
+                      {"simulated_trace", g.simulated_trace}};
+  for (const auto& s : g.segments) {
+    j["segments"].push_back({{"entry", s.entry},
+                             {"first_frame", s.first_frame},
+                             {"frames", s.frames},
+                             {"refused", s.refused},
+                             {"nrmse", s.nrmse},
+                             {"motion_ratio", s.motion_ratio},
+                             {"simulated_motion", s.simulated_motion}});
+  }
+  for (const auto& s : g.switches) {
+    j["switches"].push_back(
+        {{"frame", s.frame}, {"jump", s.jump}, {"local_motion", s.local_motion}, {"ratio", s.ratio()}});
+  }
+  return j;
+}
+
+}  // namespace phasecast::precompute
