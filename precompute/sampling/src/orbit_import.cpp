@@ -113,7 +113,8 @@ std::vector<ImportedIrf> plan_irfs(Fields& top, const OrbitStore& s, const std::
     ImportedIrf p;
     p.entry = static_cast<int>(it - s.palette_names.begin());
     p.continues = irf.flag("continues", false) ? 1 : 0;
-    if (p.continues && plan.empty()) irf.fail("continues", "false for the first [[irf]] (nothing precedes it)");
+    if (p.continues && plan.empty())
+      irf.fail("continues", "false for the first [[irf]] (nothing precedes it)");
     p.files = obj_frames(irf, dir);
     plan.push_back(std::move(p));
     irf.finish();
@@ -135,8 +136,9 @@ std::vector<int> read_pinned(Fields& top, const toml::table& root, Eigen::Index 
 }
 
 // Reads every frame of the plan into the store; each must have the rest mesh's topology.
-void read_frames(const std::vector<ImportedIrf>& plan, const ObjMesh& rest, const std::filesystem::path& rest_path,
-                 OrbitStore& s, const std::function<void(int, int)>& progress) {
+void read_frames(const std::vector<ImportedIrf>& plan, const ObjMesh& rest,
+                 const std::filesystem::path& rest_path, OrbitStore& s,
+                 const std::function<void(int, int)>& progress) {
   int total = 0;
   for (const auto& p : plan) total += static_cast<int>(p.files.size());
   const auto V = rest.vertices.rows();

@@ -55,7 +55,8 @@ void validate_orbit_store(const OrbitStore& s, const std::string& source) {
   const size_t n_irf = s.irf_start.size();
   if (n_irf == 0 || s.irf_length.size() != n_irf || s.irf_palette.size() != n_irf ||
       s.irf_continues.size() != n_irf) {
-    fail("/irfs/start", "expected one or more IRFs with start, length, palette and continues of equal counts");
+    fail("/irfs/start",
+         "expected one or more IRFs with start, length, palette and continues of equal counts");
   }
   if (s.irf_continues[0] != 0) fail("/irfs/continues", "the first IRF cannot continue an earlier one");
   std::int32_t next = 0;
