@@ -3,8 +3,9 @@
 
   demo_summary.py OUT PACKAGE RATE
 
-Reads OUT/inspect.json (phasecast-inspect --json), OUT/stats.json (the server's
-Stats after the impulses), OUT/logs/render-{a,b}.log (the renderers' summary
+Reads OUT/inspect.json (phasecast-inspect --json), OUT/validation.json
+(phasecast-precompute validate --json: playback against the full simulation),
+OUT/stats.json (the server's Stats after the impulses), OUT/logs/render-{a,b}.log (the renderers' summary
 lines) and compares the two renderers' frames file by file.
 """
 import json
@@ -30,6 +31,21 @@ def compare_frames(a_dir, b_dir):
 
 def percent(x):
     return f"{100 * x:.3g}%" if x is not None else "n/a"
+
+
+def validation_rows(path):
+    """Playback fidelity of the standard schedule (docs/validation.md)."""
+    if not os.path.exists(path):
+        return [("playback vs full simulation", "not measured (see logs/validate.log)")]
+    v = json.load(open(path))
+    rows = []
+    for s in v.get("schedules", []):
+        segments = ", ".join(f"{g['entry']} {g['motion_ratio']:.2f}" for g in s["segments"])
+        rows.append((f"playback vs full simulation: `{s['schedule']}`",
+                     f"NRMSE {s['nrmse']:.3f} (0 perfect, 1 = showing the mean shape), motion ratio "
+                     f"{s['motion_ratio']:.2f} (per segment: {segments}), "
+                     f"self-intersecting served frames {s['frames_with_intersections']}"))
+    return rows
 
 
 def main():
@@ -67,6 +83,7 @@ def main():
     check_log = os.path.join(out, "logs", "replay-check.log")
     check_lines = open(check_log).read().strip().splitlines() if os.path.exists(check_log) else []
     rows.append(("recording `session.phcrec` replay check", check_lines[-1] if check_lines else "not run"))
+    rows += validation_rows(os.path.join(out, "validation.json"))
     rows.append(("renderers a / b: frames, common frames, byte-identical PNGs",
                  f"{na} / {nb}, {len(common)}, {same}"))
 

@@ -56,6 +56,10 @@ if r.returncode == 0:
     check(int(stats.get("impulses_applied", 0)) >= 2, f"stats.json: {stats}")
     summary = open(os.path.join(work, "summary.md")).read()
     check("reproduced bit for bit" in summary, "summary: the replay check did not pass")
+    # Playback against the full simulation of the tiny door's standard schedule (docs/validation.md).
+    v = re.search(r"playback vs full simulation: `open 0.80; stop 1.50; close 0.80; stop 1.50` \| NRMSE ([\d.]+)",
+                  summary)
+    check(v is not None and float(v.group(1)) < 0.5, f"summary: no playback figure, or NRMSE >= 0.5: {v}")
     m = re.search(r"byte-identical PNGs \| 40 / 40, 40, (\d+)", summary)
     check(m is not None and int(m.group(1)) == 40, "summary: the two renderers' frames differ")
     check("swing 1: open at frame" in open(os.path.join(work, "logs", "console.log")).read(),
