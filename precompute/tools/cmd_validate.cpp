@@ -30,10 +30,10 @@ struct ValidateOptions {
 // Targets of the playback-fidelity issue, used for the summary's pass counts.
 constexpr double kMotionLow = 0.67, kMotionHigh = 1.5, kJumpRatio = 2.0;
 
-// A segment "moves" when the simulated scene moves in it at least 30 % of the
-// schedule's typical per-frame motion: those are the ones a user watches.
+// A segment "moves" when the simulated scene moves in it at all and at least
+// 10 % of the schedule's typical per-frame motion: the ones a user watches.
 bool moving(const SegmentFigures& s, double typical) {
-  return s.frames > 1 && s.simulated_motion >= 0.3 * typical;
+  return s.frames > 1 && s.simulated_motion > 1e-5 && s.simulated_motion >= 0.1 * typical;
 }
 
 double typical_motion(const ScheduleFigures& g) {
@@ -140,7 +140,10 @@ void run_validate(const ValidateOptions& o) {
   if (o.random > 0)
     print_summary("random schedules", report["summary_random"] = summary_json(random_summary));
   if (!o.json.empty()) {
-    std::ofstream(o.json) << report.dump(2) << "\n";
+    std::ofstream out(o.json);
+    out << report.dump(2) << "\n";
+    out.close();
+    if (!out) throw std::runtime_error(fmt::format("validate: cannot write --json '{}'", o.json));
     fmt::print("wrote {}\n", o.json);
   }
 }

@@ -12,6 +12,10 @@
 namespace phasecast::precompute {
 namespace {
 
+// Per-frame motion below 0.01 mm RMS counts as still: ratios and NRMSE use it
+// as a floor so a still schedule or segment does not divide by ~0.
+constexpr double kStill = 1e-5;
+
 int frames_of(double seconds, double dt) {
   return static_cast<int>(std::lround(seconds / dt));
 }
@@ -80,43 +84,44 @@ SegmentFigures segment(const Eigen::MatrixXd& sim, const Eigen::MatrixXd& served
     }
   }
   const double V = static_cast<double>(sim.cols()) / 3;
-  g.nrmse = scale > 0 ? std::sqrt(error / count / V) / scale : 0;
-  g.motion_ratio = moved_sim > 0 ? moved_served / moved_sim : (moved_served > 0 ? 1e9 : 1);
+  const double floor2 = kStill * kStill * V * std::max(1, count - 1);
+  g.nrmse = std::sqrt(error / count / V) / std::max(scale, kStill);
+  g.motion_ratio = (moved_served + floor2) / (moved_sim + floor2);
   g.simulated_motion = count > 1 ? std::sqrt(moved_sim / (count - 1) / V) : 0;
   return g;
 }
 
 // Switches: frames whose IRF differs from the previous frame's, or restarts.
+// The switch frame shows the state the impulse arrived in (eq. 12's offset at
+// weight 1); the new IRF and its blend show from the next frame, so the jump
+// is measured from f to f + 1.
 std::vector<SwitchFigures> switches(const Eigen::MatrixXd& sim, const Served& served) {
   std::vector<SwitchFigures> out;
   const int N = static_cast<int>(sim.rows());
-  for (int f = 1; f < N; ++f) {
+  for (int f = 1; f + 1 < N; ++f) {
     const auto k = static_cast<size_t>(f);
     const bool restarted = served.irf[k] >= 0 && served.irf_t[k] == 0;  // an impulse chose the same IRF again
     if (served.irf[k] == served.irf[k - 1] && !restarted) continue;
     SwitchFigures s;
     s.frame = f;
-    s.jump = rms(motion(served.x, f));
+    s.jump = rms(motion(served.x, f + 1));
     double local = 0;
     int n = 0;
-    for (int g = std::max(1, f - 2); g <= std::min(N - 1, f + 2); ++g, ++n) local += rms(motion(sim, g));
-    s.local_motion = n ? local / n : 0;
+    for (int g = std::max(1, f - 1); g <= std::min(N - 1, f + 3); ++g, ++n) local += rms(motion(sim, g));
+    s.local_motion = std::max(kStill, n ? local / n : 0);
     out.push_back(s);
   }
   return out;
 }
 
-// Speeds at the last node of each IRF that was played to its end.
-std::vector<double> irf_end_speeds(const core::ScenePackage& p, const Served& served, double dt) {
+// Speeds at the last node of each IRF after which the served scene came to
+// rest (holds that node): an IRF that ends mid-motion freezes the scene there.
+// IRFs continued by another (the door still opening) are not ends.
+std::vector<double> irf_end_speeds(const Served& served, double dt) {
   std::vector<double> out;
-  for (size_t f = 1; f < served.irf.size(); ++f) {
-    const auto irf = served.irf[f];
-    if (irf < 0 ||
-        served.irf_t[f] + 1 != static_cast<std::uint32_t>(p.portrait.irf_length[static_cast<size_t>(irf)]))
-      continue;
-    if (f + 1 < served.irf.size() && served.irf[f + 1] == irf && served.irf_t[f + 1] == served.irf_t[f])
-      continue;  // held: counted once, where it was reached
-    out.push_back(rms(motion(served.x, static_cast<int>(f))) / dt);
+  for (size_t f = 1; f + 1 < served.irf.size(); ++f) {
+    if (served.irf[f] >= 0 && served.irf[f + 1] < 0)
+      out.push_back(rms(motion(served.x, static_cast<int>(f))) / dt);
   }
   return out;
 }
@@ -172,7 +177,7 @@ ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core
     out.simulated_trace.push_back(rms((sim.row(f) - sim.row(0)).transpose()));
   }
   out.switches = switches(sim, served);
-  out.irf_end_speeds = irf_end_speeds(*package, served, dt);
+  out.irf_end_speeds = irf_end_speeds(served, dt);
   std::vector<double> speeds;
   for (int f = 1; f < N; ++f) speeds.push_back(rms(motion(sim, f)) / dt);
   out.median_simulated_speed = median(speeds);

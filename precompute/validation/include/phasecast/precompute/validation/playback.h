@@ -35,9 +35,9 @@ struct SegmentFigures {
 // A frame where the served IRF changes (an impulse, or an end-of-IRF rule).
 struct SwitchFigures {
   int frame = 0;
-  double jump = 0;          // served |x(f) - x(f-1)|, RMS per vertex (m)
-  double local_motion = 0;  // simulated per-frame motion around f, RMS per vertex (m)
-  double ratio() const { return local_motion > 0 ? jump / local_motion : (jump > 0 ? 1e9 : 0); }
+  double jump = 0;          // served |x(f+1) - x(f)|, RMS per vertex (m): the new IRF shows from f + 1
+  double local_motion = 0;  // simulated per-frame motion over f..f+3, RMS per vertex (m), >= 0.01 mm
+  double ratio() const { return jump / local_motion; }  // local_motion has a 0.01 mm floor
 };
 
 struct ScheduleFigures {
@@ -47,7 +47,7 @@ struct ScheduleFigures {
   double motion_ratio = 0;
   std::vector<SegmentFigures> segments;
   std::vector<SwitchFigures> switches;
-  std::vector<double> irf_end_speeds;  // RMS vertex speed (m/s) at the last node of each IRF played out
+  std::vector<double> irf_end_speeds;  // RMS vertex speed (m/s) where an IRF ended and the scene came to rest
   double median_simulated_speed = 0;   // RMS vertex speed (m/s), median over the simulated frames
   int frames_with_intersections = 0;   // served frames with self-intersecting triangle pairs
   int max_intersecting_pairs = 0;
