@@ -140,7 +140,7 @@ void end_of_irf(const SceneModel& s, InstanceState& st, std::int32_t rule) {
 // Whether the support coordinate has reached the end of its range in the
 // direction the active entry drives it (the door stops at its 90 degrees).
 bool range_reached(const core::SupportKinematics& k, double s) {
-  if (k.pulse_tau > 0 || k.rate == 0) return false;
+  if (k.pulse_tau > 0 || k.rate == 0 || !(k.range_max > k.range_min)) return false;  // min == max: unlimited
   return k.rate > 0 ? s >= k.range_max : s <= k.range_min;
 }
 
@@ -225,7 +225,10 @@ int SynthesisEngine::add_scene(std::shared_ptr<const core::ScenePackage> data,
   const VectorXf q_rest = data->reduction.U_u.transpose() * (rest - data->reduction.mean_shape);
   const auto& pp = data->portrait;
   double best = std::numeric_limits<double>::infinity();
-  for (int n = 0; n < pp.nodes(); ++n) {
+  // Among IRF starts only: chains start from the settled rest (a cloth sagged
+  // under gravity), so the start nearest the undeformed shape is that state,
+  // where the simulation a user compares with begins too.
+  for (const int n : pp.irf_start) {
     const double d =
         core::phase_distance_squared(pp.q_u.row(n).transpose(), pp.qdot_u.row(n).transpose(), q_rest,
                                      VectorXf::Zero(q_rest.size()), data->attributes.beta);
@@ -412,7 +415,9 @@ void SynthesisEngine::advance(Instance& inst) const {
   if (st.mode != Mode::playing) return;
   const auto& k = pkg.palette.kinematics[at(st.palette_index)];
   if (k.pulse_tau == 0 && st.kinematics_entry == st.palette_index) {
-    st.support_s = std::clamp(st.support_s + k.rate * dt, double{k.range_min}, double{k.range_max});
+    st.support_s += k.rate * dt;
+    if (k.range_max > k.range_min)
+      st.support_s = std::clamp(st.support_s, double{k.range_min}, double{k.range_max});
   }
   ++st.irf_t;
   const bool ended = static_cast<int>(st.irf_t) >= pkg.portrait.irf_length[at(st.irf)];

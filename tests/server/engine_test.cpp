@@ -183,6 +183,24 @@ TEST(Engine, TheDoorKeepsOpeningUntilItsStopThenTheFollowUpThenRest) {
   EXPECT_NO_THROW(e.schedule_impulse(id, kClose));
 }
 
+// range_min == range_max means an unlimited support (as in the sampler): the
+// entry plays its IRF out and the support keeps moving.
+TEST(Engine, AnUnlimitedSupportIsNeverAtTheEndOfItsRange) {
+  auto p = testing::make_plate_package();
+  for (auto& k : p.palette.kinematics) k.range_min = k.range_max = 0;
+  const auto pkg = std::make_shared<const core::ScenePackage>(std::move(p));
+  auto e = engine_with(pkg);
+  const auto id = e.create_instance("plate");
+  e.schedule_impulse(id, kOpen);
+  const auto first = tick_frame(e, id);
+  const int len = pkg->portrait.irf_length[static_cast<size_t>(first.irf)];
+  auto f = first;
+  for (int t = 1; t < len; ++t) f = tick_frame(e, id);
+  EXPECT_EQ(f.irf, first.irf);
+  EXPECT_EQ(f.irf_t, static_cast<std::uint32_t>(len - 1));
+  EXPECT_NE(f.support, first.support);  // the door turned
+}
+
 TEST(Engine, HoldRuleContinuesOnTheNearestIrfOfTheSameEntry) {
   auto p = testing::make_plate_package();
   p.palette.on_end[kOpen] = core::kEndHold;

@@ -7,6 +7,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
+#include <algorithm>
+
+#include <numbers>
+
 #include <fstream>
 
 namespace phasecast::precompute {
@@ -42,6 +48,13 @@ class Sampler : public ::testing::Test {
   PaletteRules rules = make_palette_rules(scene);
 };
 
+// The door's opening angle at frame f, from the recorded 3x4 support transform
+// (a rotation about the vertical hinge): acos((trace R - 1) / 2).
+double door_angle(const OrbitStore& s, int f) {
+  const double trace = s.support(f, 0) + s.support(f, 5) + s.support(f, 10);
+  return std::acos(std::clamp((trace - 1) / 2, -1.0, 1.0));
+}
+
 TEST_F(Sampler, RecordedChainsObeyThePaletteRules) {
   const auto o = small_options(scratch_dir("sampler_rules"));
   const OrbitStore s = sample_irfs(scene, rules, o);
@@ -53,8 +66,16 @@ TEST_F(Sampler, RecordedChainsObeyThePaletteRules) {
       const auto k = static_cast<size_t>(chain * o.irfs_per_chain + i);
       const int entry = s.irf_palette[k];
       EXPECT_TRUE(rules.allowed(previous, entry)) << "chain " << chain << " IRF " << i;
-      EXPECT_GE(s.irf_length[k], rules.min_frames[static_cast<size_t>(entry)]);
+      EXPECT_GE(s.irf_length[k], 1);  // T may be clipped below t_min by the range
       EXPECT_LE(s.irf_length[k], rules.max_frames[static_cast<size_t>(entry)]);
+      // §3.5, read back from the recorded support: a door-moving IRF really moves
+      // the door (never drawn against its stop), and the door stays in [0, 90] degrees.
+      const int first = s.irf_start[k], last = first + s.irf_length[k] - 1;
+      const double swing = std::abs(door_angle(s, last) - door_angle(s, first));
+      if (rules.support_rate[static_cast<size_t>(entry)] != 0 && s.irf_length[k] > 1) {
+        EXPECT_GT(swing, 0.9 * 1.5 * scene.simulation.frame_dt) << "chain " << chain << " IRF " << i;
+      }
+      for (int f = first; f <= last; ++f) EXPECT_LE(door_angle(s, f), std::numbers::pi / 2 + 1e-3);
       previous = entry;
     }
   }

@@ -33,7 +33,8 @@ struct SceneModel {
   std::uint64_t content_hash = 0;
   std::shared_ptr<const core::ScenePackage> data;
   double blend_lambda = 1;  // eq. 12 decay rate, 1/s (package value unless overridden)
-  int rest_node = 0;        // node nearest the undeformed rest shape at zero velocity (eq. 9)
+  int rest_node =
+      0;  // IRF start nearest the undeformed rest shape at zero velocity (eq. 9): the settled rest
 };
 
 // What an instance is doing (docs/server.md, "Instance states").
