@@ -55,11 +55,6 @@ class BackgroundTool {
   pid_t pid_ = -1;
 };
 
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 class NetworkRender : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -116,8 +111,8 @@ TEST_F(NetworkRender, TwoClientsOnOneInstanceRenderTheSameFrames) {
   testing::TestPeer peer(package_, options);
   BackgroundTool a(client_args(peer, "a", 30), dir_ / "a.log");
   BackgroundTool b(client_args(peer, "b", 30), dir_ / "b.log");
-  ASSERT_EQ(a.wait(), 0) << slurp(dir_ / "a.log");
-  ASSERT_EQ(b.wait(), 0) << slurp(dir_ / "b.log");
+  ASSERT_EQ(a.wait(), 0) << testing::read_file(dir_ / "a.log");
+  ASSERT_EQ(b.wait(), 0) << testing::read_file(dir_ / "b.log");
   int common = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir_ / "a")) {
     const auto other = dir_ / "b" / entry.path().filename();
@@ -191,8 +186,8 @@ TEST_F(NetworkRender, ReconnectsAfterTheServerRestartsAndRechecksTheBases) {
   options.pub_endpoint = pub;
   options.content_hash = 0x5678;
   peer = std::make_unique<testing::TestPeer>(package_, options);
-  ASSERT_EQ(tool.wait(), 0) << slurp(dir_ / "re.log");
-  const auto log = slurp(dir_ / "re.log");
+  ASSERT_EQ(tool.wait(), 0) << testing::read_file(dir_ / "re.log");
+  const auto log = testing::read_file(dir_ / "re.log");
   EXPECT_THAT(log, HasSubstr("no frames for 0.5 s; reconnecting"));
   EXPECT_THAT(log, HasSubstr("bases changed (hash 0000000000001234 -> 0000000000005678); downloading again"));
   EXPECT_THAT(log, HasSubstr("60 frames at 32x32"));
@@ -215,8 +210,8 @@ TEST_F(NetworkRender, ReconnectWithUnchangedBasesDoesNotDownloadAgain) {
   options.cmd_endpoint = cmd;
   options.pub_endpoint = pub;
   peer = std::make_unique<testing::TestPeer>(package_, options);
-  ASSERT_EQ(tool.wait(), 0) << slurp(dir_ / "same.log");
-  const auto log = slurp(dir_ / "same.log");
+  ASSERT_EQ(tool.wait(), 0) << testing::read_file(dir_ / "same.log");
+  const auto log = testing::read_file(dir_ / "same.log");
   EXPECT_THAT(log, HasSubstr("reconnected; bases unchanged (hash 0000000000001234)"));
   EXPECT_EQ(peer->basis_requests(), 0u);
 }

@@ -15,11 +15,6 @@
 namespace phasecast::testing {
 namespace {
 
-std::string slurp(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 int decode(int status) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
@@ -74,10 +69,10 @@ int ChildProcess::stop(int signal) {
 }
 
 std::string ChildProcess::out() const {
-  return slurp(out_path_);
+  return testing::read_file(out_path_);
 }
 std::string ChildProcess::err() const {
-  return slurp(err_path_);
+  return testing::read_file(err_path_);
 }
 
 }  // namespace phasecast::testing

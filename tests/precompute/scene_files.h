@@ -3,6 +3,7 @@
 // of it written into a scratch folder.
 
 #include "phasecast/precompute/simulation/scene.h"
+#include "run_tool.h"
 
 #include <filesystem>
 #include <fstream>
@@ -15,18 +16,11 @@ inline std::filesystem::path tiny_scene_path() {
   return std::filesystem::path(PHASECAST_SCENES_DIR) / "tiny" / "cloth_door.toml";
 }
 
-inline std::string read_text(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 // The tiny scene with `from` replaced by `to` (first occurrence), written to dir/name.
 inline std::filesystem::path edited_tiny_scene(const std::filesystem::path& dir, const std::string& from,
                                                const std::string& to,
                                                const std::string& name = "scene.toml") {
-  std::string text = read_text(tiny_scene_path());
+  std::string text = read_file(tiny_scene_path());
   const auto at = text.find(from);
   if (at == std::string::npos)
     throw std::runtime_error("edited_tiny_scene: '" + from + "' not in the tiny scene");

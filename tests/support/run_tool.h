@@ -20,6 +20,9 @@ std::filesystem::path tool_path(const std::string& name);
 // Runs `tool` with `args` (each passed as one shell-quoted word).
 ToolResult run_tool(const std::string& tool, const std::vector<std::string>& args);
 
+// The whole content of a file ("" when it cannot be read).
+std::string read_file(const std::filesystem::path& path);
+
 // A fresh empty directory under the system temp dir, named after the test.
 std::filesystem::path scratch_dir(const std::string& name);
 

@@ -170,7 +170,7 @@ TEST(IrfDraws, NeverViolateThePaletteRulesAndStayDeterministic) {
 TEST(IrfDraws, MaxInARowLimitsRunsOfAGroup) {
   // Let stop follow itself, at most twice in a row; close and open form one group of at most one.
   const auto dir = scratch_dir("rules_in_a_row");
-  std::string text = testing::read_text(tiny_scene_path());
+  std::string text = testing::read_file(tiny_scene_path());
   const auto replace = [&](const std::string& from, const std::string& to) {
     const auto at = text.find(from);
     ASSERT_NE(at, std::string::npos) << from;
