@@ -27,29 +27,13 @@ struct ValidateOptions {
   bool no_intersections = false;
 };
 
-// Targets of the playback-fidelity issue, used for the summary's pass counts.
-constexpr double kMotionLow = 0.67, kMotionHigh = 1.5, kJumpRatio = 2.0;
-
-// A segment "moves" when the simulated scene moves in it at all and at least
-// 10 % of the schedule's typical per-frame motion: the ones a user watches.
-bool moving(const SegmentFigures& s, double typical) {
-  return s.frames > 1 && s.simulated_motion > 1e-5 && s.simulated_motion >= 0.1 * typical;
-}
-
-double typical_motion(const ScheduleFigures& g) {
-  double sum = 0;
-  int n = 0;
-  for (const auto& s : g.segments) sum += s.simulated_motion * (s.frames - 1), n += s.frames - 1;
-  return n ? sum / n : 0;
-}
-
 void print_schedule(const ScheduleFigures& g) {
   fmt::print("  {:<8} {:>6} {:>7} {:>7} {:>12}  {}\n", "segment", "frames", "NRMSE", "motion", "sim mm/frame",
              "");
   const double typical = typical_motion(g);
   for (const auto& s : g.segments) {
     fmt::print("  {:<8} {:>6} {:>7.3f} {:>7.3f} {:>12.3f}  {}{}\n", s.entry, s.frames, s.nrmse,
-               s.motion_ratio, 1e3 * s.simulated_motion, moving(s, typical) ? "moving" : "",
+               s.motion_ratio, 1e3 * s.simulated_motion, is_moving(s, typical) ? "moving" : "",
                s.refused.empty() ? "" : " REFUSED: " + s.refused);
   }
   int within = 0;
@@ -63,33 +47,6 @@ void print_schedule(const ScheduleFigures& g) {
       g.nrmse, g.motion_ratio, g.switches.size(), within, kJumpRatio, ends.size(),
       ends.empty() ? 0.0 : ends[ends.size() / 2], g.median_simulated_speed, g.frames_with_intersections,
       g.max_intersecting_pairs);
-}
-
-struct Summary {
-  std::vector<double> nrmse;
-  int moving = 0, moving_within = 0, switches = 0, switches_within = 0, intersecting_frames = 0;
-};
-
-void add(Summary& s, const ScheduleFigures& g) {
-  s.nrmse.push_back(g.nrmse);
-  const double typical = typical_motion(g);
-  for (const auto& seg : g.segments) {
-    if (!moving(seg, typical)) continue;
-    ++s.moving;
-    s.moving_within += seg.motion_ratio >= kMotionLow && seg.motion_ratio <= kMotionHigh;
-  }
-  for (const auto& w : g.switches) ++s.switches, s.switches_within += w.ratio() <= kJumpRatio;
-  s.intersecting_frames += g.frames_with_intersections;
-}
-
-nlohmann::json summary_json(Summary s) {
-  std::sort(s.nrmse.begin(), s.nrmse.end());
-  return {{"median_nrmse", s.nrmse.empty() ? 0.0 : s.nrmse[s.nrmse.size() / 2]},
-          {"moving_segments", s.moving},
-          {"moving_segments_within", s.moving_within},
-          {"switches", s.switches},
-          {"switches_within", s.switches_within},
-          {"frames_with_intersections", s.intersecting_frames}};
 }
 
 void print_summary(const char* what, const nlohmann::json& j) {
@@ -120,7 +77,7 @@ void run_validate(const ValidateOptions& o) {
   fmt::print("validate {}: {} against the full simulation, {} schedule(s)\n", scene.name, o.package,
              work.size());
   nlohmann::json report = {{"scene", scene.name}, {"package", o.package}, {"seed", o.seed}};
-  Summary given_summary, random_summary;
+  ValidationSummary given_summary, random_summary;
   for (size_t i = 0; i < work.size(); ++i) {
     const auto& [kind, schedule] = work[i];
     fmt::print("schedule {}/{} ({}): {}\n", i + 1, work.size(), kind, schedule_text(scene, schedule));
@@ -131,14 +88,13 @@ void run_validate(const ValidateOptions& o) {
     const ScheduleFigures g = validate_schedule(scene, package, schedule, v);
     bar.finish();
     print_schedule(g);
-    add(kind == "given" ? given_summary : random_summary, g);
+    (kind == "given" ? given_summary : random_summary).add(g);
     auto j = to_json(g);
     j["kind"] = kind;
     report["schedules"].push_back(std::move(j));
   }
-  if (!given.empty()) print_summary("given schedules", report["summary_given"] = summary_json(given_summary));
-  if (o.random > 0)
-    print_summary("random schedules", report["summary_random"] = summary_json(random_summary));
+  if (!given.empty()) print_summary("given schedules", report["summary_given"] = given_summary.to_json());
+  if (o.random > 0) print_summary("random schedules", report["summary_random"] = random_summary.to_json());
   if (!o.json.empty()) {
     std::ofstream out(o.json);
     out << report.dump(2) << "\n";

@@ -134,6 +134,43 @@ double median(std::vector<double> v) {
 
 }  // namespace
 
+double typical_motion(const ScheduleFigures& g) {
+  double sum = 0;
+  int n = 0;
+  for (const auto& s : g.segments) sum += s.simulated_motion * (s.frames - 1), n += s.frames - 1;
+  return n ? sum / n : 0;
+}
+
+bool is_moving(const SegmentFigures& s, double typical) {
+  return s.frames > 1 && s.simulated_motion > kStill && s.simulated_motion >= 0.1 * typical;
+}
+
+void ValidationSummary::add(const ScheduleFigures& g) {
+  nrmse.push_back(g.nrmse);
+  const double typical = typical_motion(g);
+  for (const auto& seg : g.segments) {
+    if (!is_moving(seg, typical)) continue;
+    ++moving;
+    moving_within += seg.motion_ratio >= kMotionLow && seg.motion_ratio <= kMotionHigh;
+  }
+  for (const auto& w : g.switches) ++switches, switches_within += w.ratio() <= kJumpRatio;
+  intersecting_frames += g.frames_with_intersections;
+}
+
+double ValidationSummary::median_nrmse() const {
+  if (nrmse.empty()) return 0;
+  std::vector<double> v = nrmse;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : (v[n / 2 - 1] + v[n / 2]) / 2;
+}
+
+nlohmann::json ValidationSummary::to_json() const {
+  return {{"median_nrmse", median_nrmse()},          {"moving_segments", moving},
+          {"moving_segments_within", moving_within}, {"switches", switches},
+          {"switches_within", switches_within},      {"frames_with_intersections", intersecting_frames}};
+}
+
 std::string schedule_text(const Scene& scene, const std::vector<ScheduleItem>& schedule) {
   std::string s;
   for (const auto& item : schedule)

@@ -87,6 +87,29 @@ TEST(Playback, AForbiddenEntryIsReportedWithTheRuleItBreaks) {
   EXPECT_EQ(g.segments[1].refused, "");
 }
 
+TEST(ValidationSummary, CountsMovingSegmentsAndSwitchesAgainstTheTargets) {
+  ScheduleFigures g;
+  g.nrmse = 0.3;
+  auto seg = [](double motion, double ratio) {
+    SegmentFigures s;
+    s.frames = 11;
+    s.simulated_motion = motion;
+    s.motion_ratio = ratio;
+    return s;
+  };
+  g.segments = {seg(1e-3, 1.0), seg(1e-3, 2.0), seg(1e-6, 0.0), seg(5e-5, 0.5)};  // still, then barely moving
+  g.switches = {{1, 1e-4, 1e-4}, {5, 3e-4, 1e-4}};
+  ValidationSummary s;
+  s.add(g);
+  g.nrmse = 0.5;
+  s.add(g);
+  EXPECT_EQ(s.moving, 4);  // the still segment (1e-6 m/frame) and the one under 10 % of typical are not
+  EXPECT_EQ(s.moving_within, 2);
+  EXPECT_EQ(s.switches, 4);
+  EXPECT_EQ(s.switches_within, 2);
+  EXPECT_DOUBLE_EQ(s.median_nrmse(), 0.4);
+}
+
 TEST(ValidateCli, WritesEveryFigureAsJsonAndRejectsAMissingSchedule) {
   const auto dir = testing::scratch_dir("validate_cli");
   const auto r = testing::run_tool("phasecast-precompute",

@@ -74,6 +74,26 @@ ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core
 std::vector<ScheduleItem> random_schedule(const PaletteRules& rules, double frame_dt, std::uint64_t seed,
                                           int index, int items);
 
+// Targets of the playback-fidelity issue: a moving segment moves within
+// [0.67, 1.5] of the simulation; a switch jumps at most 2x the local motion.
+inline constexpr double kMotionLow = 0.67, kMotionHigh = 1.5, kJumpRatio = 2.0;
+
+// The schedule's typical simulated per-frame motion (frame-weighted mean over its segments).
+double typical_motion(const ScheduleFigures& figures);
+// A segment "moves" when the simulated scene moves in it at all and at least
+// 10 % of the schedule's typical per-frame motion: the ones a user watches.
+bool is_moving(const SegmentFigures& segment, double typical);
+
+// Pass counts over many schedules, against the targets above.
+struct ValidationSummary {
+  std::vector<double> nrmse;
+  int moving = 0, moving_within = 0, switches = 0, switches_within = 0, intersecting_frames = 0;
+
+  void add(const ScheduleFigures& figures);
+  double median_nrmse() const;
+  nlohmann::json to_json() const;
+};
+
 std::string schedule_text(const Scene& scene, const std::vector<ScheduleItem>& schedule);
 
 nlohmann::json to_json(const ScheduleFigures& figures);
