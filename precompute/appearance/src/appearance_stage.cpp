@@ -65,10 +65,10 @@ MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>&
 }
 
 AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const std::vector<int>& point_vertex,
-                                     const OrbitDisplacementSource& orbits,
-                                     const std::vector<std::int64_t>& node_frames,
-                                     const AppearanceStageOptions& o,
-                                     const std::function<void(const char*, long, long)>& progress) {
+                                           const OrbitDisplacementSource& orbits,
+                                           const std::vector<std::int64_t>& node_frames,
+                                           const AppearanceStageOptions& o,
+                                           const std::function<void(const char*, long, long)>& progress) {
   check_appearance_stage_options(o);
   const MatrixXfR& q_u = pkg.portrait.q_u;
   const Eigen::Index N = q_u.rows();

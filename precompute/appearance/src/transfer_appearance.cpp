@@ -7,7 +7,7 @@
 namespace phasecast::precompute {
 
 AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
-                                 const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& o) {
+                                     const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& o) {
   const auto Na = static_cast<Eigen::Index>(clusters.representatives.size());
   if (Na == 0 || fields.rows() != Na) {
     throw std::invalid_argument(fmt::format(

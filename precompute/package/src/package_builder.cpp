@@ -109,9 +109,8 @@ OrbitIndex read_orbit_index(const std::filesystem::path& path) {
     std::int64_t next = 0;
     for (size_t i = 0; i < o.irfs.size(); ++i) {
       if (i >= o.irfs.length.size() || i >= o.irfs.palette.size() || i >= o.irfs.continues.size() ||
-          o.irfs.start[i] != next || (i == 0 && o.irfs.continues[i] != 0) ||
-          o.irfs.length[i] < 1 || o.irfs.palette[i] < 0 ||
-          o.irfs.palette[i] >= static_cast<std::int32_t>(o.palette_names.size())) {
+          o.irfs.start[i] != next || (i == 0 && o.irfs.continues[i] != 0) || o.irfs.length[i] < 1 ||
+          o.irfs.palette[i] < 0 || o.irfs.palette[i] >= static_cast<std::int32_t>(o.palette_names.size())) {
         throw OrbitStoreError(
             fmt::format("{}: /irfs: IRF {} does not continue the frames in order", path.string(), i));
       }
@@ -169,8 +168,8 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
   PackageBuild out;
   core::ScenePackage& pkg = out.package;
   // Eq. 8 and beta over every sampled node, then filtering in that metric.
-  const MatrixXfR qdot_all =
-      core::orbit_velocities(basis.q_u, orbits.irfs.start, orbits.irfs.length, orbits.irfs.continues, orbits.dt);
+  const MatrixXfR qdot_all = core::orbit_velocities(basis.q_u, orbits.irfs.start, orbits.irfs.length,
+                                                    orbits.irfs.continues, orbits.dt);
   const double beta_all = o.beta > 0 ? o.beta : default_beta(basis.q_u, qdot_all);
   out.filter = filter_orbits(basis.q_u, qdot_all, beta_all, orbits.irfs, o.filter);
   // Kept IRFs, renumbered: their nodes become consecutive rows.

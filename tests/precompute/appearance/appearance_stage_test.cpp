@@ -3,8 +3,8 @@
 // inspect reports, transfer taken on the unreduced orbit-store meshes of the
 // cluster nodes, both sides of the cloth, determinism and one-line errors.
 
-#include "phasecast/core/mesh_geometry.h"
 #include "phasecast/precompute/appearance/appearance_stage.h"
+#include "phasecast/core/mesh_geometry.h"
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/package/package_builder.h"
@@ -124,8 +124,8 @@ TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
     for (int v = 0; v < V; ++v) {
       for (int k = 0; k < 3; ++k) x(v, k) = x(V + v, k) = store.positions(node, 3 * v + k);
     }
-    const MatrixXfR direct = precompute::compute_transfer(
-        x, p.mesh.triangles, core::vertex_normals(x, p.mesh.triangles), options);
+    const MatrixXfR direct =
+        precompute::compute_transfer(x, p.mesh.triangles, core::vertex_normals(x, p.mesh.triangles), options);
     const MatrixXfR staged = precompute::transfer_at_frame(p.mesh, precompute::scene_point_vertices(scene),
                                                            store.positions.row(node), options);
     EXPECT_TRUE(direct == staged) << "node " << node;

@@ -1,8 +1,8 @@
 // Eq. 8 velocities at IRF starts and ends, the beta default, and the IRF cache (§5.2)
 // against a brute-force search.
 
-#include "phasecast/core/phase_space.h"
 #include "phasecast/precompute/reduction/phase_portrait.h"
+#include "phasecast/core/phase_space.h"
 
 #include <gtest/gtest.h>
 
@@ -48,7 +48,8 @@ TEST(OrbitVelocities, RejectsBadInput) {
   EXPECT_THROW(core::orbit_velocities(q, {0}, {4}, {0}, 0.1), std::invalid_argument);
   EXPECT_THROW(core::orbit_velocities(q, {0}, {3}, {0}, 0.0), std::invalid_argument);
   EXPECT_THROW(core::orbit_velocities(q, {0, 1}, {3}, {0}, 0.1), std::invalid_argument);
-  EXPECT_THROW(core::orbit_velocities(q, {0}, {3}, {1}, 0.1), std::invalid_argument);  // nothing before node 0
+  EXPECT_THROW(core::orbit_velocities(q, {0}, {3}, {1}, 0.1),
+               std::invalid_argument);  // nothing before node 0
 }
 
 TEST(DefaultBeta, BalancesPositionAndVelocityRanges) {

@@ -1,7 +1,7 @@
 // phasecast-precompute simulate as a user runs it.
 
-#include "phasecast/precompute/simulation/obj_mesh.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
+#include "phasecast/precompute/simulation/obj_mesh.h"
 #include "run_tool.h"
 
 #include <gtest/gtest.h>

@@ -6,10 +6,10 @@
 // (fit_appearance_model). Fills /appearance, /portrait/q_a and eps_a of a package.
 
 #include "phasecast/core/package.h"
-#include "phasecast/precompute/reduction/displacement_reduction.h"
-#include "phasecast/precompute/sampling/orbit_filter.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_appearance.h"
+#include "phasecast/precompute/reduction/displacement_reduction.h"
+#include "phasecast/precompute/sampling/orbit_filter.h"
 
 #include <cstdint>
 #include <functional>
@@ -69,9 +69,9 @@ struct AppearanceStageReport {
 // Throws std::invalid_argument for bad options (N_a above the node count
 // included) and OrbitStoreError when a frame cannot be read.
 AppearanceStageReport run_appearance_stage(core::ScenePackage& package, const std::vector<int>& point_vertex,
-                                     const OrbitDisplacementSource& orbits,
-                                     const std::vector<std::int64_t>& node_frames,
-                                     const AppearanceStageOptions& options,
-                                     const std::function<void(const char*, long, long)>& progress = {});
+                                           const OrbitDisplacementSource& orbits,
+                                           const std::vector<std::int64_t>& node_frames,
+                                           const AppearanceStageOptions& options,
+                                           const std::function<void(const char*, long, long)>& progress = {});
 
 }  // namespace phasecast::precompute

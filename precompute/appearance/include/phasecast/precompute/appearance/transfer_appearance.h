@@ -37,6 +37,7 @@ struct AppearanceModel {
 //   @param[in] options   reduction rank rule and NRBF parameters
 // Throws std::invalid_argument when the shapes disagree.
 AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
-                                 const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& options);
+                                     const Eigen::Ref<const MatrixXfR>& fields,
+                                     const AppearanceOptions& options);
 
 }  // namespace phasecast::precompute

@@ -3,8 +3,8 @@
 // transform applied), the deformable surface followed by the rigid obstacle
 // boxes, and rod edges as OBJ lines, so any mesh viewer can play the sequence.
 
-#include "phasecast/precompute/simulation/deformable_model.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
+#include "phasecast/precompute/simulation/deformable_model.h"
 
 #include <filesystem>
 #include <functional>
