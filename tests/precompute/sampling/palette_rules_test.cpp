@@ -85,7 +85,7 @@ TEST(PaletteRules, UnknownFollowUpIsRejected) {
 TEST(PaletteRules, TmaxBelowOneFrameAboveTminIsRejected) {
   const auto dir = scratch_dir("rules_tmax");
   const auto msg =
-      error_of(edited_tiny_scene(dir, "t_min = 0.4\nt_max = 3.0", "t_min = 0.405\nt_max = 0.415"));
+      error_of(edited_tiny_scene(dir, "t_min = 2.4\nt_max = 3.0", "t_min = 2.405\nt_max = 2.415"));
   EXPECT_NE(msg.find("palette entry 'stop': field 't_max': expected at least one frame"), std::string::npos)
       << msg;
 }
@@ -93,7 +93,7 @@ TEST(PaletteRules, TmaxBelowOneFrameAboveTminIsRejected) {
 TEST(PaletteRules, TminNotBelowTmaxIsRejectedByTheSceneParser) {
   const auto dir = scratch_dir("rules_tmin");
   try {
-    load_scene_file(edited_tiny_scene(dir, "t_min = 0.4\nt_max = 3.0", "t_min = 4\nt_max = 3.0"));
+    load_scene_file(edited_tiny_scene(dir, "t_min = 2.4\nt_max = 3.0", "t_min = 4\nt_max = 3.0"));
     FAIL() << "expected a SceneError";
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("t_min"), std::string::npos) << e.what();
@@ -201,7 +201,7 @@ TEST(IrfDraws, MaxInARowLimitsRunsOfAGroup) {
 TEST(PaletteRules, NegativeMaxInARowIsRejected) {
   const auto dir = scratch_dir("rules_bad_in_a_row");
   try {
-    load_scene_file(edited_tiny_scene(dir, "t_min = 0.4\n", "t_min = 0.4\nmax_in_a_row = -1\n"));
+    load_scene_file(edited_tiny_scene(dir, "t_min = 2.4\n", "t_min = 2.4\nmax_in_a_row = -1\n"));
     FAIL() << "expected a SceneError";
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("max_in_a_row"), std::string::npos) << e.what();
