@@ -17,11 +17,11 @@ std::string trim(const std::string& s) {
   return s.substr(b, s.find_last_not_of(" \t\n") - b + 1);
 }
 
-int frames_for(double duration, double dt) {
-  return static_cast<int>(std::lround(duration / dt));
-}
-
 }  // namespace
+
+int schedule_frames(double seconds, double frame_dt) {
+  return static_cast<int>(std::lround(seconds / frame_dt));
+}
 
 std::vector<ScheduleItem> parse_schedule(const std::string& text, const Scene& scene) {
   std::vector<ScheduleItem> items;
@@ -38,7 +38,7 @@ std::vector<ScheduleItem> parse_schedule(const std::string& text, const Scene& s
         !(seconds > 0) || !std::isfinite(seconds)) {
       throw SceneError(fmt::format("schedule item '{}': expected '<palette entry> <seconds > 0>'", part));
     }
-    if (frames_for(seconds, scene.simulation.frame_dt) < 1) {
+    if (schedule_frames(seconds, scene.simulation.frame_dt) < 1) {
       throw SceneError(
           fmt::format("schedule item '{}': shorter than one frame ({} s)", part, scene.simulation.frame_dt));
     }
@@ -99,7 +99,7 @@ void record_irf(Simulator& simulator, const Scene& scene, int entry, int frames,
 
 void settle(Simulator& simulator, double seconds) {
   const Eigen::VectorXd none = Eigen::VectorXd::Zero(simulator.alpha_size());
-  const int steps = frames_for(seconds, simulator.frame_dt());
+  const int steps = schedule_frames(seconds, simulator.frame_dt());
   for (int i = 0; i < steps; ++i) {
     simulator.step(none);
     SimState s = simulator.state();
@@ -121,10 +121,10 @@ OrbitStore simulate_schedule(const Scene& scene, const std::vector<ScheduleItem>
   settled_rest_state(scene, *simulator);
   OrbitStore store = empty_orbit_store(scene);
   int total = 0, done = 0;
-  for (const auto& item : schedule) total += frames_for(item.duration, scene.simulation.frame_dt);
+  for (const auto& item : schedule) total += schedule_frames(item.duration, scene.simulation.frame_dt);
   for (const auto& item : schedule) {
-    record_irf(*simulator, scene, item.entry, frames_for(item.duration, scene.simulation.frame_dt), store,
-               [&] {
+    record_irf(*simulator, scene, item.entry, schedule_frames(item.duration, scene.simulation.frame_dt),
+               store, [&] {
                  if (progress) progress(++done, total);
                });
   }

@@ -16,10 +16,6 @@ namespace {
 // as a floor so a still schedule or segment does not divide by ~0.
 constexpr double kStill = 1e-5;
 
-int frames_of(double seconds, double dt) {
-  return static_cast<int>(std::lround(seconds / dt));
-}
-
 // RMS per vertex of a 3V vector.
 double rms(const Eigen::VectorXd& d) {
   return d.size() ? std::sqrt(d.squaredNorm() / (static_cast<double>(d.size()) / 3)) : 0;
@@ -191,7 +187,7 @@ ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core
   const Eigen::MatrixXd sim = truth.positions.cast<double>();
   const int N = static_cast<int>(sim.rows());
   std::vector<int> starts;
-  for (int f = 0; const auto& item : schedule) starts.push_back(f), f += frames_of(item.duration, dt);
+  for (int f = 0; const auto& item : schedule) starts.push_back(f), f += schedule_frames(item.duration, dt);
   const Served served = serve(package, starts, schedule, N, sim.cols());
 
   ScheduleFigures out;
@@ -204,7 +200,7 @@ ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core
   out.nrmse = all.nrmse;
   out.motion_ratio = all.motion_ratio;
   for (size_t k = 0; k < schedule.size(); ++k) {
-    SegmentFigures g = segment(sim, served.x, starts[k], frames_of(schedule[k].duration, dt), scale);
+    SegmentFigures g = segment(sim, served.x, starts[k], schedule_frames(schedule[k].duration, dt), scale);
     g.entry = scene.palette[static_cast<size_t>(schedule[k].entry)].name;
     g.refused = served.refused[k];
     out.segments.push_back(std::move(g));

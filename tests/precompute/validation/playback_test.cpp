@@ -66,7 +66,7 @@ TEST(Playback, RandomSchedulesObeyTheRulesAndTheRange) {
     double at = 0;
     for (const auto& item : schedule) {
       EXPECT_TRUE(rules.allowed_at(history, item.entry, at)) << schedule_text(scene(), schedule);
-      const int frames = static_cast<int>(std::lround(item.duration / scene().simulation.frame_dt));
+      const int frames = schedule_frames(item.duration, scene().simulation.frame_dt);
       EXPECT_LE(frames, rules.reachable_frames(item.entry, at));
       history.push_back(item.entry);
       at = rules.advance(item.entry, at, frames);

@@ -19,6 +19,9 @@ struct ScheduleItem {
   double duration = 0;  // s
 };
 
+// Frames a schedule item of `seconds` lasts at `frame_dt` (rounded to the nearest).
+int schedule_frames(double seconds, double frame_dt);
+
 // Parses "open 1.5; stop 2; close 1.5" (entry name, duration in seconds).
 // Throws SceneError naming the schedule item for unknown names or bad durations.
 std::vector<ScheduleItem> parse_schedule(const std::string& text, const Scene& scene);

@@ -35,8 +35,9 @@ struct SegmentFigures {
 // A frame where the served IRF changes (an impulse, or an end-of-IRF rule).
 struct SwitchFigures {
   int frame = 0;
-  double jump = 0;          // served |x(f+1) - x(f)|, RMS per vertex (m): the new IRF shows from f + 1
-  double local_motion = 0;  // simulated per-frame motion over f..f+3, RMS per vertex (m), >= 0.01 mm
+  double jump = 0;  // served |x(f+1) - x(f)|, RMS per vertex (m): the new IRF shows from f + 1
+  double local_motion =
+      0;  // mean simulated per-frame motion over frames f-2..f+3, RMS per vertex (m), >= 0.01 mm
   double ratio() const { return jump / local_motion; }  // local_motion has a 0.01 mm floor
 };
 
