@@ -60,8 +60,11 @@ if r.returncode == 0:
     v = re.search(r"playback vs full simulation: `open 0.80; stop 1.50; close 0.80; stop 1.50` \| NRMSE ([\d.]+)",
                   summary)
     check(v is not None and float(v.group(1)) < 0.5, f"summary: no playback figure, or NRMSE >= 0.5: {v}")
-    m = re.search(r"byte-identical PNGs \| 40 / 40, 40, (\d+)", summary)
-    check(m is not None and int(m.group(1)) == 40, "summary: the two renderers' frames differ")
+    # The renderers join the PUB stream independently, possibly a frame apart,
+    # so their 40 frames may overlap in 39: every common frame must be identical.
+    m = re.search(r"byte-identical PNGs \| 40 / 40, (\d+), (\d+)", summary)
+    check(m is not None and int(m.group(1)) >= 35 and m.group(1) == m.group(2),
+          f"summary: the two renderers' frames differ: {m.group(0) if m else 'no line'}")
     check("swing 1: open at frame" in open(os.path.join(work, "logs", "console.log")).read(),
           "the console did not run door_open_close.lua")
     check("demo: outputs in " + work in r.stderr, "the demo did not say where its outputs are")
