@@ -105,9 +105,9 @@ void set_field(lua_State* L, const char* key, const std::string& v) {
   lua_setfield(L, -2, key);
 }
 
-// Pushes {instance, scene, frame, entry, palette_index, irf, t, topic}.
+// Pushes {instance, scene, frame, entry, palette_index, irf, t, topic, allowed}.
 void push_instance(lua_State* L, Console::Impl& c, const v1::InstanceInfo& i) {
-  lua_createtable(L, 0, 8);
+  lua_createtable(L, 0, 9);
   set_field(L, "instance", static_cast<lua_Integer>(i.instance()));
   set_field(L, "scene", i.scene());
   set_field(L, "frame", static_cast<lua_Integer>(i.frame()));
@@ -121,6 +121,17 @@ void push_instance(lua_State* L, Console::Impl& c, const v1::InstanceInfo& i) {
   set_field(L, "irf", static_cast<lua_Integer>(i.irf()));
   set_field(L, "t", static_cast<lua_Integer>(i.irf_t()));
   set_field(L, "topic", i.topic());
+  // The entry names the palette's rules allow next (a script can offer only those).
+  const auto& palette = c.scene(i.scene()).palette();
+  lua_createtable(L, i.allowed_now_size(), 0);
+  lua_Integer n = 0;
+  for (const auto d : i.allowed_now()) {
+    if (static_cast<int>(d) >= palette.size()) continue;
+    lua_pushlstring(L, palette[static_cast<int>(d)].name().data(),
+                    palette[static_cast<int>(d)].name().size());
+    lua_rawseti(L, -2, ++n);
+  }
+  lua_setfield(L, -2, "allowed");
 }
 
 // Wraps a binding body: C++ exceptions become Lua errors at the script line.

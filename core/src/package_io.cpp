@@ -54,6 +54,16 @@ ImpulsePalette read_palette(const Reader& r) {
                                               kKinematicsColumnNames, k.rows(), k.cols()));
   }
   p.kinematics = kinematics_from_rows(k);
+  // Run limits (max_in_a_row) came with the playback-fidelity work; packages
+  // written before them have none: every entry its own group, no limit.
+  const auto D = static_cast<std::int32_t>(p.names.size());
+  if (r.file().exists("/palette/group")) {
+    p.group = r.vector<std::int32_t>("/palette/group");
+  } else {
+    for (std::int32_t d = 0; d < D; ++d) p.group.push_back(d);
+  }
+  p.max_in_a_row = r.file().exists("/palette/max_in_a_row") ? r.vector<std::int32_t>("/palette/max_in_a_row")
+                                                            : std::vector<std::int32_t>(p.names.size(), 0);
   return p;
 }
 
@@ -133,6 +143,8 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
   f.write("/palette/alpha_forcing", pkg.palette.alpha_forcing);
   f.write("/palette/transitions", pkg.palette.transitions);
   f.write("/palette/on_end", pkg.palette.on_end);
+  f.write("/palette/group", pkg.palette.group);
+  f.write("/palette/max_in_a_row", pkg.palette.max_in_a_row);
   f.write("/palette/kinematics", kinematics_to_rows(pkg.palette.kinematics));
   f.write_attribute_on("/palette/kinematics", "columns", kKinematicsColumnNames);
 

@@ -142,6 +142,10 @@ void check_palette(const Checker& c, const ImpulsePalette& p) {
                 "-2 (hold), -1 (rest) or an entry index");
   c.length("/palette/kinematics", p.kinematics, D, "D rows");
   check_kinematics(c, p.kinematics);
+  c.length("/palette/group", p.group, D, "D");
+  c.index_range("/palette/group", p.group.data(), D, 0, Di, "an entry index");
+  c.length("/palette/max_in_a_row", p.max_in_a_row, D, "D");
+  c.index_range("/palette/max_in_a_row", p.max_in_a_row.data(), D, 0, 1000000, "a count");
 }
 
 void check_reduction(const Checker& c, const Reduction& r, const SceneMesh& m) {
@@ -256,6 +260,26 @@ int ImpulsePalette::index_of(const std::string& name) const {
 bool ImpulsePalette::allowed(int from, int to) const {
   if (to < 0 || to >= size() || from < -1 || from >= size()) return false;
   return transitions(from + 1, to) != 0;
+}
+
+bool ImpulsePalette::within_run_limit(const PaletteRun& run, int to) const {
+  const auto d = static_cast<size_t>(to);
+  const int limit = max_in_a_row[d];
+  return limit == 0 || run.length == 0 || run.group != group[d] ||
+         run.length < static_cast<std::uint32_t>(limit);
+}
+
+PaletteRun ImpulsePalette::extended(const PaletteRun& run, int to) const {
+  const std::int32_t g = group[static_cast<size_t>(to)];
+  return {g, run.length > 0 && run.group == g ? run.length + 1 : 1};
+}
+
+bool ImpulsePalette::can_move_support(int to, double s, double dt) const {
+  const auto& k = kinematics[static_cast<size_t>(to)];
+  if (k.pulse_tau > 0 || k.rate == 0 || !(k.range_max > k.range_min)) return true;
+  const double room = k.rate > 0 ? k.range_max - s : s - k.range_min;
+  // The sampler's test (PaletteRules::reachable_frames): a whole frame of motion must fit.
+  return room / (std::abs(double{k.rate}) * dt) + 1e-6 >= 1;
 }
 
 void validate_package(const ScenePackage& pkg, const std::string& source) {

@@ -58,17 +58,46 @@ int current_node(const SceneModel& s, const InstanceState& st) {
   return pp.irf_start[at(st.irf)] + std::min(static_cast<int>(st.irf_t), len - 1);
 }
 
+std::string group_names(const core::ImpulsePalette& p, int d) {
+  std::string list;
+  for (int e = 0; e < p.size(); ++e) {
+    if (p.group[at(e)] == p.group[at(d)]) list += (list.empty() ? "'" : "', '") + p.names[at(e)];
+  }
+  return list + "'";
+}
+
+// Why the palette's rules (the state machine of /palette: transitions after
+// `from`, the group run, the support's range at coordinate `s` when known)
+// forbid entry `d`, or nullopt. The sampler drew its orbits under the same
+// rules (PaletteRules), so what they forbid was never sampled.
+std::optional<std::string> rule_refusal(const SceneModel& s, int from, const core::PaletteRun& run,
+                                        std::optional<double> support_s, int d) {
+  const auto& pal = s.data->palette;
+  if (!pal.allowed(from, d)) return transition_error(pal, from, d);
+  if (!pal.within_run_limit(run, d)) {
+    return fmt::format("'{}' is not allowed: {} IRFs of {} already in a row (rule max_in_a_row = {})",
+                       pal.names[at(d)], run.length, group_names(pal, d), pal.max_in_a_row[at(d)]);
+  }
+  if (support_s && !pal.can_move_support(d, *support_s, s.data->attributes.dt)) {
+    const auto& k = pal.kinematics[at(d)];
+    return fmt::format(
+        "'{}' cannot move the support: s = {:.4g} is at the end of its range [{:.4g}, {:.4g}] (rule: "
+        "support range)",
+        pal.names[at(d)], *support_s, k.range_min, k.range_max);
+  }
+  return std::nullopt;
+}
+
 // Why entry `d` cannot start in the instance's current frame, or nullopt if
 // it can. Checked again when the frame comes: an impulse queued for a later
 // frame was validated against the entry expected then, which an end-of-IRF
 // rule may have changed, and the node it lands on was not known.
 std::optional<std::string> refusal(const SceneModel& s, const InstanceState& st, int d) {
-  const auto& pal = s.data->palette;
-  if (!pal.allowed(st.palette_index, d)) return transition_error(pal, st.palette_index, d);
+  if (auto why = rule_refusal(s, st.palette_index, st.run, st.support_s, d)) return why;
   const int node = current_node(s, st);
   if (s.data->portrait.nearest_irf(node, d) < 0) {
-    return fmt::format("no IRF of '{}' is cached at state node {} (/portrait/nearest_irf)", pal.names[at(d)],
-                       node);
+    return fmt::format("no IRF of '{}' is cached at state node {} (/portrait/nearest_irf)",
+                       s.data->palette.names[at(d)], node);
   }
   return std::nullopt;
 }
@@ -134,6 +163,9 @@ void end_of_irf(const SceneModel& s, InstanceState& st, std::int32_t rule) {
     come_to_rest(s, st);
     return;
   }
+  // A follow-up starts an IRF of its own (the sampler's history has it); a
+  // held entry continues the one it is in.
+  if (rule >= 0) st.run = s.data->palette.extended(st.run, next);
   start_irf(s, st, next, irf, state_now(s, st));
 }
 
@@ -283,8 +315,9 @@ void SynthesisEngine::restore_instance(std::uint32_t id, const std::string& scen
       state.hold_node < 0 || state.hold_node >= pp.nodes() || state.offset_q_u.size() != pkg.rank_u() ||
       state.offset_qdot_u.size() != pkg.rank_u() || state.offset_q_a.size() != pkg.rank_a() ||
       state.kinematics_entry < 0 || state.kinematics_entry >= pkg.palette.size() || state.jolt_entry < -1 ||
-      state.jolt_entry >= pkg.palette.size() || !std::isfinite(state.support_s) ||
-      !state.offset_q_u.allFinite() || !state.offset_qdot_u.allFinite() || !state.offset_q_a.allFinite();
+      state.jolt_entry >= pkg.palette.size() || !std::isfinite(state.support_s) || state.run.group < 0 ||
+      state.run.group >= pkg.palette.size() || !state.offset_q_u.allFinite() ||
+      !state.offset_qdot_u.allFinite() || !state.offset_q_a.allFinite();
   if (bad) {
     throw EngineError(
         fmt::format("instance {} ({}): inconsistent state (expected IRF, node and entry indices and offset "
@@ -329,6 +362,16 @@ int SynthesisEngine::palette_index(std::uint32_t id, const std::string& name) co
   return d;
 }
 
+std::vector<int> SynthesisEngine::allowed_entries(std::uint32_t id) const {
+  const Instance& inst = instance(id);
+  const SceneModel& s = scenes_[at(inst.scene)];
+  std::vector<int> out;
+  for (int d = 0; d < s.data->palette.size(); ++d) {
+    if (!refusal(s, inst.state, d)) out.push_back(d);
+  }
+  return out;
+}
+
 std::uint64_t SynthesisEngine::schedule_impulse(std::uint32_t id, int d,
                                                 std::optional<std::uint64_t> at_frame) {
   const Instance& inst = instance(id);
@@ -348,18 +391,25 @@ std::uint64_t SynthesisEngine::schedule_impulse(std::uint32_t id, int d,
     throw EngineError(fmt::format("{}: {} impulses already pending (expected at most {} queued)",
                                   describe(s, id), queue.size(), kMaxPendingPerInstance));
   }
-  // The entry the instance will have by then, as far as already known.
+  // The entry and run the instance will have by then, as far as already
+  // known; the support's coordinate is known only for its next frame.
   int from = inst.state.palette_index;
+  core::PaletteRun run = inst.state.run;
+  bool known_support = frame == inst.frame;
   for (const auto& p : queue) {
-    if (p.frame <= frame) from = p.palette_index;
+    if (p.frame > frame) continue;
+    from = p.palette_index;
+    run = pal.extended(run, p.palette_index);
+    known_support = false;
   }
   const auto& irf_palette = s.data->portrait.irf_palette;
   if (std::find(irf_palette.begin(), irf_palette.end(), d) == irf_palette.end()) {
     throw EngineError(fmt::format("{}: palette entry '{}' has no sampled IRF (expected an entry with IRFs)",
                                   describe(s, id), pal.names[at(d)]));
   }
-  if (!pal.allowed(from, d))
-    throw EngineError(fmt::format("{}: {}", describe(s, id), transition_error(pal, from, d)));
+  const auto support = known_support ? std::optional<double>(inst.state.support_s) : std::nullopt;
+  if (auto why = rule_refusal(s, from, run, support, d))
+    throw EngineError(fmt::format("{}: {}", describe(s, id), *why));
   const Pending p{frame, next_order_++, d};
   const auto pos = std::upper_bound(queue.begin(), queue.end(), p, [](const Pending& a, const Pending& b) {
     return a.frame != b.frame ? a.frame < b.frame : a.order < b.order;
@@ -371,6 +421,7 @@ std::uint64_t SynthesisEngine::schedule_impulse(std::uint32_t id, int d,
 void SynthesisEngine::apply_impulse(Instance& inst, int d) {
   const SceneModel& s = scenes_[at(inst.scene)];
   const int irf = s.data->portrait.nearest_irf(current_node(s, inst.state), d);  // §5.2 cache
+  inst.state.run = s.data->palette.extended(inst.state.run, d);
   start_irf(s, inst.state, d, irf, state_now(s, inst.state));
 }
 

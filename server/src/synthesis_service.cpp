@@ -193,6 +193,11 @@ void SynthesisService::list_scenes(v1::SceneList& out) const {
       km.set_range_max(k.range_max);
       km.set_pulse_tau(k.pulse_tau);
       if (pal.allowed(-1, d)) info.add_allowed_from_rest(static_cast<std::uint32_t>(d));
+      for (int next = 0; next < pal.size(); ++next) {
+        if (pal.allowed(d, next)) e.add_allowed_after(static_cast<std::uint32_t>(next));
+      }
+      e.set_group(static_cast<std::uint32_t>(pal.group[i]));
+      e.set_max_in_a_row(static_cast<std::uint32_t>(pal.max_in_a_row[i]));
     }
     for (const auto& part : core::basis_parts(p)) {
       auto& bi = *info.add_parts();
@@ -297,6 +302,7 @@ void SynthesisService::instance_info(std::uint32_t id, v1::InstanceInfo& out) co
   out.set_irf(inst.state.irf);
   out.set_irf_t(inst.state.irf_t);
   out.set_topic(instance_topic(id));
+  for (const int d : engine_.allowed_entries(id)) out.add_allowed_now(static_cast<std::uint32_t>(d));
 }
 
 void SynthesisService::record_created(std::uint32_t id) {

@@ -49,6 +49,8 @@ void to_snapshot(const InstanceState& s, v1::InstanceSnapshot& out) {
   out.set_kinematics_entry(s.kinematics_entry);
   out.set_jolt_entry(s.jolt_entry);
   out.set_jolt_age(s.jolt_age);
+  out.set_run_group(s.run.group);
+  out.set_run_length(s.run.length);
 }
 
 InstanceState from_snapshot(const v1::InstanceSnapshot& in, const std::string& where) {
@@ -70,6 +72,7 @@ InstanceState from_snapshot(const v1::InstanceSnapshot& in, const std::string& w
   s.kinematics_entry = in.kinematics_entry();
   s.jolt_entry = in.jolt_entry();
   s.jolt_age = in.jolt_age();
+  s.run = {in.run_group(), in.run_length()};
   return s;
 }
 

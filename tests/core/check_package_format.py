@@ -31,6 +31,9 @@ def main(make_fixture: str, path: str) -> None:
         assert names == ["close", "stop", "open"]
         assert f["palette/transitions"].shape == (D + 1, D)
         assert f["palette/on_end"].dtype == np.int32
+        group = f["palette/group"][:]
+        assert group.dtype == np.int32 and group.shape == (D,) and all(0 <= g <= d for d, g in enumerate(group))
+        assert f["palette/max_in_a_row"].dtype == np.int32 and f["palette/max_in_a_row"].shape == (D,)
         kin = f["palette/kinematics"]
         assert kin.shape == (D, 11)
         cols = kin.attrs["columns"]

@@ -29,6 +29,8 @@ void expect_same(const ScenePackage& a, const ScenePackage& b) {
   EXPECT_EQ(a.palette.alpha_forcing, b.palette.alpha_forcing);
   EXPECT_EQ(a.palette.transitions, b.palette.transitions);
   EXPECT_EQ(a.palette.on_end, b.palette.on_end);
+  EXPECT_EQ(a.palette.group, b.palette.group);
+  EXPECT_EQ(a.palette.max_in_a_row, b.palette.max_in_a_row);
   ASSERT_EQ(a.palette.kinematics.size(), b.palette.kinematics.size());
   for (size_t i = 0; i < a.palette.kinematics.size(); ++i) {
     const auto &ka = a.palette.kinematics[i], &kb = b.palette.kinematics[i];

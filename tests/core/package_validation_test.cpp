@@ -91,6 +91,16 @@ TEST_F(PackageFileRejection, MissingDataset) {
               AllOf(HasSubstr("plate.h5: /portrait/q_u: missing dataset"), HasSubstr("2-D float32")));
 }
 
+// Packages written before the run rules have no /palette/group or
+// /palette/max_in_a_row: they load with every entry its own group, no limit.
+TEST_F(PackageFileRejection, PackagesWithoutRunRulesLoadWithoutLimits) {
+  remove("/palette/group");
+  remove("/palette/max_in_a_row");
+  const auto p = core::read_package(path_);
+  EXPECT_EQ(p.palette.group, (std::vector<std::int32_t>{0, 1, 2}));
+  EXPECT_EQ(p.palette.max_in_a_row, (std::vector<std::int32_t>{0, 0, 0}));
+}
+
 TEST_F(PackageFileRejection, WrongDtype) {
   replace<std::int32_t>("/mesh/triangles", std::vector<std::int32_t>(6, 0), {2, 3});
   EXPECT_THAT(rejection(path_), HasSubstr("/mesh/triangles: expected a 2-D uint32 dataset, got 2x3 int32"));
@@ -182,6 +192,14 @@ TEST_F(PackageRule, OnEndIsRestHoldOrAnEntry) {
   EXPECT_THAT(
       invalid(p),
       HasSubstr("/palette/on_end: expected -2 (hold), -1 (rest) or an entry index in [-2, 3), got 5"));
+}
+
+TEST_F(PackageRule, GroupIsAnEntryAndRunLimitsAreCounts) {
+  p.palette.group[1] = 3;
+  EXPECT_THAT(invalid(p), HasSubstr("/palette/group: expected an entry index in [0, 3), got 3"));
+  p.palette.group[1] = 1;
+  p.palette.max_in_a_row[2] = -1;
+  EXPECT_THAT(invalid(p), HasSubstr("/palette/max_in_a_row: expected a count in [0, 1000000), got -1"));
 }
 
 TEST_F(PackageRule, PaletteNamesUnique) {

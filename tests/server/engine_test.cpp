@@ -179,7 +179,11 @@ TEST(Engine, TheDoorKeepsOpeningUntilItsStopThenTheFollowUpThenRest) {
   const int last_node = pkg.portrait.irf_start[static_cast<size_t>(stop_irf)] + stop_len - 1;
   const float w = static_cast<float>(std::exp(-pkg.attributes.blend_lambda * stop_len * pkg.attributes.dt));
   EXPECT_LT((rest.q_u - pkg.portrait.q_u.row(last_node).transpose()).norm(), 2 * w + 1e-6f);
-  // From rest the door may open or close again.
+  // From rest at its stop the door may close again, but not open further.
+  EXPECT_EQ(e.allowed_entries(id), std::vector<int>{kClose});
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, kOpen); }),
+            "instance 1 (plate): 'open' cannot move the support: s = 1.571 is at the end of its range [0, "
+            "1.571] (rule: support range)");
   EXPECT_NO_THROW(e.schedule_impulse(id, kClose));
 }
 
@@ -284,7 +288,7 @@ TEST(Engine, JoltIsADisplacementPulseThatReturnsToRest) {
 TEST(Engine, ImpulseLandsExactlyInItsTargetFrame) {
   auto e = engine_with(default_plate());
   const auto id = e.create_instance("plate");
-  EXPECT_EQ(e.schedule_impulse(id, kClose, 10), 10u);
+  EXPECT_EQ(e.schedule_impulse(id, kOpen, 10), 10u);
   for (int f = 0; f < 10; ++f) {
     const auto r = e.tick();
     EXPECT_TRUE(r.applied.empty());
@@ -294,7 +298,62 @@ TEST(Engine, ImpulseLandsExactlyInItsTargetFrame) {
   ASSERT_EQ(r.applied.size(), 1u);
   EXPECT_EQ(r.applied[0].frame, 10u);
   EXPECT_EQ(frame_of(r, id).frame, 10u);
-  EXPECT_EQ(frame_of(r, id).palette_index, kClose);
+  EXPECT_EQ(frame_of(r, id).palette_index, kOpen);
+}
+
+// §3.5: a closed door cannot be closed. The sampler never drew such an IRF
+// (PaletteRules::reachable_frames), so the server refuses it by the same test.
+TEST(Engine, AnEntryThatCannotMoveTheSupportIsRefusedNamingTheRange) {
+  auto e = engine_with(default_plate());
+  const auto id = e.create_instance("plate");
+  EXPECT_EQ(e.allowed_entries(id), std::vector<int>{kOpen});
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, kClose); }),
+            "instance 1 (plate): 'close' cannot move the support: s = 0 is at the end of its range [0, "
+            "1.571] (rule: support range)");
+  // Queued for a later frame it is accepted, then refused when its frame comes.
+  e.schedule_impulse(id, kClose, 3);
+  TickResult r;
+  for (int f = 0; f <= 3; ++f) r = e.tick();
+  ASSERT_EQ(r.refused.size(), 1u);
+  EXPECT_EQ(r.refused[0].error,
+            "'close' cannot move the support: s = 0 is at the end of its range [0, 1.571] (rule: support "
+            "range)");
+  EXPECT_EQ(frame_of(r, id).palette_index, -1);
+}
+
+// The pot's "at most two same-signed pushes in a row" (§3.5): a run of one
+// group longer than /palette/max_in_a_row is refused, now and when it lands;
+// an entry of another group ends the run, and coming to rest does not (as in
+// a sampled chain).
+TEST(Engine, MaxInARowLimitsRunsOfOneGroup) {
+  auto p = testing::make_plate_package();
+  p.palette.transitions.setOnes();
+  for (auto& k : p.palette.kinematics) k.range_min = k.range_max = 0;  // unlimited: only the run counts
+  p.palette.group = {kClose, kStop, kClose};                           // open and close: one group "swing"
+  p.palette.max_in_a_row = {2, 0, 2};
+  p.palette.on_end = {core::kEndRest, core::kEndRest, core::kEndRest};
+  const auto pkg = std::make_shared<const core::ScenePackage>(std::move(p));
+  auto e = engine_with(pkg);
+  const auto id = e.create_instance("plate");
+  e.schedule_impulse(id, kOpen);
+  e.tick();
+  e.schedule_impulse(id, kClose, 5);
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, kOpen, 6); }),
+            "instance 1 (plate): 'open' is not allowed: 2 IRFs of 'close', 'open' already in a row (rule "
+            "max_in_a_row = 2)");
+  for (int f = 1; f <= 5; ++f) e.tick();
+  EXPECT_EQ(e.instance(id).state.run.length, 2u);
+  EXPECT_EQ(e.allowed_entries(id), std::vector<int>{kStop});
+  // Played out to rest, the run still stands.
+  while (e.instance(id).state.mode != Mode::rest) e.tick();
+  EXPECT_EQ(error_of<EngineError>([&] { e.schedule_impulse(id, kClose); }),
+            "instance 1 (plate): 'close' is not allowed: 2 IRFs of 'close', 'open' already in a row (rule "
+            "max_in_a_row = 2)");
+  // A stop ends it.
+  e.schedule_impulse(id, kStop);
+  e.tick();
+  EXPECT_EQ(e.instance(id).state.run.length, 1u);
+  EXPECT_NO_THROW(e.schedule_impulse(id, kOpen));
 }
 
 TEST(Engine, ImpulsesOfOneFrameApplyInArrivalOrderTheLaterWins) {

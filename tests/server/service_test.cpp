@@ -98,6 +98,8 @@ TEST(Service, SnapshotsRoundTripAndBadOnesAreRefused) {
   const auto back = from_snapshot(snap, "here");
   EXPECT_EQ(back.irf, e.instance(id).state.irf);
   EXPECT_EQ(back.offset_q_u, e.instance(id).state.offset_q_u);
+  EXPECT_EQ(back.run.group, 2);  // the open IRF started a run of its own group
+  EXPECT_EQ(back.run.length, 1u);
   snap.set_mode(7);
   EXPECT_EQ(error_of([&] { from_snapshot(snap, "record 3"); }),
             "record 3: snapshot mode 7 (expected 0 rest or 1 playing)");

@@ -88,6 +88,8 @@ void build_palette(ScenePackage& p) {
       1, 0, 1,                          // from stop: close or open
       0, 1, 0;                          // from open: stop
   pal.on_end = {1, core::kEndRest, 1};  // the door stops at the end of its range
+  pal.group = {0, 1, 2};
+  pal.max_in_a_row = {0, 0, 0};
   for (int d = 0; d < 3; ++d) {
     core::SupportKinematics k;
     k.axis = {0, 1, 0};

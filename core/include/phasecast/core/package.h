@@ -70,7 +70,15 @@ struct SupportKinematics {
   float pulse_tau = 0;
 };
 
-// The D entries of the impulse palette (§3.3) with their transition rules.
+// The run of IRFs of one palette group started in a row (an instance's or a
+// sampled chain's history, as far as max_in_a_row needs it). length 0: none.
+struct PaletteRun {
+  std::int32_t group = 0;
+  std::uint32_t length = 0;
+};
+
+// The D entries of the impulse palette (§3.3) with their transition rules: a
+// small state machine of (last entry, run of one group, support coordinate).
 struct ImpulsePalette {
   std::vector<std::string> names;             // D
   MatrixXfR alpha_impulse;                    // D x k  (alpha^I)
@@ -78,12 +86,22 @@ struct ImpulsePalette {
   MatrixXbR transitions;                      // (D+1) x D: row 0 from rest, row i+1 from entry i
   std::vector<std::int32_t> on_end;           // D: kEndRest, kEndHold or follow-up index
   std::vector<SupportKinematics> kinematics;  // D
+  std::vector<std::int32_t> group;            // D: group of each entry (its first entry's index)
+  std::vector<std::int32_t> max_in_a_row;     // D: at most this many of the group in a row (0: any)
 
   int size() const { return static_cast<int>(names.size()); }
   // Index of the entry called `name`, or -1.
   int index_of(const std::string& name) const;
   // Whether entry `to` may follow entry `from` (-1: from rest).
   bool allowed(int from, int to) const;
+  // Whether starting entry `to` keeps the run within `to`'s max_in_a_row.
+  bool within_run_limit(const PaletteRun& run, int to) const;
+  // The run after entry `to` starts: one longer in the same group, else 1.
+  PaletteRun extended(const PaletteRun& run, int to) const;
+  // Whether entry `to` can move the support from coordinate `s` by at least
+  // one frame of `dt` within the range (§3.5: a door at its stop cannot open
+  // further); entries that hold the support still or jolt it always can.
+  bool can_move_support(int to, double s, double dt) const;
 };
 
 // Displacement model reduction (§2.3.1, eqs. 3-7).

@@ -59,6 +59,7 @@ struct InstanceState {
   std::int32_t kinematics_entry = 0;  // entry whose axis/pivot place the support
   std::int32_t jolt_entry = -1;       // entry of the running jolt; -1 none
   std::uint64_t jolt_age = 0;         // steps since the jolt started
+  core::PaletteRun run;               // IRFs of one group started in a row (max_in_a_row)
 };
 
 // One synthesized frame of one instance (the content of a published Frame).
@@ -124,6 +125,9 @@ class SynthesisEngine {
 
   // Resolves a palette entry name for an instance's scene; throws EngineError.
   int palette_index(std::uint32_t instance, const std::string& name) const;
+  // The palette entries the rules allow in the instance's next frame (ignoring
+  // impulses already queued): what a client should offer as buttons.
+  std::vector<int> allowed_entries(std::uint32_t instance) const;
 
   // Queues entry `palette_index` for `instance` in frame `at_frame` (default:
   // the instance's next frame). Validated now against the entry the instance
