@@ -10,9 +10,17 @@ x_bar + U_u q_u (eq. 7) from the HDF5 datasets followed by the recorded
 support transform, within 1e-5 relative. With --light white the vertex
 colours must equal the constant-radiance exit radiance of the mean transfer.
 
-  check_gltf_export.py EXPORT_BIN PACKAGE RECORDING PROTO_DIR WORKDIR
+With THREE_LOADER (scripts/gltf-validate/load-three.mjs) the same file is also
+loaded by three.js's GLTFLoader under node, its AnimationMixer played to one
+recorded frame (large q_u and a moved support), and the world positions
+three.js gives there must equal x_bar + U_u q_u placed by the recorded support,
+within 1e-5 relative: the issue's "loads in a three.js test page", without a
+browser.
+
+  check_gltf_export.py EXPORT_BIN PACKAGE RECORDING PROTO_DIR WORKDIR [THREE_LOADER]
 """
 import json
+import shutil
 import struct
 import subprocess
 import sys
@@ -150,7 +158,65 @@ def check_white_colours(glb, pkg, prim):
     print(f"vertex colours match M_bar . L (white light) at {len(colours)} points")
 
 
-def main(export_bin, package, recording, proto_dir, workdir):
+def package_world_positions(pkg, frame):
+    """x_bar + U_u q_u (eq. 7) of the attached points, then the support transform."""
+    _, q_u, support_3x4 = frame
+    x = (pkg["x_bar"] + pkg["U_u"] @ q_u).reshape(pkg["attached"].size, 3)[pkg["attached"]]
+    return x @ support_3x4[:, :3].T + support_3x4[:, 3]
+
+
+def run_loader(command, expect_status, what):
+    result = subprocess.run(command, capture_output=True, text=True)
+    if result.returncode != expect_status:
+        sys.stdout.write(result.stdout)
+        sys.stderr.write(result.stderr)
+        raise AssertionError(f"load-three.mjs {what}: exit status {result.returncode}, expected {expect_status}")
+    return result
+
+
+def check_three(loader, glb_path, pkg, frames, work):
+    """three.js's GLTFLoader and AnimationMixer at one recorded frame against eq. 7."""
+    node = shutil.which("node")
+    assert node, "node is not installed (scripts/install-deps installs it)"
+    modules = Path(loader).resolve().parent / "node_modules"
+    assert (modules / "three").is_dir(), \
+        f"three.js is not installed in {modules}: run npm ci --prefix {modules.parent}"
+    # One frame where both the morph weights and the support's motion are large
+    # (each relative to its largest over the session), so that three.js's
+    # morphing and its node transform are both exercised; by |q_u| alone when
+    # the support never moves (toy_dashboard).
+    q = np.array([np.abs(q_u).max() for _, q_u, _ in frames])
+    moved = np.array([np.abs(support - np.eye(3, 4)).max() for _, _, support in frames])
+    index = int(np.argmax(q / q.max() * (moved / moved.max() if moved.max() > 0 else 1)))
+    expected = package_world_positions(pkg, frames[index])
+    scale = np.abs(pkg["x_bar"]).max()  # the same scale as check_positions
+    r_u = pkg["U_u"].shape[1]
+    expected_json, three_json = work / "three_expected.json", work / "three_positions.json"
+    expected_json.write_text(json.dumps({"positions": expected.tolist()}))
+    base = [node, str(loader), str(glb_path), "--keyframe", str(index)]
+    # The loader's own comparison (relative to its max |coordinate|) ...
+    result = run_loader(base + ["--r-u", str(r_u), "--expected", str(expected_json), "--out", str(three_json)],
+                        0, f"at keyframe {index}")
+    sys.stdout.write(result.stdout)
+    # ... and ours, on the positions it wrote, relative to the scene scale.
+    got = np.array(json.loads(three_json.read_text())["positions"], dtype=np.float64)
+    assert got.shape == expected.shape, f"three.js gave {got.shape} positions, expected {expected.shape}"
+    worst = np.abs(got - expected).max()
+    assert worst <= RELATIVE_TOLERANCE * scale, f"three.js: worst error {worst:.3g} (scale {scale:.3g})"
+    print(f"three.js at recorded frame {frames[index][0]} (keyframe {index}, largest |q_u| {q[index]:.3g}, "
+          f"support moved {moved[index]:.3g} from the identity): worst error {worst:.3g} against "
+          f"x_bar + U_u q_u and the recorded support, scale {scale:.3g}")
+
+    # The loader fails when it should: a wrong r_u, positions off by 1e-3 of the scene.
+    run_loader(base + ["--r-u", str(r_u + 1)], 1, "with a wrong --r-u")
+    off = expected.copy()
+    off[len(off) // 2, 1] += 1e-3 * scale
+    expected_json.write_text(json.dumps({"positions": off.tolist()}))
+    run_loader(base + ["--expected", str(expected_json)], 1, "with one position moved")
+    run_loader([node, str(loader)], 2, "without a file")
+
+
+def main(export_bin, package, recording, proto_dir, workdir, three_loader=None):
     work = Path(workdir)
     work.mkdir(parents=True, exist_ok=True)
     out = work / "session.glb"
@@ -160,9 +226,11 @@ def main(export_bin, package, recording, proto_dir, workdir):
     frames = recorded_frames(recording, proto_dir)
     prim = check_positions(glb, pkg, frames)
     check_white_colours(glb, pkg, prim)
+    if three_loader:
+        check_three(three_loader, out, pkg, frames, work)
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 6:
+    if len(sys.argv) not in (6, 7):
         sys.exit(__doc__)
-    main(*sys.argv[1:6])
+    main(*sys.argv[1:])
