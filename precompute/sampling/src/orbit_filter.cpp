@@ -4,8 +4,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 
 namespace phasecast::precompute {
@@ -14,12 +16,31 @@ double portrait_radius(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double bet
   return std::sqrt(core::phase_points(q_u, qdot_u, beta).rowwise().squaredNorm().cast<double>().maxCoeff());
 }
 
+namespace {
+
+// Whether IRF i is the last one of its palette entry still alive: dropping it
+// would leave the entry unplayable (the server refuses entries without IRFs),
+// which is worse than any short or dead-end IRF.
+bool last_of_its_entry(const IrfList& irfs, const std::vector<char>& alive, size_t i) {
+  for (size_t k = 0; k < irfs.size(); ++k) {
+    if (k != i && alive[k] && irfs.palette[k] == irfs.palette[i]) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
                                 const IrfList& irfs, const OrbitFilterOptions& o) {
   OrbitFilterResult r;
   std::vector<char> alive(irfs.size(), 1);
-  for (size_t i = 0; i < irfs.size(); ++i) {
-    if (irfs.length[i] < o.min_frames) {
+  // Shortest first, so an entry whose IRFs are all short keeps its longest.
+  std::vector<size_t> by_length(irfs.size());
+  std::iota(by_length.begin(), by_length.end(), size_t{0});
+  std::stable_sort(by_length.begin(), by_length.end(),
+                   [&](size_t a, size_t b) { return irfs.length[a] < irfs.length[b]; });
+  for (const size_t i : by_length) {
+    if (irfs.length[i] < o.min_frames && !last_of_its_entry(irfs, alive, i)) {
       alive[i] = 0;
       ++r.dropped_short;
       r.messages.push_back(fmt::format("IRF {} (entry {}): {} nodes, shorter than the minimum {}", i,
@@ -40,7 +61,7 @@ OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, d
                 nearest, core::phase_distance_squared(q_u.row(end), qdot_u.row(end), q_u.row(irfs.start[k]),
                                                       qdot_u.row(irfs.start[k]), beta));
         }
-        if (std::sqrt(nearest) > threshold) {
+        if (std::sqrt(nearest) > threshold && !last_of_its_entry(irfs, alive, i)) {
           alive[i] = 0;
           changed = true;
           ++r.dropped_dead_end;
