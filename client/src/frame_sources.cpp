@@ -1,7 +1,9 @@
 #include "phasecast/client/frame_sources.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace phasecast::client {
@@ -38,19 +40,55 @@ FrameState frame_state(const v1::Frame& frame) {
   return f;
 }
 
-std::vector<FrameState> recorded_frames(const Recording& rec, std::optional<std::uint32_t> instance,
-                                        const std::string& source) {
-  std::vector<FrameState> frames;
+void expect_recorded_with(const Recording& rec, const ClientBasis& basis, const std::string& recording_name,
+                          const std::string& package_name) {
+  const auto& scenes = rec.header().scenes();
+  const auto match = std::find_if(scenes.begin(), scenes.end(),
+                                  [&](const v1::RecordedScene& s) { return s.scene() == basis.scene; });
+  if (match == scenes.end()) {
+    std::vector<std::string> names;
+    for (const auto& s : scenes) names.push_back(fmt::format("'{}'", s.scene()));
+    throw RecordingError(fmt::format(
+        "recording {}: no scene '{}' (expected the scene of {}; it records {})", recording_name, basis.scene,
+        package_name, names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", "))));
+  }
+  if (match->content_hash() != basis.content_hash) {
+    throw RecordingError(fmt::format(
+        "recording {}: scene '{}' was recorded with package hash {:016x}, but {} has hash {:016x} "
+        "(expected the same package file)",
+        recording_name, basis.scene, match->content_hash(), package_name, basis.content_hash));
+  }
+}
+
+RecordedFrames recorded_frames(const Recording& rec, std::optional<std::uint32_t> instance,
+                               const std::string& source, const std::optional<std::string>& scene) {
+  auto counts = [&](const v1::Frame& f) { return !scene || f.scene().empty() || f.scene() == *scene; };
+  std::vector<std::uint32_t> present;  // instances with frames that count, in order of their first frame
   for (const auto& e : rec.entries) {
-    if (!e.has_frame()) continue;
-    if (!instance) instance = e.frame().instance();
-    if (e.frame().instance() == *instance) frames.push_back(frame_state(e.frame()));
+    if (!e.has_frame() || !counts(e.frame())) continue;
+    if (std::find(present.begin(), present.end(), e.frame().instance()) == present.end())
+      present.push_back(e.frame().instance());
   }
-  if (frames.empty()) {
-    throw RecordingError(instance ? fmt::format("recording {}: no frames of instance {}", source, *instance)
-                                  : fmt::format("recording {}: no frames", source));
+  const std::string of_scene = scene ? fmt::format(" of scene '{}'", *scene) : std::string();
+  if (present.empty()) {
+    throw RecordingError(
+        scene ? fmt::format("recording {}: no frames{} (expected frames of the package's scene)", source,
+                            of_scene)
+              : fmt::format("recording {}: no frames (expected at least one)", source));
   }
-  return frames;
+  if (instance && std::find(present.begin(), present.end(), *instance) == present.end()) {
+    throw RecordingError(
+        fmt::format("recording {}: no frames of instance {} (expected one of {}: the instances{} "
+                    "it holds)",
+                    source, *instance, fmt::join(present, ", "), of_scene));
+  }
+  RecordedFrames r;
+  r.instance = instance.value_or(present.front());
+  for (const auto& e : rec.entries) {
+    if (e.has_frame() && e.frame().instance() == r.instance && counts(e.frame()))
+      r.frames.push_back(frame_state(e.frame()));
+  }
+  return r;
 }
 
 }  // namespace phasecast::client

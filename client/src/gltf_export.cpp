@@ -11,7 +11,6 @@
 #include "phasecast/core/sh.h"
 
 #include <fmt/format.h>
-#include <fmt/ranges.h>
 #include <tiny_gltf.h>
 #include <Eigen/Geometry>
 
@@ -41,71 +40,20 @@ struct Session {
 };
 
 // The recording must name this package's scene with this package file's
-// content hash: the same check as phasecast-render --replay, so q_u is only
-// ever paired with the U_u it was synthesized for.
-void expect_same_package(const core::Recording& rec, const ClientBasis& basis, const std::string& rec_name,
-                         const std::string& package_name) {
-  const auto& scenes = rec.header().scenes();
-  const auto match = std::find_if(scenes.begin(), scenes.end(),
-                                  [&](const v1::RecordedScene& s) { return s.scene() == basis.scene; });
-  if (match == scenes.end()) {
-    std::vector<std::string> names;
-    for (const auto& s : scenes) names.push_back(s.scene());
-    throw RecordingError(fmt::format("recording {} has no scene '{}' (the scene of {}; it records: {})",
-                                     rec_name, basis.scene, package_name, fmt::join(names, ", ")));
-  }
-  if (match->content_hash() != basis.content_hash) {
-    throw RecordingError(
-        fmt::format("recording {} was made with package hash {:016x}, but {} has hash {:016x} (expected the "
-                    "same package)",
-                    rec_name, match->content_hash(), package_name, basis.content_hash));
-  }
-}
-
-// A recording may hold several scenes; a frame that leaves its scene field
-// empty is taken to be of the scene asked for.
-bool of_scene(const v1::Frame& f, const std::string& scene) {
-  return f.scene().empty() || f.scene() == scene;
-}
-
-// Instances that have frames of `scene`, in order of their first frame.
-std::vector<std::uint32_t> instances_of(const core::Recording& rec, const std::string& scene) {
-  std::vector<std::uint32_t> ids;
-  for (const auto& e : rec.entries) {
-    if (!e.has_frame() || !of_scene(e.frame(), scene)) continue;
-    if (std::find(ids.begin(), ids.end(), e.frame().instance()) == ids.end())
-      ids.push_back(e.frame().instance());
-  }
-  return ids;
-}
-
-std::uint32_t pick_instance(const std::vector<std::uint32_t>& present, std::optional<std::uint32_t> wanted,
-                            const std::string& rec_name, const std::string& scene) {
-  if (present.empty())
-    throw RecordingError(fmt::format("recording {}: no frames of scene '{}'", rec_name, scene));
-  if (!wanted) return present.front();
-  if (std::find(present.begin(), present.end(), *wanted) == present.end()) {
-    throw RecordingError(
-        fmt::format("recording {}: no frames of instance {} (expected one of {}: the "
-                    "instances of scene '{}' it holds)",
-                    rec_name, *wanted, fmt::join(present, ", "), scene));
-  }
-  return *wanted;
-}
-
+// content hash, as for phasecast-render --replay; the instance is the one
+// asked for, or the first of the scene.
 Session read_session(const GltfExportOptions& o, const ClientBasis& basis) {
   const std::string rec_name = o.recording->string();
   const core::Recording rec = core::read_recording_file(*o.recording);
-  expect_same_package(rec, basis, rec_name, o.package.string());
+  expect_recorded_with(rec, basis, rec_name, o.package.string());
+  RecordedFrames recorded = recorded_frames(rec, o.instance, rec_name, basis.scene);
   Session s;
   s.truncated = rec.truncated;
-  s.instance = pick_instance(instances_of(rec, basis.scene), o.instance, rec_name, basis.scene);
-  for (const auto& e : rec.entries) {
-    if (e.has_frame() && e.frame().instance() == s.instance && of_scene(e.frame(), basis.scene))
-      s.frames.push_back(frame_state(e.frame()));
-  }
+  s.instance = recorded.instance;
+  s.frames = std::move(recorded.frames);
   for (std::size_t i = 0; i < s.frames.size(); ++i) {
-    validate_frame(s.frames[i], basis, rec_name);  // r_u values of q_u, 12 of support, all finite
+    // r_u values of q_u, 12 of support, all finite: "recording X: frame 3: ..."
+    validate_frame(s.frames[i], basis, "recording " + rec_name);
     if (i > 0 && s.frames[i].frame <= s.frames[i - 1].frame) {
       throw RecordingError(
           fmt::format("recording {}: instance {}: frame {} follows frame {} (expected "
@@ -422,13 +370,16 @@ struct Keyframes {
   std::vector<float> times, weights, translations, rotations;
 };
 
-Keyframes keyframes(const Session& s, double dt, const std::string& rec_name) {
+// The support's keyframes only `with_support`: without a support node the
+// recorded transform moves nothing and is not checked.
+Keyframes keyframes(const Session& s, double dt, bool with_support, const std::string& rec_name) {
   Keyframes k;
   const std::uint64_t first = s.frames.front().frame;
   Eigen::Quaterniond previous = Eigen::Quaterniond::Identity();
   for (const auto& f : s.frames) {
     k.times.push_back(static_cast<float>(static_cast<double>(f.frame - first) * dt));
     k.weights.insert(k.weights.end(), f.q_u.begin(), f.q_u.end());
+    if (!with_support) continue;
     const RigidMotion m = decompose_support(f, rec_name);
     // q and -q are the same rotation; keeping neighbours in one hemisphere
     // stops importers that interpolate components (Blender) from flipping.
@@ -461,8 +412,8 @@ void add_channel(tinygltf::Animation& a, int input, int output, int node, const 
 // bytes of keyframe data it added; nothing when nothing would move.
 std::size_t add_session_animation(GltfBuilder& g, const Session& s, double dt, int support_node,
                                   const std::vector<int>& morph_nodes, const std::string& rec_name) {
-  const Keyframes k = keyframes(s, dt, rec_name);
   if (morph_nodes.empty() && support_node < 0) return 0;
+  const Keyframes k = keyframes(s, dt, support_node >= 0, rec_name);
   tinygltf::Animation a;
   a.name = fmt::format("instance {}", s.instance);
   const int times = g.add_floats(k.times, TINYGLTF_TYPE_SCALAR);
@@ -492,6 +443,7 @@ std::size_t add_session_animation(GltfBuilder& g, const Session& s, double dt, i
 struct Built {
   tinygltf::Model model;
   std::size_t animation_bytes = 0;
+  bool animated = false;  // a session was given and something in the file moves with it
   int dropped = 0;
   int triangles = 0;
 };
@@ -534,6 +486,7 @@ Built build_model(const ClientBasis& b, const ShLight& light, const std::optiona
   Built built;
   if (session)
     built.animation_bytes = add_session_animation(g, *session, dt, support_node, morph_nodes, rec_name);
+  built.animated = !g.model().animations.empty();
   built.dropped = parts.dropped;
   built.triangles = static_cast<int>((parts.world.triangles.size() + parts.attached.triangles.size()) / 3);
   built.model = std::move(g.model());
@@ -567,8 +520,11 @@ void write_atomically(const std::string& bytes, const fs::path& out) {
   std::error_code ec;
   fs::rename(tmp, out, ec);
   if (ec) {
-    fs::remove(tmp, ec);
-    throw std::runtime_error(fmt::format("{}: cannot be written ({})", out.string(), ec.message()));
+    std::error_code ignored;  // the rename's error is the one to report
+    fs::remove(tmp, ignored);
+    throw std::runtime_error(
+        fmt::format("{}: cannot be written ({}; expected a path to a file in a writable folder)",
+                    out.string(), ec.message()));
   }
 }
 
@@ -608,6 +564,7 @@ GltfExportSummary export_gltf(const GltfExportOptions& o) {
   s.has_transfer = basis.has_transfer();
   s.file_bytes = bytes.size();
   s.animation_bytes = built.animation_bytes;
+  s.animated = built.animated;
   if (session) {
     s.instance = session->instance;
     s.first_frame = session->frames.front().frame;
@@ -630,7 +587,12 @@ std::string describe(const GltfExportSummary& s, const fs::path& out) {
         s.dropped_triangles);
   }
   if (s.recording_truncated) text += "phasecast-export: the recording's last record was truncated, ignored\n";
-  if (s.instance) {
+  if (s.instance && !s.animated) {
+    text += fmt::format(
+        "phasecast-export: no animation: nothing in scene '{}' moves (no exported mesh has deformable or "
+        "attached points), so the {} frames of instance {} were read but not written\n",
+        s.scene, s.frames, *s.instance);
+  } else if (s.instance) {
     text += fmt::format(
         "phasecast-export: animation of instance {}: {} frames from frame {}, {:.2f} s; {} bytes of "
         "keyframes, "

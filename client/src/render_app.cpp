@@ -130,25 +130,14 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log) 
     const Recording rec = core::read_recording_file(*o.replay);
     if (rec.truncated)
       fmt::print(log, "phasecast-render: {}: last record truncated, ignored\n", o.replay->string());
-    const auto& scenes = rec.header().scenes();
-    const auto match = std::find_if(scenes.begin(), scenes.end(),
-                                    [&](const v1::RecordedScene& s) { return s.scene() == basis.scene; });
-    if (match == scenes.end()) {
-      throw RecordingError(fmt::format("recording {} has no scene '{}' (the scene of {})", o.replay->string(),
-                                       basis.scene, o.package->string()));
-    }
-    if (match->content_hash() != basis.content_hash) {
-      throw RecordingError(
-          fmt::format("recording {} was made with package hash {:016x}, but {} has hash {:016x} "
-                      "(expected the same package)",
-                      o.replay->string(), match->content_hash(), o.package->string(), basis.content_hash));
-    }
-    frames = recorded_frames(rec, o.instance, o.replay->string());
+    expect_recorded_with(rec, basis, o.replay->string(), o.package->string());
+    frames = recorded_frames(rec, o.instance, o.replay->string(), basis.scene).frames;
   } else {
     frames = portrait_frames(package, o.play_irf.value_or(0));
   }
   if (o.max_frames > 0 && frames.size() > o.max_frames) frames.resize(o.max_frames);
-  for (const auto& f : frames) validate_frame(f, basis, o.replay ? o.replay->string() : o.package->string());
+  const std::string source = o.replay ? "recording " + o.replay->string() : o.package->string();
+  for (const auto& f : frames) validate_frame(f, basis, source);
   if (o.dump_frame && std::none_of(frames.begin(), frames.end(),
                                    [&](const FrameState& f) { return f.frame == *o.dump_frame; })) {
     throw std::invalid_argument(fmt::format("--dump-vertices {}: no such frame (expected {}..{})",

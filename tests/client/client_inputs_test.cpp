@@ -103,7 +103,7 @@ TEST_F(ClientInputs, RecordingRoundTripsAndStopsAtATruncatedRecord) {
   Recording rec = core::read_recording_file(dir / "s.rec");
   EXPECT_FALSE(rec.truncated);
   EXPECT_EQ(rec.header().scenes(0).content_hash(), 99u);
-  auto frames = recorded_frames(rec, std::nullopt, "s.rec");
+  auto frames = recorded_frames(rec, std::nullopt, "s.rec").frames;
   ASSERT_EQ(frames.size(), stream.size());
   EXPECT_EQ(frames[7].q_u[0], stream[7].q_u(0));
 
@@ -112,8 +112,58 @@ TEST_F(ClientInputs, RecordingRoundTripsAndStopsAtATruncatedRecord) {
   std::filesystem::resize_file(dir / "s.rec", size - 5);
   rec = core::read_recording_file(dir / "s.rec");
   EXPECT_TRUE(rec.truncated);
-  EXPECT_EQ(recorded_frames(rec, std::nullopt, "s.rec").size(), stream.size() - 1);
-  EXPECT_EQ(error_of([&] { recorded_frames(rec, 5u, "s.rec"); }), "recording s.rec: no frames of instance 5");
+  EXPECT_EQ(recorded_frames(rec, std::nullopt, "s.rec").frames.size(), stream.size() - 1);
+  EXPECT_EQ(error_of([&] { recorded_frames(rec, 5u, "s.rec"); }),
+            "recording s.rec: no frames of instance 5 (expected one of 1: the instances it holds)");
+}
+
+// A recording of two scenes: instance 3 of "dashboard" comes first, then
+// instances 1 and 2 of the plate. The scene filter (phasecast-render --replay
+// and phasecast-export both pass the package's scene) picks the plate's.
+TEST_F(ClientInputs, RecordedFramesOfOneScene) {
+  const auto dir = testing::scratch_dir("client_recording_scenes");
+  auto other = testing::irf_stream(package_, 0, 3);
+  for (auto& f : other) f.set_scene("dashboard");
+  auto frames = other;
+  const auto first = testing::irf_stream(package_, 1, 1), second = testing::irf_stream(package_, 2, 2);
+  frames.insert(frames.end(), first.begin(), first.end());
+  frames.insert(frames.end(), second.begin(), second.end());
+  frames.back().clear_scene();  // an empty scene field counts as the scene asked for
+  testing::write_recording(dir / "s.rec", "plate", "plate.h5", 42, frames);
+  const Recording rec = core::read_recording_file(dir / "s.rec");
+
+  EXPECT_EQ(recorded_frames(rec, std::nullopt, "s.rec").instance, 3u);  // no filter: the first frame's
+  const auto plate = recorded_frames(rec, std::nullopt, "s.rec", std::string("plate"));
+  EXPECT_EQ(plate.instance, 1u);
+  ASSERT_EQ(plate.frames.size(), first.size());
+  EXPECT_EQ(plate.frames[4].q_u[0], first[4].q_u(0));
+  EXPECT_EQ(recorded_frames(rec, 2u, "s.rec", std::string("plate")).frames.size(), second.size());
+  EXPECT_EQ(
+      error_of([&] { recorded_frames(rec, 3u, "s.rec", std::string("plate")); }),
+      "recording s.rec: no frames of instance 3 (expected one of 1, 2: the instances of scene 'plate' it "
+      "holds)");
+  testing::write_recording(dir / "d.rec", "plate", "plate.h5", 42, other);  // only the dashboard's frames
+  const Recording dashboard = core::read_recording_file(dir / "d.rec");
+  EXPECT_EQ(error_of([&] { recorded_frames(dashboard, std::nullopt, "d.rec", std::string("plate")); }),
+            "recording d.rec: no frames of scene 'plate' (expected frames of the package's scene)");
+}
+
+// The header must name the package's scene with the package file's hash.
+TEST_F(ClientInputs, RecordingOfAnotherPackageOrSceneIsRejected) {
+  const auto dir = testing::scratch_dir("client_recording_package");
+  testing::write_recording(dir / "s.rec", "plate", "plate.h5", 42, testing::irf_stream(package_, 0));
+  const Recording rec = core::read_recording_file(dir / "s.rec");
+  EXPECT_NO_THROW(expect_recorded_with(rec, basis_, "s.rec", "plate.h5"));
+  ClientBasis rebuilt = basis_;
+  rebuilt.content_hash = 43;
+  EXPECT_EQ(
+      error_of([&] { expect_recorded_with(rec, rebuilt, "s.rec", "new.h5"); }),
+      "recording s.rec: scene 'plate' was recorded with package hash 000000000000002a, but new.h5 has hash "
+      "000000000000002b (expected the same package file)");
+  ClientBasis cube = basis_;
+  cube.scene = "cube";
+  EXPECT_EQ(error_of([&] { expect_recorded_with(rec, cube, "s.rec", "cube.h5"); }),
+            "recording s.rec: no scene 'cube' (expected the scene of cube.h5; it records 'plate')");
 }
 
 // The full set of rejections is in tests/server/recording_test.cpp; these are

@@ -176,17 +176,34 @@ TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
 
 TEST_F(RenderCli, RecordingOfAnotherPackageIsRejected) {
   testing::write_recording(dir_ / "s.rec", "plate", "plate.h5", hash_ + 1, testing::irf_stream(package_, 0));
-  EXPECT_EQ(one_line_error({"--replay", path("s.rec"), "--package", path("plate.h5")}),
-            fmt::format(
-                "phasecast-render: recording {} was made with package hash {:016x}, but {} has hash {:016x} "
-                "(expected the same package)\n",
-                path("s.rec"), hash_ + 1, path("plate.h5"), hash_));
+  EXPECT_EQ(
+      one_line_error({"--replay", path("s.rec"), "--package", path("plate.h5")}),
+      fmt::format(
+          "phasecast-render: recording {}: scene 'plate' was recorded with package hash {:016x}, but {} "
+          "has hash {:016x} (expected the same package file)\n",
+          path("s.rec"), hash_ + 1, path("plate.h5"), hash_));
+  testing::write_recording(dir_ / "u.rec", "dashboard", "dash.h5", hash_, testing::irf_stream(package_, 0));
+  EXPECT_EQ(
+      one_line_error({"--replay", path("u.rec"), "--package", path("plate.h5")}),
+      fmt::format("phasecast-render: recording {}: no scene 'plate' (expected the scene of {}; it records "
+                  "'dashboard')\n",
+                  path("u.rec"), path("plate.h5")));
+  // Only the package's scene counts: instance 3 of another scene is not offered.
+  auto two_scenes = testing::irf_stream(package_, 1, 3);
+  for (auto& f : two_scenes) f.set_scene("dashboard");
+  const auto plate = testing::irf_stream(package_, 2, 1);
+  two_scenes.insert(two_scenes.end(), plate.begin(), plate.end());
+  testing::write_recording(dir_ / "v.rec", "plate", "plate.h5", hash_, two_scenes);
+  EXPECT_EQ(one_line_error({"--replay", path("v.rec"), "--package", path("plate.h5"), "--instance", "3"}),
+            fmt::format("phasecast-render: recording {}: no frames of instance 3 (expected one of 1: the "
+                        "instances of scene 'plate' it holds)\n",
+                        path("v.rec")));
   auto stream = testing::irf_stream(package_, 0);
   stream[3].add_q_u(1.0f);
   testing::write_recording(dir_ / "t.rec", "plate", "plate.h5", hash_, stream);
-  EXPECT_EQ(
-      one_line_error({"--replay", path("t.rec"), "--package", path("plate.h5")}),
-      fmt::format("phasecast-render: {}: frame 3: q_u has 5 values (expected r_u = 4)\n", path("t.rec")));
+  EXPECT_EQ(one_line_error({"--replay", path("t.rec"), "--package", path("plate.h5")}),
+            fmt::format("phasecast-render: recording {}: frame 3: q_u has 5 values (expected r_u = 4)\n",
+                        path("t.rec")));
 }
 
 TEST_F(RenderCli, VideoNeedsFfmpegOrSaysSo) {

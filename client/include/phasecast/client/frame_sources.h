@@ -26,9 +26,26 @@ std::vector<FrameState> portrait_frames(const core::ScenePackage& package, int i
 
 FrameState frame_state(const v1::Frame& frame);
 
+// The recording's header must name the scene of `basis` with the content
+// hash of the package file the bases were read from (`package_name`), so that
+// q_u is only ever paired with the U_u it was synthesized for. Throws
+// RecordingError naming both files otherwise (phasecast-render --replay,
+// phasecast-export --recording).
+void expect_recorded_with(const Recording& recording, const ClientBasis& basis,
+                          const std::string& recording_name, const std::string& package_name);
+
+struct RecordedFrames {
+  std::uint32_t instance = 0;      // the instance the frames are of
+  std::vector<FrameState> frames;  // in stream order
+};
+
 // Frames of one instance in stream order; without `instance`, of the first
-// instance that has a frame. Throws RecordingError when there are none.
-std::vector<FrameState> recorded_frames(const Recording& recording, std::optional<std::uint32_t> instance,
-                                        const std::string& source);
+// instance that has a frame. With `scene`, only frames of that scene count
+// (a frame whose scene field is empty is taken to be of it), so an instance
+// of another scene is neither the default nor accepted. Throws
+// RecordingError when there are none, naming the instances there are.
+RecordedFrames recorded_frames(const Recording& recording, std::optional<std::uint32_t> instance,
+                               const std::string& source,
+                               const std::optional<std::string>& scene = std::nullopt);
 
 }  // namespace phasecast::client

@@ -36,6 +36,7 @@ struct GltfExportSummary {
   std::size_t frames = 0;                 // keyframes
   double duration_s = 0;                  // (last - first frame) * dt
   std::size_t animation_bytes = 0;        // keyframe data in the file: times, weights, support
+  bool animated = false;                  // an animation was written (not when nothing in the file moves)
   bool recording_truncated = false;       // its last record was cut short (a crash) and dropped
   std::uintmax_t file_bytes = 0;
 
