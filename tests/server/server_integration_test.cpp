@@ -212,8 +212,7 @@ TEST(ServerProcessTest, SeveralConcurrentClientsAllGetTheirReplies) {
   for (int c = 0; c < 4; ++c) {
     clients.emplace_back([&, c] {
       CommandClient client(ctx, server.cmd());
-      const auto imp =
-          client.call(impulse_request(static_cast<std::uint32_t>(c + 1), "open"));
+      const auto imp = client.call(impulse_request(static_cast<std::uint32_t>(c + 1), "open"));
       if (imp.ok() && imp.impulse().instance() == static_cast<std::uint32_t>(c + 1)) ++good;
       for (int i = 0; i < 25; ++i) {
         if (client.call(stats_request()).ok()) ++good;
