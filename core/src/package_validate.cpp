@@ -262,24 +262,40 @@ bool ImpulsePalette::allowed(int from, int to) const {
   return transitions(from + 1, to) != 0;
 }
 
-bool ImpulsePalette::within_run_limit(const PaletteRun& run, int to) const {
+bool within_run_limit(const std::vector<std::int32_t>& group, const std::vector<std::int32_t>& max_in_a_row,
+                      const PaletteRun& run, int to) {
   const auto d = static_cast<size_t>(to);
   const int limit = max_in_a_row[d];
   return limit == 0 || run.length == 0 || run.group != group[d] ||
          run.length < static_cast<std::uint32_t>(limit);
 }
 
-PaletteRun ImpulsePalette::extended(const PaletteRun& run, int to) const {
+PaletteRun extended_run(const std::vector<std::int32_t>& group, const PaletteRun& run, int to) {
   const std::int32_t g = group[static_cast<size_t>(to)];
   return {g, run.length > 0 && run.group == g ? run.length + 1 : 1};
 }
 
+int frames_of_support_motion(double rate, double range_min, double range_max, double s, double dt,
+                             int max_frames) {
+  if (!(range_max > range_min) || std::abs(rate) < 1e-12) return max_frames;
+  const double room = rate > 0 ? range_max - s : s - range_min;
+  // A whole frame of motion must fit: a door at its stop cannot open further.
+  const double frames = std::floor(room / (std::abs(rate) * dt) + 1e-6);
+  return static_cast<int>(std::clamp(frames, 0.0, static_cast<double>(max_frames)));
+}
+
+bool ImpulsePalette::within_run_limit(const PaletteRun& run, int to) const {
+  return core::within_run_limit(group, max_in_a_row, run, to);
+}
+
+PaletteRun ImpulsePalette::extended(const PaletteRun& run, int to) const {
+  return extended_run(group, run, to);
+}
+
 bool ImpulsePalette::can_move_support(int to, double s, double dt) const {
   const auto& k = kinematics[static_cast<size_t>(to)];
-  if (k.pulse_tau > 0 || k.rate == 0 || !(k.range_max > k.range_min)) return true;
-  const double room = k.rate > 0 ? k.range_max - s : s - k.range_min;
-  // The sampler's test (PaletteRules::reachable_frames): a whole frame of motion must fit.
-  return room / (std::abs(double{k.rate}) * dt) + 1e-6 >= 1;
+  if (k.pulse_tau > 0) return true;  // a jolt returns to rest wherever the support stands
+  return frames_of_support_motion(k.rate, k.range_min, k.range_max, s, dt, 1) >= 1;
 }
 
 void validate_package(const ScenePackage& pkg, const std::string& source) {

@@ -221,8 +221,8 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
   pal.kinematics = std::move(arrays.kinematics);
   pal.transitions = rules.transitions;
   pal.on_end = rules.on_end;
-  pal.group.assign(rules.group.begin(), rules.group.end());
-  pal.max_in_a_row.assign(rules.max_in_a_row.begin(), rules.max_in_a_row.end());
+  pal.group = rules.group;
+  pal.max_in_a_row = rules.max_in_a_row;
   // Attributes.
   auto& a = pkg.attributes;
   a.scene = scene.name;

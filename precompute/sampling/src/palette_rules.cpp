@@ -1,5 +1,7 @@
 #include "phasecast/precompute/sampling/palette_rules.h"
 
+#include "phasecast/core/package.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -41,24 +43,14 @@ std::vector<int> PaletteRules::successors(int from) const {
 
 bool PaletteRules::allowed_after(const std::vector<int>& history, int to) const {
   if (!allowed(history.empty() ? -1 : history.back(), to)) return false;
-  const int limit = max_in_a_row[static_cast<size_t>(to)];
-  if (limit == 0) return true;
-  int run = 0;
-  for (auto it = history.rbegin();
-       it != history.rend() && group[static_cast<size_t>(*it)] == group[static_cast<size_t>(to)]; ++it) {
-    ++run;
-  }
-  return run < limit;
+  core::PaletteRun run;
+  for (const int e : history) run = core::extended_run(group, run, e);
+  return core::within_run_limit(group, max_in_a_row, run, to);
 }
 
 int PaletteRules::reachable_frames(int entry, double at) const {
   const auto e = static_cast<size_t>(entry);
-  const double w = support_rate[e];
-  if (!(range_max > range_min) || std::abs(w) < 1e-12) return max_frames[e];
-  const double room = w > 0 ? range_max - at : at - range_min;
-  // A whole frame of motion must fit: a door at its stop cannot open further.
-  const double frames = std::floor(room / (std::abs(w) * frame_dt) + 1e-6);
-  return static_cast<int>(std::clamp(frames, 0.0, static_cast<double>(max_frames[e])));
+  return core::frames_of_support_motion(support_rate[e], range_min, range_max, at, frame_dt, max_frames[e]);
 }
 
 bool PaletteRules::allowed_at(const std::vector<int>& history, int to, double at) const {

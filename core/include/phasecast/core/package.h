@@ -77,6 +77,19 @@ struct PaletteRun {
   std::uint32_t length = 0;
 };
 
+// The two history rules shared by the sampler (PaletteRules) and the server,
+// so that the server refuses exactly what was never sampled.
+// Whether starting entry `to` keeps `run` within max_in_a_row[to] (0: any).
+bool within_run_limit(const std::vector<std::int32_t>& group, const std::vector<std::int32_t>& max_in_a_row,
+                      const PaletteRun& run, int to);
+// The run after entry `to` starts: one longer in the same group, else 1.
+PaletteRun extended_run(const std::vector<std::int32_t>& group, const PaletteRun& run, int to);
+// Whole frames of motion left to a support driven at `rate` from coordinate
+// `s` within [range_min, range_max] (a door at 60 degrees opens 30 more);
+// `max_frames` when the range is unlimited (min == max) or the rate is 0.
+int frames_of_support_motion(double rate, double range_min, double range_max, double s, double dt,
+                             int max_frames);
+
 // The D entries of the impulse palette (§3.3) with their transition rules: a
 // small state machine of (last entry, run of one group, support coordinate).
 struct ImpulsePalette {

@@ -16,8 +16,8 @@ struct PaletteRules {
   std::vector<std::int32_t> on_end;  // D: core::kEndRest, core::kEndHold or a follow-up entry
   std::vector<int> min_frames;       // D: shortest IRF in frames (>= 1)
   std::vector<int> max_frames;       // D: longest IRF in frames (>= min_frames)
-  std::vector<int> group;            // D: group index (entries named alike share one)
-  std::vector<int> max_in_a_row;     // D: at most this many IRFs of the entry's group in a row (0: unlimited)
+  std::vector<std::int32_t> group;   // D: group index (entries named alike share one)
+  std::vector<std::int32_t> max_in_a_row;  // D: at most this many IRFs of the entry's group in a row (0: any)
   // The support's range (§3.5: "the cloth's door has a 90 degree range of
   // motion, so IRFs with nonzero omega need be at most 90/|omega| s"). The
   // support coordinate (rad or m along the axis) is advanced kinematically, so
