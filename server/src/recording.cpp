@@ -8,8 +8,11 @@
 #include <fmt/format.h>
 
 #include <cerrno>
+#include <condition_variable>
 #include <cstring>
+#include <deque>
 #include <map>
+#include <mutex>
 
 namespace phasecast::server {
 namespace {
@@ -18,64 +21,153 @@ std::string errno_text() {
   return std::strerror(errno);
 }
 
+// Writes all of `bytes`; returns "" or why not.
+std::string write_all(int fd, const std::string& bytes, const std::filesystem::path& path) {
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return fmt::format("record: writing '{}' failed: {}", path.string(), errno_text());
+    done += static_cast<std::size_t>(n);
+  }
+  return {};
+}
+
 }  // namespace
 
-RecordingWriter::RecordingWriter(std::filesystem::path path, const v1::RecordingHeader& header)
-    : path_(std::move(path)), last_sync_(std::chrono::steady_clock::now()) {
-  fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd_ < 0)
-    throw RecordingError(fmt::format("record: cannot create '{}': {}", path_.string(), errno_text()));
+struct RecordingWriter::Shared {
+  std::mutex mutex;
+  std::condition_variable wake;
+  std::deque<std::string> queue;
+  std::size_t queued_bytes = 0;  // in the queue or being written
+  bool stop = false;             // no more ticks come: drain, fsync, close
+  std::string failure;           // set by the writer thread: a write or fsync failed
+  int fd = -1;
+  std::filesystem::path path;
+
+  // The writer thread: writes each batch as it comes, fdatasyncs at least
+  // every sync_every, and on stop drains the queue, fsyncs and closes.
+  static void run(const std::shared_ptr<Shared>& s) {
+    auto last_sync = std::chrono::steady_clock::now();
+    bool unsynced = false;
+    std::unique_lock lock(s->mutex);
+    for (;;) {
+      s->wake.wait_for(lock, sync_every, [&] { return s->stop || !s->queue.empty(); });
+      std::deque<std::string> batch;
+      batch.swap(s->queue);
+      const bool stopping = s->stop;
+      lock.unlock();
+      std::string failure;
+      std::size_t bytes = 0;
+      for (const auto& b : batch) {
+        if (failure.empty()) failure = write_all(s->fd, b, s->path);
+        bytes += b.size();
+      }
+      unsynced = unsynced || bytes > 0;
+      const auto now = std::chrono::steady_clock::now();
+      if (failure.empty() && (stopping || (unsynced && now - last_sync >= sync_every))) {
+        if ((stopping ? ::fsync(s->fd) : ::fdatasync(s->fd)) != 0)
+          failure = fmt::format("record: fsync '{}': {}", s->path.string(), errno_text());
+        last_sync = now;
+        unsynced = false;
+      }
+      lock.lock();
+      s->queued_bytes -= bytes;
+      if (!failure.empty() && s->failure.empty()) s->failure = failure;
+      if (!s->failure.empty() || (stopping && s->queue.empty())) break;
+    }
+    ::close(s->fd);
+    s->fd = -1;
+  }
+};
+
+RecordingWriter::RecordingWriter(std::filesystem::path path, const v1::RecordingHeader& header,
+                                 std::uint64_t max_bytes)
+    : path_(std::move(path)), shared_(std::make_shared<Shared>()), max_bytes_(max_bytes) {
+  // O_EXCL: a recording never replaces a file (a package being served, say);
+  // O_NOFOLLOW: nor writes through a link planted in the record directory.
+  shared_->fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (shared_->fd < 0) {
+    throw RecordingError(
+        fmt::format("record: cannot create '{}': {}{}", path_.string(), errno_text(),
+                    errno == EEXIST ? " (expected a new file name; recordings never replace files)" : ""));
+  }
+  shared_->path = path_;
   buffer_ = core::recording_prologue(header);
-  flush_buffer();
+  bytes_ = buffer_.size();
+  shared_->queue.push_back(std::move(buffer_));
+  shared_->queued_bytes = bytes_;
+  buffer_.clear();
+  writer_ = std::thread([s = shared_] { Shared::run(s); });
 }
 
 RecordingWriter::~RecordingWriter() {
-  try {
-    close();
-  } catch (const RecordingError&) {
-    // A destructor cannot report; close() is called explicitly where it matters.
+  if (!writer_.joinable()) return;
+  bool failed = false;
+  {
+    std::lock_guard lock(shared_->mutex);
+    shared_->stop = true;
+    failed = !shared_->failure.empty();
+  }
+  shared_->wake.notify_one();
+  if (failed) {
+    writer_.detach();  // it drains what was queued and closes; the tick must not wait for that
+  } else {
+    writer_.join();
   }
 }
 
 void RecordingWriter::append(const v1::RecordEntry& entry) {
   core::append_record(entry, buffer_);
-  if (entry.has_frame()) ++frames_;
+  if (entry.has_frame()) ++tick_frames_;
 }
 
-void RecordingWriter::flush_buffer() {
-  std::size_t done = 0;
-  while (done < buffer_.size()) {
-    const ssize_t n = ::write(fd_, buffer_.data() + done, buffer_.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0)
-      throw RecordingError(fmt::format("record: writing '{}' failed: {}", path_.string(), errno_text()));
-    done += static_cast<std::size_t>(n);
+void RecordingWriter::end_tick(std::chrono::steady_clock::time_point) {
+  {
+    std::lock_guard lock(shared_->mutex);
+    if (shared_->failure.empty() && bytes_ + buffer_.size() > max_bytes_) {
+      shared_->failure = fmt::format("record: '{}' reached its size cap of {} bytes (see --record-max-bytes)",
+                                     path_.string(), max_bytes_);
+    }
+    if (shared_->failure.empty() && shared_->queued_bytes + buffer_.size() > max_queued_bytes) {
+      shared_->failure = fmt::format(
+          "record: the disk fell behind: {} MiB of '{}' waited to be written (expected at most {} MiB)",
+          (shared_->queued_bytes + buffer_.size()) >> 20, path_.string(), max_queued_bytes >> 20);
+    }
+    if (!shared_->failure.empty()) {
+      // What was queued before is still written; this tick and later ones are not.
+      shared_->stop = true;
+      shared_->wake.notify_one();
+      buffer_.clear();
+      throw RecordingError(shared_->failure);
+    }
+    if (!buffer_.empty()) {
+      bytes_ += buffer_.size();
+      shared_->queued_bytes += buffer_.size();
+      shared_->queue.push_back(std::move(buffer_));
+    }
   }
+  shared_->wake.notify_one();
   buffer_.clear();
-}
-
-void RecordingWriter::end_tick(std::chrono::steady_clock::time_point now) {
-  if (fd_ < 0) return;
-  flush_buffer();
-  if (now - last_sync_ >= sync_every) {
-    ::fdatasync(fd_);
-    last_sync_ = now;
-  }
+  frames_ += tick_frames_;
+  tick_frames_ = 0;
 }
 
 void RecordingWriter::close() {
-  if (fd_ < 0) return;
-  std::string failure;
-  try {
-    flush_buffer();
-  } catch (const RecordingError& e) {
-    failure = e.what();
+  if (!writer_.joinable()) return;
+  {
+    std::lock_guard lock(shared_->mutex);
+    if (shared_->failure.empty() && !buffer_.empty()) {  // entries after the last tick (a destroyed instance)
+      bytes_ += buffer_.size();
+      shared_->queued_bytes += buffer_.size();
+      shared_->queue.push_back(std::move(buffer_));
+      frames_ += tick_frames_;
+    }
+    shared_->stop = true;
   }
-  if (::fsync(fd_) != 0 && failure.empty())
-    failure = fmt::format("record: fsync '{}': {}", path_.string(), errno_text());
-  ::close(fd_);
-  fd_ = -1;
-  if (!failure.empty()) throw RecordingError(failure);
+  shared_->wake.notify_one();
+  writer_.join();
+  if (!shared_->failure.empty()) throw RecordingError(shared_->failure);
 }
 
 namespace {

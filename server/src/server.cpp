@@ -1,21 +1,28 @@
 #include "phasecast/server/server.h"
 
+#include "phasecast/core/curve_keys.h"
+
 #include <fmt/format.h>
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <iterator>
+#include <set>
 #include <stdexcept>
+#include <thread>
 
 namespace phasecast::server {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-constexpr auto kMaxPollWait = std::chrono::milliseconds(50);  // how soon a stop request is noticed
-constexpr auto kResyncAfter = std::chrono::seconds(1);  // a stall longer than this restarts the schedule
+constexpr auto kMaxWait = std::chrono::milliseconds(50);  // how soon a stop request is noticed
+constexpr auto kResyncAfter = std::chrono::seconds(1);    // a stall longer than this restarts the schedule
+constexpr int kRequestsPerWake = 64;                      // requests served between checks of `stop`
+constexpr const char* kZapEndpoint = "inproc://zeromq.zap.01";  // fixed by ZeroMQ's RFC 27
 
 std::string bind(zmq::socket_t& s, const std::string& endpoint, const char* option) {
   try {
@@ -25,6 +32,65 @@ std::string bind(zmq::socket_t& s, const std::string& endpoint, const char* opti
   }
   return s.get(zmq::sockopt::last_endpoint);
 }
+
+std::string z85(const zmq::message_t& key) {
+  std::array<char, core::kZ85KeyLength + 1> text{};
+  if (key.size() != 32 || !zmq_z85_encode(text.data(), key.data<std::uint8_t>(), key.size())) return {};
+  return text.data();
+}
+
+// Who sent a request, for the per-client limits: the CURVE key the ZAP
+// handler vouched for, else the connection's routing id.
+std::string client_of(const zmq::message_t& routing_id, zmq::message_t& request) {
+  // The C call: cppzmq's gets() throws where a message has no such property.
+  const char* user = zmq_msg_gets(request.handle(), "User-Id");
+  if (user && *user) return fmt::format("key:{}", user);
+  return fmt::format("conn:{}", routing_id.to_string());
+}
+
+// Answers ZeroMQ authentication (RFC 27, ZAP) for both sockets: a CURVE
+// client whose public key is on the allow-list gets in, with the key as its
+// User-Id; every other one is refused and hears nothing.
+class ZapHandler {
+ public:
+  ZapHandler(zmq::context_t& context, std::set<std::string> allowed)
+      : socket_(context, zmq::socket_type::rep), allowed_(std::move(allowed)) {
+    socket_.bind(kZapEndpoint);
+  }
+
+  void run(const std::atomic<bool>& stop) {
+    zmq::pollitem_t items[] = {{socket_.handle(), 0, ZMQ_POLLIN, 0}};
+    while (!stop.load(std::memory_order_relaxed)) {
+      zmq::poll(items, 1, kMaxWait);
+      if (items[0].revents & ZMQ_POLLIN) answer();
+    }
+  }
+
+ private:
+  void answer() {
+    std::vector<zmq::message_t> f;
+    if (!zmq::recv_multipart(socket_, std::back_inserter(f), zmq::recv_flags::dontwait)) return;
+    // version, request id, domain, address, identity, mechanism, credentials...
+    const bool curve = f.size() >= 7 && f[5].to_string_view() == "CURVE";
+    const std::string key = curve ? z85(f[6]) : std::string();
+    const bool ok = !key.empty() && allowed_.count(key) != 0;
+    std::array<zmq::message_t, 6> reply{
+        zmq::message_t(std::string_view("1.0")),
+        f.size() > 1 ? std::move(f[1]) : zmq::message_t(),
+        zmq::message_t(std::string_view(ok ? "200" : "400")),
+        zmq::message_t(std::string_view(ok ? "OK" : "client key not allowed")),
+        zmq::message_t(ok ? key : std::string()),
+        zmq::message_t()};
+    zmq::send_multipart(socket_, reply);
+    if (!ok) ++refused;
+  }
+
+  zmq::socket_t socket_;
+  std::set<std::string> allowed_;
+
+ public:
+  std::atomic<std::uint64_t> refused{0};
+};
 
 }  // namespace
 
@@ -40,11 +106,14 @@ struct Server::Impl {
       for (int i = 0; i < o.instances_per_scene; ++i) service.engine().create_instance(s.name);
     }
     service.set_record_dir(o.record_dir);
-    service.set_max_instances(o.max_instances);
+    service.set_limits(o.limits);
     period = std::chrono::duration<double>(1.0 / o.rate_hz);
+    set_up_security(o);
 
-    router.set(zmq::sockopt::maxmsgsize, std::int64_t{kMaxRequestBytes});
-    router.set(zmq::sockopt::sndhwm, 1000);
+    router.set(zmq::sockopt::maxmsgsize, std::int64_t{kMaxMessageBytes});
+    // A client that does not read its replies holds at most this many (each
+    // at most one basis chunk); past that ROUTER drops its replies.
+    router.set(zmq::sockopt::sndhwm, kReplyQueuePerClient);
     router.set(zmq::sockopt::rcvhwm, 1000);
     router.set(zmq::sockopt::linger, 200);
     pub.set(zmq::sockopt::sndhwm, o.pub_high_water_mark);
@@ -55,16 +124,42 @@ struct Server::Impl {
     if (o.record) service.start_recording(*o.record);
   }
 
+  void set_up_security(const ServerOptions& o) {
+    if (o.allow_clients && !o.curve_secret_key) {
+      throw std::runtime_error(
+          "--allow-clients needs --curve-secret-key (an allow-list works only with CURVE)");
+    }
+    if (!o.curve_secret_key) return;
+    const auto keys = core::read_secret_key_file(*o.curve_secret_key);
+    if (o.allow_clients) {
+      const auto allowed = core::read_public_keys(*o.allow_clients);
+      zap = std::make_unique<ZapHandler>(context, std::set<std::string>(allowed.begin(), allowed.end()));
+    }
+    for (auto* s : {&router, &pub}) {
+      s->set(zmq::sockopt::curve_server, true);
+      s->set(zmq::sockopt::curve_secretkey, keys.secret_z85);
+      s->set(zmq::sockopt::zap_domain, "phasecast");
+    }
+  }
+
   // Serves one queued request if there is one; returns whether there was.
   bool serve_one() {
     std::vector<zmq::message_t> parts;
     if (!zmq::recv_multipart(router, std::back_inserter(parts), zmq::recv_flags::dontwait)) return false;
     if (parts.size() != 3 || parts[1].size() != 0) {  // no [identity][""][Request] envelope: drop
-      ++service.stats().requests;
-      ++service.stats().bad_requests;
+      service.count_bad_message();
       return true;
     }
-    const v1::Reply reply = service.handle(std::string_view(parts[2].data<char>(), parts[2].size()));
+    v1::Reply reply;
+    if (parts[2].size() > static_cast<std::size_t>(kMaxRequestBytes)) {
+      service.count_bad_message();
+      reply.set_ok(false);
+      reply.set_error(fmt::format("request: {} bytes (expected at most {} bytes per request)",
+                                  parts[2].size(), kMaxRequestBytes));
+    } else {
+      reply = service.handle(std::string_view(parts[2].data<char>(), parts[2].size()),
+                             client_of(parts[0], parts[2]));
+    }
     std::array<zmq::message_t, 3> out{std::move(parts[0]), zmq::message_t(),
                                       zmq::message_t(reply.SerializeAsString())};
     try {
@@ -75,45 +170,79 @@ struct Server::Impl {
     return true;
   }
 
+  void serve_commands(const std::atomic<bool>& stop) {
+    zmq::pollitem_t items[] = {{router.handle(), 0, ZMQ_POLLIN, 0}};
+    while (!stop.load(std::memory_order_relaxed)) {
+      zmq::poll(items, 1, kMaxWait);
+      if (items[0].revents & ZMQ_POLLIN) {
+        for (int i = 0; i < kRequestsPerWake && serve_one(); ++i) {
+        }
+      }
+    }
+  }
+
+  // The tick's time runs from its deadline-checked start through synthesis
+  // (including any wait for the service's lock) to the last frame handed to
+  // ZeroMQ, so max_tick_seconds is what a subscriber feels.
   void tick(Clock::time_point deadline) {
     const auto start = Clock::now();
-    if (start - deadline > period / 4) ++service.stats().late_ticks;
     for (const auto& f : service.tick(start)) {
       // PUB never blocks: a subscriber past its high-water mark loses this frame.
       pub.send(zmq::buffer(f.topic), zmq::send_flags::sndmore | zmq::send_flags::dontwait);
       pub.send(zmq::buffer(f.payload), zmq::send_flags::dontwait);
     }
-    if (service.recording_error() != reported_recording_error) {
-      reported_recording_error = service.recording_error();
-      fmt::print(stderr, "phasecast-server: recording stopped: {}\n", reported_recording_error);
+    if (const auto error = service.recording_error(); error != reported_recording_error) {
+      reported_recording_error = error;
+      fmt::print(stderr, "phasecast-server: recording stopped: {}\n", error);
     }
     const double took = std::chrono::duration<double>(Clock::now() - start).count();
-    service.stats().max_tick_seconds = std::max(service.stats().max_tick_seconds, took);
+    service.count_tick(took, start - deadline > period / 4);
+  }
+
+  void run_ticks(const std::atomic<bool>& stop) {
+    auto next = Clock::now();
+    while (!stop.load(std::memory_order_relaxed)) {
+      const auto now = Clock::now();
+      if (now < next) {
+        std::this_thread::sleep_until(std::min(next, now + kMaxWait));
+        continue;
+      }
+      tick(next);
+      next += std::chrono::duration_cast<Clock::duration>(period);
+      if (Clock::now() - next > kResyncAfter) next = Clock::now();
+    }
   }
 
   void run(const std::atomic<bool>& stop) {
-    auto next = Clock::now();
-    zmq::pollitem_t items[] = {{router.handle(), 0, ZMQ_POLLIN, 0}};
-    while (!stop.load(std::memory_order_relaxed)) {
-      const auto now = Clock::now();
-      if (now >= next) {
-        tick(next);
-        next += std::chrono::duration_cast<Clock::duration>(period);
-        if (Clock::now() - next > kResyncAfter) next = Clock::now();
-        continue;
+    std::atomic<bool> done{false};
+    std::exception_ptr command_failure;
+    std::thread zap_thread;
+    if (zap) zap_thread = std::thread([&] { zap->run(done); });
+    std::thread commands([&] {
+      try {
+        serve_commands(done);
+      } catch (...) {
+        command_failure = std::current_exception();
       }
-      const auto wait = std::min(std::chrono::ceil<std::chrono::milliseconds>(next - now), kMaxPollWait);
-      zmq::poll(items, 1, wait);
-      if (items[0].revents & ZMQ_POLLIN) {
-        for (int i = 0; i < kRequestsPerSlice && serve_one(); ++i) {
-        }
-      }
+    });
+    try {
+      run_ticks(stop);
+    } catch (...) {
+      done = true;
+      commands.join();
+      if (zap_thread.joinable()) zap_thread.join();
+      throw;
     }
+    done = true;
+    commands.join();
+    if (zap_thread.joinable()) zap_thread.join();
     service.stop_recording();
+    if (command_failure) std::rethrow_exception(command_failure);
   }
 
   SynthesisService service;
   zmq::context_t context{1};
+  std::unique_ptr<ZapHandler> zap;  // before the sockets: ZeroMQ asks it during their handshakes
   zmq::socket_t router;
   zmq::socket_t pub;
   std::string cmd_endpoint, pub_endpoint;
@@ -131,6 +260,9 @@ const std::string& Server::pub_endpoint() const {
 }
 SynthesisService& Server::service() {
   return impl_->service;
+}
+std::uint64_t Server::refused_handshakes() const {
+  return impl_->zap ? impl_->zap->refused.load() : 0;
 }
 void Server::run(const std::atomic<bool>& stop) {
   impl_->run(stop);

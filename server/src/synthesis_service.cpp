@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <ctime>
+#include <system_error>
 
 namespace phasecast::server {
 namespace {
@@ -52,16 +53,57 @@ std::string utc_now() {
   return fmt::format("{:%Y-%m-%dT%H:%M:%SZ}", tm);
 }
 
-// Client-named recordings are plain file names inside the server's record
-// directory: a network client must not choose where the server writes.
+// Client-named recordings are plain *.phcrec names inside the server's
+// record directory: a network client must not choose where the server
+// writes, nor name a file that is anything but a recording.
 void check_record_name(const std::string& name) {
-  const bool plain = !name.empty() && name != "." && name != ".." && name.find('/') == std::string::npos &&
-                     name.find('\0') == std::string::npos;
+  const std::string_view ext = ".phcrec";
+  const bool plain = name.size() > ext.size() && name.ends_with(ext) && name[0] != '.' &&
+                     name.find('/') == std::string::npos && name.find('\0') == std::string::npos;
   if (!plain) {
-    throw RequestError(fmt::format(
-        "path '{}' (expected a plain file name; recordings go to the server's --record-dir)", name));
+    throw RequestError(
+        fmt::format("path '{}' (expected a plain file name ending in .phcrec; recordings go to the server's "
+                    "--record-dir)",
+                    name));
   }
 }
+
+// The length of the valid UTF-8 prefix of `s` (RFC 3629: no overlongs, no
+// surrogates, nothing above U+10FFFF).
+std::size_t utf8_valid_prefix(std::string_view s) {
+  std::size_t i = 0;
+  while (i < s.size()) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    const int n = c < 0x80 ? 0 : (c >> 5) == 0x6 ? 1 : (c >> 4) == 0xE ? 2 : (c >> 3) == 0x1E ? 3 : -1;
+    if (n < 0 || i + static_cast<std::size_t>(n) >= s.size() + (n == 0 ? 1 : 0)) return i;
+    std::uint32_t cp = n == 0 ? c : c & (0x3F >> n);
+    for (int k = 1; k <= n; ++k) {
+      const auto cc = static_cast<unsigned char>(s[i + static_cast<std::size_t>(k)]);
+      if ((cc >> 6) != 0x2) return i;
+      cp = (cp << 6) | (cc & 0x3F);
+    }
+    const std::uint32_t min_cp[] = {0, 0x80, 0x800, 0x10000};
+    if (cp < min_cp[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return i;
+    i += static_cast<std::size_t>(n) + 1;
+  }
+  return i;
+}
+
+// Names and paths travel as bytes (proto/phasecast.proto) so that libprotobuf
+// does not log every malformed one; they must still be UTF-8.
+void check_utf8(const char* field, const std::string& value) {
+  const auto ok = utf8_valid_prefix(value);
+  if (ok != value.size()) {
+    throw RequestError(
+        fmt::format("{} is not valid UTF-8 (byte {} of {}; expected UTF-8 text)", field, ok, value.size()));
+  }
+}
+
+// A request over one of the --max-* limits.
+class LimitError : public RequestError {
+ public:
+  using RequestError::RequestError;
+};
 
 }  // namespace
 
@@ -76,28 +118,40 @@ void SynthesisService::load_package(const std::filesystem::path& package,
                     blend_lambda);
 }
 
-v1::Reply SynthesisService::handle(std::string_view bytes) {
+v1::Reply SynthesisService::handle(std::string_view bytes, const std::string& client) {
   v1::Request request;
   if (!request.ParseFromArray(bytes.data(), static_cast<int>(bytes.size()))) {
-    ++stats_.requests;
-    ++stats_.bad_requests;
+    count_bad_message();
     v1::Reply reply;
     reply.set_ok(false);
     reply.set_error(fmt::format("request: {} bytes do not parse as a phasecast.v1.Request", bytes.size()));
     return reply;
   }
-  return handle(request);
+  return handle(request, client);
 }
 
-v1::Reply SynthesisService::handle(const v1::Request& request) {
-  ++stats_.requests;
+v1::Reply SynthesisService::handle(const v1::Request& request, const std::string& client) {
   v1::Reply reply;
   reply.set_id(request.id());
+  std::unique_lock lock(mutex_, std::defer_lock);
   try {
-    answer(request, reply);
+    {
+      std::lock_guard guard(mutex_);
+      ++stats_.requests;
+      check_rate(client);
+    }
+    // Packages never change once serving: a basis chunk needs no lock.
+    if (!request.has_basis()) lock.lock();
+    answer(request, client, reply);
+    if (auto closing = std::move(closing_)) {
+      lock.unlock();
+      closing->close();  // record_stop's last write and fsync, while the tick goes on
+    }
     reply.set_ok(true);
   } catch (const std::exception& e) {  // EngineError, RequestError, RecordingError
+    if (!lock.owns_lock()) lock.lock();
     ++stats_.bad_requests;
+    if (dynamic_cast<const LimitError*>(&e)) ++stats_.limited_requests;
     reply.Clear();
     reply.set_id(request.id());
     reply.set_ok(false);
@@ -106,7 +160,54 @@ v1::Reply SynthesisService::handle(const v1::Request& request) {
   return reply;
 }
 
-void SynthesisService::answer(const v1::Request& r, v1::Reply& reply) {
+void SynthesisService::count_bad_message() {
+  std::lock_guard lock(mutex_);
+  ++stats_.requests;
+  ++stats_.bad_requests;
+}
+
+void SynthesisService::count_tick(double seconds, bool late) {
+  std::lock_guard lock(mutex_);
+  if (late) ++stats_.late_ticks;
+  stats_.max_tick_seconds = std::max(stats_.max_tick_seconds, seconds);
+}
+
+ServiceStats SynthesisService::stats() const {
+  std::lock_guard lock(mutex_);
+  return stats_;
+}
+
+bool SynthesisService::recording() const {
+  std::lock_guard lock(mutex_);
+  return recorder_ != nullptr;
+}
+
+std::string SynthesisService::recording_error() const {
+  std::lock_guard lock(mutex_);
+  return recording_error_;
+}
+
+// A token bucket per client holding one second of requests; idle clients'
+// buckets are forgotten so that many short connections cannot grow the map.
+void SynthesisService::check_rate(const std::string& client) {
+  if (client.empty()) return;
+  const auto now = std::chrono::steady_clock::now();
+  const double rate = limits_.max_request_rate;
+  if (buckets_.size() > 4096) {
+    std::erase_if(buckets_, [&](const auto& kv) { return now - kv.second.last > std::chrono::seconds(2); });
+  }
+  auto [it, fresh] = buckets_.try_emplace(client, RateBucket{rate, now});
+  auto& b = it->second;
+  b.tokens = std::min(rate, b.tokens + rate * std::chrono::duration<double>(now - b.last).count());
+  b.last = now;
+  if (b.tokens < 1) {
+    throw LimitError(fmt::format(
+        "more than {:g} requests/s from this client (expected at most --max-request-rate {:g})", rate, rate));
+  }
+  b.tokens -= 1;
+}
+
+void SynthesisService::answer(const v1::Request& r, const std::string& client, v1::Reply& reply) {
   switch (r.body_case()) {
     case v1::Request::kImpulse:
       return impulse(r.impulse(), *reply.mutable_impulse());
@@ -115,7 +216,7 @@ void SynthesisService::answer(const v1::Request& r, v1::Reply& reply) {
     case v1::Request::kListInstances:
       return list_instances(reply);
     case v1::Request::kCreateInstance:
-      return create_instance(r.create_instance(), *reply.mutable_created());
+      return create_instance(r.create_instance(), client, *reply.mutable_created());
     case v1::Request::kDestroyInstance:
       return destroy_instance(r.destroy_instance(), *reply.mutable_destroyed());
     case v1::Request::kBasis:
@@ -140,6 +241,7 @@ void SynthesisService::impulse(const v1::Impulse& r, v1::ImpulseAccepted& out) {
   int d = 0;
   switch (r.entry_case()) {
     case v1::Impulse::kName:
+      check_utf8("palette entry name", r.name());
       d = engine_.palette_index(r.instance(), r.name());
       break;
     case v1::Impulse::kIndex:
@@ -151,6 +253,14 @@ void SynthesisService::impulse(const v1::Impulse& r, v1::ImpulseAccepted& out) {
                                      engine_.scenes()[static_cast<std::size_t>(inst.scene)].name));
   }
   const std::optional<std::uint64_t> at = r.has_at_frame() ? std::optional(r.at_frame()) : std::nullopt;
+  // An impulse far in the future would hold a queue slot forever.
+  const auto horizon = static_cast<std::uint64_t>(limits_.impulse_horizon_s * rate_hz_);
+  if (at && *at > inst.frame && *at - inst.frame > horizon) {
+    throw LimitError(fmt::format(
+        "instance {}: at_frame {} is {} frames ahead (expected at most {} frames, {:g} s at {:g} Hz; see "
+        "--impulse-horizon)",
+        r.instance(), *at, *at - inst.frame, horizon, limits_.impulse_horizon_s, rate_hz_));
+  }
   out.set_instance(r.instance());
   out.set_palette_index(static_cast<std::uint32_t>(d));
   out.set_at_frame(engine_.schedule_impulse(r.instance(), d, at));
@@ -216,12 +326,24 @@ void SynthesisService::list_instances(v1::Reply& reply) const {
     instance_info(id, *reply.mutable_instances()->add_instances());
 }
 
-void SynthesisService::create_instance(const v1::CreateInstance& r, v1::InstanceInfo& out) {
-  if (engine_.instances().size() >= max_instances_) {
-    throw RequestError(fmt::format("{} instances exist (expected at most {}; see --max-instances)",
-                                   engine_.instances().size(), max_instances_));
+void SynthesisService::create_instance(const v1::CreateInstance& r, const std::string& client,
+                                       v1::InstanceInfo& out) {
+  check_utf8("scene name", r.scene());
+  if (engine_.instances().size() >= limits_.max_instances) {
+    throw LimitError(fmt::format("{} instances exist (expected at most {}; see --max-instances)",
+                                 engine_.instances().size(), limits_.max_instances));
+  }
+  const auto mine = client.empty() ? 0 : instances_of_[client];
+  if (!client.empty() && mine >= limits_.max_instances_per_client) {
+    throw LimitError(
+        fmt::format("this client created {} instances (expected at most {}; see --max-instances-per-client)",
+                    mine, limits_.max_instances_per_client));
   }
   const auto id = engine_.create_instance(r.scene());
+  if (!client.empty()) {
+    owner_[id] = client;
+    ++instances_of_[client];
+  }
   record_created(id);
   instance_info(id, out);
 }
@@ -230,10 +352,15 @@ void SynthesisService::create_instance(const v1::CreateInstance& r, v1::Instance
 void SynthesisService::destroy_instance(const v1::DestroyInstance& r, v1::InstanceInfo& out) {
   instance_info(r.instance(), out);  // throws EngineError for unknown instances
   engine_.destroy_instance(r.instance());
+  if (const auto it = owner_.find(r.instance()); it != owner_.end()) {
+    if (--instances_of_[it->second] == 0) instances_of_.erase(it->second);
+    owner_.erase(it);
+  }
   record_destroyed(out);
 }
 
 void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) const {
+  check_utf8("scene name", r.scene());
   const auto& s = engine_.scenes()[static_cast<std::size_t>(engine_.scene_index(r.scene()))];
   const auto parts = core::basis_parts(*s.data);
   const auto it = std::find_if(parts.begin(), parts.end(), [&](const core::BasisPartView& v) {
@@ -267,15 +394,24 @@ void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) con
 }
 
 void SynthesisService::record_start(const v1::RecordStart& r, v1::RecordStatus& out) {
+  check_utf8("path", r.path());
   check_record_name(r.path());
-  start_recording(record_dir_ / r.path());
+  std::error_code ec;
+  std::filesystem::create_directories(record_dir_, ec);  // the default recordings/ appears on first use
+  if (ec) {
+    throw RecordingError(fmt::format("cannot create the record directory '{}': {} (see --record-dir)",
+                                     record_dir_.string(), ec.message()));
+  }
+  start_recording_locked(record_dir_ / r.path());
   out.set_recording(true);
   out.set_path(recorder_->path().string());
 }
 
+// Runs under the lock; the final write and fsync happen in handle()'s caller
+// after the lock is gone (the recorder is closed by stop_recording() there).
 void SynthesisService::record_stop(v1::RecordStatus& out) {
   if (!recorder_) throw RequestError("not recording (expected a record_start first)");
-  out = stop_recording();
+  closing_ = take_recorder(out);
 }
 
 void SynthesisService::report_stats(v1::Stats& out) const {
@@ -287,7 +423,9 @@ void SynthesisService::report_stats(v1::Stats& out) const {
   out.set_bad_requests(stats_.bad_requests);
   out.set_impulses_applied(stats_.impulses_applied);
   out.set_impulses_refused(stats_.impulses_refused);
+  out.set_limited_requests(stats_.limited_requests);
   out.set_recording(recorder_ != nullptr);
+  out.set_recording_bytes(recorder_ ? recorder_->bytes_queued() : 0);
   out.set_max_tick_seconds(stats_.max_tick_seconds);
   out.set_recording_error(recording_error_);
   for (const auto& [id, inst] : engine_.instances()) instance_info(id, *out.add_instances());
@@ -340,6 +478,11 @@ void SynthesisService::record_impulses(const std::vector<AppliedImpulse>& applie
 }
 
 void SynthesisService::start_recording(const std::filesystem::path& path) {
+  std::lock_guard lock(mutex_);
+  start_recording_locked(path);
+}
+
+void SynthesisService::start_recording_locked(const std::filesystem::path& path) {
   if (recorder_) {
     throw RecordingError(
         fmt::format("already recording to '{}' (expected record_stop first)", recorder_->path().string()));
@@ -354,33 +497,41 @@ void SynthesisService::start_recording(const std::filesystem::path& path) {
     rs.set_package(s.package);
     rs.set_content_hash(s.content_hash);
   }
-  recorder_ = std::make_unique<RecordingWriter>(path, h);
+  recorder_ = std::make_unique<RecordingWriter>(path, h, limits_.record_max_bytes);
   for (const auto& [id, inst] : engine_.instances()) record_created(id);
+}
+
+std::unique_ptr<RecordingWriter> SynthesisService::take_recorder(v1::RecordStatus& status) {
+  status.set_path(recorder_->path().string());
+  status.set_frames_written(recorder_->frames_written());
+  return std::move(recorder_);
 }
 
 v1::RecordStatus SynthesisService::stop_recording() {
   v1::RecordStatus s;
-  if (!recorder_) return s;
-  s.set_path(recorder_->path().string());
-  s.set_frames_written(recorder_->frames_written());
-  auto recorder = std::move(recorder_);
-  recorder->close();
+  std::unique_ptr<RecordingWriter> recorder;
+  {
+    std::lock_guard lock(mutex_);
+    if (!recorder_) return s;
+    recorder = take_recorder(s);
+  }
+  recorder->close();  // the last write and fsync, while the tick goes on
   return s;
 }
 
 const std::vector<PublishedFrame>& SynthesisService::tick(std::chrono::steady_clock::time_point now) {
+  std::lock_guard lock(mutex_);
   try {
-    return tick_and_record(now);
+    tick_and_record(now);
   } catch (const RecordingError& e) {
     // A full disk must not stop the stream: the recording ends, serving goes on.
     recording_error_ = e.what();
-    recorder_.reset();
-    return published_;
+    recorder_.reset();  // never waits: a failed writer's thread winds down on its own
   }
+  return published_;
 }
 
-const std::vector<PublishedFrame>& SynthesisService::tick_and_record(
-    std::chrono::steady_clock::time_point now) {
+void SynthesisService::tick_and_record(std::chrono::steady_clock::time_point now) {
   engine_.tick(tick_result_);
   const TickResult& r = tick_result_;
   ++stats_.ticks;
@@ -401,8 +552,7 @@ const std::vector<PublishedFrame>& SynthesisService::tick_and_record(
     }
   }
   stats_.frames_published += published_.size();
-  if (recorder_) recorder_->end_tick(now);
-  return published_;
+  if (recorder_) recorder_->end_tick(now);  // queues the tick for the writer thread; throws if it failed
 }
 
 }  // namespace phasecast::server

@@ -218,6 +218,8 @@ def replay_live(server_bin, recording, package, proto_dir, work):
         assert imp.at_frame - start >= 10, \
             f"impulse at frame {imp.at_frame} leaves only {imp.at_frame - start} frames to send it in (regenerate the data)"
     fresh = os.path.join(work, "fresh.phcrec")
+    if os.path.exists(fresh):
+        os.remove(fresh)  # the server never replaces a file it records to
     # 60 Hz: every send window is at least 10 frames (1/6 s), a few seconds per recording.
     server = Server(server_bin, [package, "--instances", "1", "--rate", "60", "--record", fresh],
                     os.path.join(work, "server.log"))

@@ -19,6 +19,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <thread>
 
 namespace phasecast::server {
 namespace {
@@ -246,15 +247,76 @@ TEST(Recording, WriteFailureEndsTheRecordingButNotTheStream) {
   rlimit small = old;
   small.rlim_cur = 4096;
   setrlimit(RLIMIT_FSIZE, &small);
-  std::size_t published = 0;
-  for (int i = 0; i < 200; ++i) published += s.tick(Clock::now()).size();
+  // The writer thread meets the failure; a later tick learns of it.
+  std::size_t ticks = 0, published = 0;
+  for (; ticks < 200 || (s.recording() && ticks < 20000); ++ticks) {
+    published += s.tick(Clock::now()).size();
+    if (ticks >= 200) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
   setrlimit(RLIMIT_FSIZE, &old);
-  EXPECT_EQ(published, 200u);
+  EXPECT_EQ(published, ticks);
   EXPECT_FALSE(s.recording());
   EXPECT_EQ(s.recording_error(), "record: writing '" + path.string() + "' failed: File too large");
   v1::Request stats;
   stats.mutable_stats();
   EXPECT_EQ(s.handle(stats).stats().recording_error(), s.recording_error());
+}
+
+// Defect: record("pkg.h5") truncated the package being served. A recording
+// is created exclusively and never through a link.
+TEST(Recording, NeverReplacesAFileNorFollowsALink) {
+  const Fixture f("exclusive");
+  SynthesisService s(60);
+  s.load_package(f.pkg);
+  const auto size = std::filesystem::file_size(f.pkg);
+  EXPECT_NE(error_of([&] { s.start_recording(f.pkg); }).find("File exists (expected a new file name"),
+            std::string::npos);
+  EXPECT_EQ(std::filesystem::file_size(f.pkg), size);
+  const auto link = f.dir / "link.phcrec";
+  std::filesystem::remove(link);
+  std::filesystem::create_symlink(f.pkg, link);
+  EXPECT_NE(error_of([&] { s.start_recording(link); }).find("cannot create"), std::string::npos);
+  EXPECT_EQ(std::filesystem::file_size(f.pkg), size);
+  EXPECT_FALSE(s.recording());
+  // Through the command socket: only *.phcrec names, inside the record directory.
+  s.set_record_dir(f.dir);
+  v1::Request r;
+  r.mutable_record_start()->set_path(f.pkg.filename().string());
+  EXPECT_NE(s.handle(r).error().find("expected a plain file name ending in .phcrec"), std::string::npos);
+  r.mutable_record_start()->set_path("link.phcrec");
+  EXPECT_NE(s.handle(r).error().find("cannot create"), std::string::npos);
+  EXPECT_EQ(std::filesystem::file_size(f.pkg), size);
+}
+
+// A recording ends at its size cap with a reason; what it holds is whole
+// ticks that read back, and the stream goes on.
+TEST(Recording, SizeCapEndsTheRecordingWithWholeTicks) {
+  const Fixture f("size_cap");
+  SynthesisService s(60);
+  s.load_package(f.pkg);
+  ServiceLimits limits;
+  limits.record_max_bytes = 20000;
+  s.set_limits(limits);
+  s.engine().create_instance("plate");
+  const auto path = f.dir / "capped.phcrec";
+  std::filesystem::remove(path);
+  s.start_recording(path);
+  std::size_t published = 0;
+  for (int i = 0; i < 1000; ++i) published += s.tick(Clock::now()).size();
+  EXPECT_EQ(published, 1000u);
+  EXPECT_FALSE(s.recording());
+  EXPECT_EQ(s.recording_error(),
+            "record: '" + path.string() + "' reached its size cap of 20000 bytes (see --record-max-bytes)");
+  // The writer drains what was queued before the cap on its own thread.
+  for (int i = 0; i < 5000 && std::filesystem::file_size(path) == 0; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_LE(std::filesystem::file_size(path), 20000u);
+  const auto read = core::read_recording_file(path);
+  std::size_t frames = 0;
+  for (const auto& e : read.entries) frames += e.has_frame() ? 1 : 0;
+  EXPECT_GT(frames, 50u);
+  EXPECT_LT(frames, 1000u);
 }
 
 }  // namespace

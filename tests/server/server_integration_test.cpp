@@ -276,8 +276,8 @@ TEST(ServerProcessTest, RecordStartAndStopByRequestStayInsideTheRecordDir) {
   EXPECT_FALSE(reply.ok());
   EXPECT_EQ(
       reply.error(),
-      "record_start: path '../escape.phcrec' (expected a plain file name; recordings go to the server's "
-      "--record-dir)");
+      "record_start: path '../escape.phcrec' (expected a plain file name ending in .phcrec; recordings go to "
+      "the server's --record-dir)");
   start.mutable_record_start()->set_path("req.phcrec");
   reply = client.call(start);
   ASSERT_TRUE(reply.ok()) << reply.error();

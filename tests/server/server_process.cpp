@@ -113,9 +113,21 @@ std::string ServerProcess::err() {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-CommandClient::CommandClient(zmq::context_t& context, const std::string& endpoint)
+namespace {
+
+void apply_curve(zmq::socket_t& s, const ClientCurve* curve) {
+  if (!curve) return;
+  s.set(zmq::sockopt::curve_serverkey, curve->server_public);
+  s.set(zmq::sockopt::curve_publickey, curve->client_public);
+  s.set(zmq::sockopt::curve_secretkey, curve->client_secret);
+}
+
+}  // namespace
+
+CommandClient::CommandClient(zmq::context_t& context, const std::string& endpoint, const ClientCurve* curve)
     : socket_(context, zmq::socket_type::dealer) {
   socket_.set(zmq::sockopt::linger, 0);
+  apply_curve(socket_, curve);
   socket_.connect(endpoint);
 }
 
@@ -146,9 +158,11 @@ v1::Reply CommandClient::call(v1::Request request, std::chrono::milliseconds tim
   return *reply;
 }
 
-Subscriber::Subscriber(zmq::context_t& context, const std::string& endpoint, const std::string& topic)
+Subscriber::Subscriber(zmq::context_t& context, const std::string& endpoint, const std::string& topic,
+                       const ClientCurve* curve)
     : socket_(context, zmq::socket_type::sub) {
   socket_.set(zmq::sockopt::linger, 0);
+  apply_curve(socket_, curve);
   socket_.set(zmq::sockopt::subscribe, topic);
   socket_.connect(endpoint);
 }

@@ -37,10 +37,15 @@ class ServerProcess {
   std::string out_, err_path_, cmd_, pub_;
 };
 
+// A CURVE client's keys (Z85 text): the server's public key and its own pair.
+struct ClientCurve {
+  std::string server_public, client_public, client_secret;
+};
+
 // A DEALER that sends [""][Request] and waits for [""][Reply].
 class CommandClient {
  public:
-  CommandClient(zmq::context_t& context, const std::string& endpoint);
+  CommandClient(zmq::context_t& context, const std::string& endpoint, const ClientCurve* curve = nullptr);
   v1::Reply call(v1::Request request, std::chrono::milliseconds timeout = std::chrono::seconds(10));
   // Raw multipart send, for malformed inputs.
   void send_raw(const std::vector<std::string>& parts);
@@ -55,7 +60,8 @@ class CommandClient {
 // A SUB socket subscribed to `topic`.
 class Subscriber {
  public:
-  Subscriber(zmq::context_t& context, const std::string& endpoint, const std::string& topic = "inst/");
+  Subscriber(zmq::context_t& context, const std::string& endpoint, const std::string& topic = "inst/",
+             const ClientCurve* curve = nullptr);
   // The next frame, or nothing within `timeout`.
   std::optional<v1::Frame> next(std::chrono::milliseconds timeout = std::chrono::seconds(10));
 

@@ -69,7 +69,9 @@ TEST(Service, CreateInstanceIsBounded) {
   const TwoScenes f("bounded");
   SynthesisService s(60);
   s.load_package(f.plate);
-  s.set_max_instances(2);
+  ServiceLimits limits;
+  limits.max_instances = 2;
+  s.set_limits(limits);
   v1::Request create;
   create.mutable_create_instance()->set_scene("plate");
   EXPECT_TRUE(s.handle(create).ok());
@@ -77,6 +79,105 @@ TEST(Service, CreateInstanceIsBounded) {
   const auto refused = s.handle(create);
   EXPECT_FALSE(refused.ok());
   EXPECT_EQ(refused.error(), "create_instance: 2 instances exist (expected at most 2; see --max-instances)");
+  EXPECT_EQ(s.stats().limited_requests, 1u);
+}
+
+// One client cannot take every instance; destroying one frees its slot, and
+// another client is not affected.
+TEST(Service, InstancesPerClientAreBounded) {
+  const TwoScenes f("per_client");
+  SynthesisService s(60);
+  s.load_package(f.plate);
+  ServiceLimits limits;
+  limits.max_instances_per_client = 2;
+  s.set_limits(limits);
+  v1::Request create;
+  create.mutable_create_instance()->set_scene("plate");
+  const auto first = s.handle(create, "a");
+  ASSERT_TRUE(first.ok()) << first.error();
+  EXPECT_TRUE(s.handle(create, "a").ok());
+  EXPECT_EQ(s.handle(create, "a").error(),
+            "create_instance: this client created 2 instances (expected at most 2; see "
+            "--max-instances-per-client)");
+  EXPECT_TRUE(s.handle(create, "b").ok());
+  v1::Request destroy;
+  destroy.mutable_destroy_instance()->set_instance(first.created().instance());
+  ASSERT_TRUE(s.handle(destroy, "b").ok());
+  EXPECT_TRUE(s.handle(create, "a").ok());
+}
+
+// Defect: 1 024 impulses at frame 2^64 - 1 blocked an instance forever.
+TEST(Service, ImpulsesBeyondTheHorizonAreRefused) {
+  const TwoScenes f("horizon");
+  SynthesisService s(60);
+  s.load_package(f.plate);
+  s.engine().create_instance("plate");
+  v1::Request far;
+  far.mutable_impulse()->set_instance(1);
+  far.mutable_impulse()->set_name("open");
+  far.mutable_impulse()->set_at_frame(~std::uint64_t{0});
+  for (int i = 0; i < 2000; ++i) {
+    const auto r = s.handle(far);
+    ASSERT_FALSE(r.ok());
+    ASSERT_EQ(r.error().find("impulse: instance 1: at_frame 18446744073709551615 is"), 0u) << r.error();
+    ASSERT_NE(r.error().find("expected at most 36000 frames, 600 s at 60 Hz; see --impulse-horizon"),
+              std::string::npos)
+        << r.error();
+  }
+  v1::Request now;
+  now.mutable_impulse()->set_instance(1);
+  now.mutable_impulse()->set_name("open");
+  const auto ok = s.handle(now, "friend");
+  EXPECT_TRUE(ok.ok()) << ok.error();
+  s.engine().create_instance("plate");
+  far.mutable_impulse()->set_instance(2);
+  far.mutable_impulse()->set_at_frame(36000);  // exactly at the horizon: accepted
+  const auto at_horizon = s.handle(far, "friend");
+  EXPECT_TRUE(at_horizon.ok()) << at_horizon.error();
+}
+
+// A flood from one client is refused past its budget; another client is not.
+TEST(Service, RequestRateIsBoundedPerClient) {
+  const TwoScenes f("rate");
+  SynthesisService s(60);
+  s.load_package(f.plate);
+  ServiceLimits limits;
+  limits.max_request_rate = 50;
+  s.set_limits(limits);
+  v1::Request stats;
+  stats.mutable_stats();
+  int refused = 0;
+  std::string error;
+  for (int i = 0; i < 500; ++i) {
+    const auto r = s.handle(stats, "flood");
+    if (!r.ok()) {
+      ++refused;
+      error = r.error();
+    }
+  }
+  EXPECT_GE(refused, 400);  // the budget is 50 plus what refills while the loop runs
+  EXPECT_EQ(error,
+            "stats: more than 50 requests/s from this client (expected at most --max-request-rate 50)");
+  EXPECT_TRUE(s.handle(stats, "calm").ok());
+}
+
+// Names travel as bytes; invalid UTF-8 is one counted error with a reply.
+TEST(Service, InvalidUtf8IsRefused) {
+  const TwoScenes f("utf8");
+  SynthesisService s(60);
+  s.load_package(f.plate);
+  v1::Request create;
+  create.mutable_create_instance()->set_scene(std::string("pl\xff\xfe", 4));
+  const auto r = s.handle(create.SerializeAsString());
+  EXPECT_FALSE(r.ok());
+  EXPECT_EQ(r.error(), "create_instance: scene name is not valid UTF-8 (byte 2 of 4; expected UTF-8 text)");
+  for (const std::string bad : {"\xc0\xaf", "\xed\xa0\x80", "\xf4\x90\x80\x80", "\xe2\x82"}) {
+    create.mutable_create_instance()->set_scene(bad);
+    EXPECT_NE(s.handle(create).error().find("not valid UTF-8"), std::string::npos) << bad.size();
+  }
+  create.mutable_create_instance()->set_scene("pl\u00e4te");  // valid UTF-8, unknown scene
+  EXPECT_NE(s.handle(create).error().find("unknown scene"), std::string::npos);
+  EXPECT_EQ(s.stats().bad_requests, 6u);
 }
 
 TEST(Service, UnknownPackageFailsWithThePath) {

@@ -67,7 +67,7 @@ def main(server_bin, make_fixture, proto_dir, work):
 
         req = pb.Request(id=11)
         req.impulse.instance = 1
-        req.impulse.name = "open"
+        req.impulse.name = b"open"
         reply = call(dealer, pb, req)
         assert reply.ok, reply.error
         at = reply.impulse.at_frame
@@ -82,7 +82,7 @@ def main(server_bin, make_fixture, proto_dir, work):
         total = None
         while total is None or len(data) < total:
             req = pb.Request(id=12)
-            req.basis.scene = "plate"
+            req.basis.scene = b"plate"
             req.basis.part = pb.U_U
             req.basis.offset = len(data)
             req.basis.max_bytes = 256
@@ -100,7 +100,7 @@ def main(server_bin, make_fixture, proto_dir, work):
 
         bad = pb.Request(id=13)
         bad.impulse.instance = 1
-        bad.impulse.name = "opn"
+        bad.impulse.name = b"opn"
         reply = call(dealer, pb, bad)
         assert not reply.ok
         assert reply.error == "impulse: instance 1 (plate): unknown palette entry 'opn' " \

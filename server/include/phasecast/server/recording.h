@@ -1,8 +1,10 @@
 #pragma once
 // Recording while serving, and checking a recording by replaying it. The
 // format itself (magic, framing, reader, RecordingError) is
-// phasecast/core/recording.h; this is what writes it as the stream goes,
-// fsync'd at least once per second and at close.
+// phasecast/core/recording.h; this is what writes it as the stream goes.
+// The tick only serializes into memory: a writer thread owns the file,
+// writes what each tick queued and fsyncs at least once per second and at
+// close, so a slow disk never delays a tick.
 
 #include "phasecast/core/recording.h"
 #include "phasecast/proto/phasecast.pb.h"
@@ -11,7 +13,9 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace phasecast::server {
@@ -22,32 +26,48 @@ using core::RecordingError;
 
 class RecordingWriter {
  public:
-  // Creates (truncates) `path` and writes the magic and `header`.
-  RecordingWriter(std::filesystem::path path, const v1::RecordingHeader& header);
+  // Creates `path`, which must not exist (O_EXCL | O_NOFOLLOW: a recording
+  // never replaces a file, nor follows a link), queues the magic and
+  // `header`, and starts the writer thread. The recording ends with a reason
+  // once it would pass `max_bytes`.
+  RecordingWriter(std::filesystem::path path, const v1::RecordingHeader& header,
+                  std::uint64_t max_bytes = kNoSizeCap);
+  // Closes as close() does, but reports nothing; a failed writer is left to
+  // wind down on its own thread, so this never waits for the disk then.
   ~RecordingWriter();
   RecordingWriter(const RecordingWriter&) = delete;
   RecordingWriter& operator=(const RecordingWriter&) = delete;
 
-  // Buffers one entry; end_tick() hands the buffer to the OS.
+  // Serializes one entry into the tick's buffer.
   void append(const v1::RecordEntry& entry);
-  // Writes what the tick buffered; fsyncs when the last sync is `sync_every` old.
+  // Queues what the tick buffered for the writer thread. Throws
+  // RecordingError when the recording has ended: a write or fsync failed,
+  // the queue passed `max_queued_bytes` (the disk fell behind), or the file
+  // would pass its size cap. Everything queued before stays in the file.
   void end_tick(std::chrono::steady_clock::time_point now);
-  // Writes, fsyncs and closes; later calls do nothing.
+  // Waits for the queue to be written, fsyncs and closes; later calls do
+  // nothing. Throws RecordingError if any write failed.
   void close();
 
   const std::filesystem::path& path() const { return path_; }
   std::uint64_t frames_written() const { return frames_; }
+  std::uint64_t bytes_queued() const { return bytes_; }  // the file's size once written
 
   static constexpr std::chrono::milliseconds sync_every{1000};
+  static constexpr std::uint64_t kNoSizeCap = ~std::uint64_t{0};
+  static constexpr std::size_t max_queued_bytes = 64u << 20;
 
  private:
-  void flush_buffer();
+  struct Shared;  // the queue, the file and the writer's verdict, shared with its thread
 
   std::filesystem::path path_;
-  int fd_ = -1;
+  std::shared_ptr<Shared> shared_;
+  std::thread writer_;
   std::string buffer_;
-  std::uint64_t frames_ = 0;
-  std::chrono::steady_clock::time_point last_sync_;
+  std::uint64_t frames_ = 0;       // queued for the writer
+  std::uint64_t tick_frames_ = 0;  // in buffer_
+  std::uint64_t bytes_ = 0;
+  std::uint64_t max_bytes_;
 };
 
 struct ReplayReport {

@@ -3,6 +3,12 @@
 // packages into a SynthesisEngine, answers every Request with one Reply,
 // turns each tick into the published messages, and records the stream.
 // The transport (server.h) moves these bytes; tests drive this directly too.
+//
+// Thread safety: once serving, the tick thread calls tick() while the command
+// thread calls handle(); both take one mutex around the engine, the stats and
+// the recorder. Basis requests read only the loaded packages, which never
+// change after start, so they are answered (and their chunk copied) without
+// it: a large download never holds up a tick.
 
 #include "phasecast/proto/phasecast.pb.h"
 #include "phasecast/server/recording.h"
@@ -11,7 +17,9 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -20,8 +28,17 @@
 namespace phasecast::server {
 
 inline constexpr std::uint32_t kDefaultChunkBytes = 1u << 20;  // basis chunk without max_bytes
-inline constexpr std::uint32_t kMaxChunkBytes = 4u << 20;      // cap on max_bytes
-inline constexpr std::size_t kDefaultMaxInstances = 100000;    // bounds what create_instance floods can cost
+inline constexpr std::uint32_t kMaxChunkBytes = 1u << 20;      // cap on max_bytes (bounds queued reply bytes)
+
+// What one client may cost the server; a request over a limit gets an error
+// reply naming the limit and its option (docs/server.md, "Limits").
+struct ServiceLimits {
+  std::size_t max_instances = 1024;             // --max-instances: all clients together
+  std::size_t max_instances_per_client = 64;    // --max-instances-per-client
+  double impulse_horizon_s = 600;               // --impulse-horizon: how far ahead at_frame may lie
+  double max_request_rate = 1000;               // --max-request-rate: requests/s per client (burst 1 s)
+  std::uint64_t record_max_bytes = 4ull << 30;  // --record-max-bytes: one recording ends at this size
+};
 
 struct PublishedFrame {
   std::string topic;    // "inst/<id>/"
@@ -37,6 +54,7 @@ struct ServiceStats {
   std::uint64_t impulses_applied = 0;
   std::uint64_t impulses_refused = 0;
   double max_tick_seconds = 0;
+  std::uint64_t limited_requests = 0;  // refused by a limit (also counted in bad_requests)
 };
 
 class SynthesisService {
@@ -48,40 +66,50 @@ class SynthesisService {
   // adds its scene; `blend_lambda` overrides the package's eq. 12 lambda.
   void load_package(const std::filesystem::path& package, std::optional<double> blend_lambda = std::nullopt);
 
+  // The engine, unlocked: for start-up, replay and tests, not while serving.
   SynthesisEngine& engine() { return engine_; }
-  const ServiceStats& stats() const { return stats_; }
-  ServiceStats& stats() { return stats_; }
+  ServiceStats stats() const;
   void set_pub_endpoint(std::string endpoint) { pub_endpoint_ = std::move(endpoint); }
-  // create_instance requests beyond this many instances are refused.
-  void set_max_instances(std::size_t n) { max_instances_ = n; }
-  // Where record_start requests (plain file names) write.
+  void set_limits(const ServiceLimits& limits) { limits_ = limits; }
+  const ServiceLimits& limits() const { return limits_; }
+  // Where record_start requests (plain *.phcrec names) write; created on first use.
   void set_record_dir(std::filesystem::path dir) { record_dir_ = std::move(dir); }
 
   // One request payload in, one reply out; never throws. A payload that does
-  // not parse gets Reply{id = 0, ok = false}.
-  v1::Reply handle(std::string_view request_bytes);
-  v1::Reply handle(const v1::Request& request);
+  // not parse gets Reply{id = 0, ok = false}. `client` names the sender (its
+  // CURVE key or connection) for the per-client limits; empty: no such limits.
+  v1::Reply handle(std::string_view request_bytes, const std::string& client = {});
+  v1::Reply handle(const v1::Request& request, const std::string& client = {});
+
+  // The transport's own counts: a message that is not a request envelope or
+  // is over the size limit, and the timing of one tick as it measured it.
+  void count_bad_message();
+  void count_tick(double seconds, bool late);
 
   // Advances every instance one frame and returns their messages in id order;
   // the recording (if any) gets the applied impulses, then the frames.
+  // The result is the caller's until its next tick() call.
   const std::vector<PublishedFrame>& tick(std::chrono::steady_clock::time_point now);
 
-  // Starts writing the stream to `path` (RecordingError if already recording
-  // or the file cannot be created); stop() closes it with an fsync.
+  // Starts writing the stream to `path`, a new file (RecordingError if
+  // already recording or the file exists or cannot be created); stop closes
+  // it with an fsync, outside the lock so the tick does not wait for it.
   void start_recording(const std::filesystem::path& path);
   v1::RecordStatus stop_recording();
-  bool recording() const { return recorder_ != nullptr; }
-  // Why the last recording ended on its own (a write failed); empty if none did.
-  const std::string& recording_error() const { return recording_error_; }
+  bool recording() const;
+  // Why the last recording ended on its own (write failed, the disk fell
+  // behind, the size cap); empty if none did.
+  std::string recording_error() const;
 
  private:
   // answer() fills the reply for the request's kind with one of the functions
   // after it; each throws (EngineError, RequestError, RecordingError) to refuse.
-  void answer(const v1::Request& request, v1::Reply& reply);
+  void answer(const v1::Request& request, const std::string& client, v1::Reply& reply);
+  void check_rate(const std::string& client);
   void impulse(const v1::Impulse& request, v1::ImpulseAccepted& out);
   void list_scenes(v1::SceneList& out) const;
   void list_instances(v1::Reply& reply) const;
-  void create_instance(const v1::CreateInstance& request, v1::InstanceInfo& out);
+  void create_instance(const v1::CreateInstance& request, const std::string& client, v1::InstanceInfo& out);
   void destroy_instance(const v1::DestroyInstance& request, v1::InstanceInfo& out);
   void basis(const v1::BasisRequest& request, v1::BasisChunk& out) const;
   void record_start(const v1::RecordStart& request, v1::RecordStatus& out);
@@ -92,16 +120,29 @@ class SynthesisService {
   void record_created(std::uint32_t id);
   void record_destroyed(const v1::InstanceInfo& info);
   void record_impulses(const std::vector<AppliedImpulse>& applied);
-  const std::vector<PublishedFrame>& tick_and_record(std::chrono::steady_clock::time_point now);
+  void tick_and_record(std::chrono::steady_clock::time_point now);
+  void start_recording_locked(const std::filesystem::path& path);
+  std::unique_ptr<RecordingWriter> take_recorder(v1::RecordStatus& status);
+
+  // A client's token bucket for --max-request-rate.
+  struct RateBucket {
+    double tokens = 0;
+    std::chrono::steady_clock::time_point last;
+  };
 
   double rate_hz_;
+  mutable std::mutex mutex_;  // engine instances, stats, recorder, client books
   SynthesisEngine engine_;
   ServiceStats stats_;
   std::string pub_endpoint_;
-  std::filesystem::path record_dir_ = ".";
+  std::filesystem::path record_dir_ = "recordings";
   std::unique_ptr<RecordingWriter> recorder_;
+  std::unique_ptr<RecordingWriter> closing_;  // stopped by a request, closed after the lock is released
   std::string recording_error_;
-  std::size_t max_instances_ = kDefaultMaxInstances;
+  ServiceLimits limits_;
+  std::map<std::uint32_t, std::string> owner_;       // instance -> client that created it
+  std::map<std::string, std::size_t> instances_of_;  // client -> instances it created
+  std::map<std::string, RateBucket> buckets_;        // client -> request budget
   std::vector<PublishedFrame> published_;
   TickResult tick_result_;  // reused across ticks, like frame_, to keep its storage
   v1::Frame frame_;         // reused across ticks
