@@ -1,6 +1,7 @@
 #include "phasecast/server/recording.h"
 
 #include "phasecast/server/wire.h"
+#include "thread_priority.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -48,6 +49,7 @@ struct RecordingWriter::Shared {
   // The writer thread: writes each batch as it comes, fdatasyncs at least
   // every sync_every, and on stop drains the queue, fsyncs and closes.
   static void run(const std::shared_ptr<Shared>& s) {
+    yield_to_the_tick();  // the recording may lag (its queue absorbs that), the tick may not
     auto last_sync = std::chrono::steady_clock::now();
     bool unsynced = false;
     std::unique_lock lock(s->mutex);

@@ -1,6 +1,7 @@
 #include "phasecast/server/server.h"
 
 #include "phasecast/core/curve_keys.h"
+#include "thread_priority.h"
 
 #include <fmt/format.h>
 #include <zmq.hpp>
@@ -112,7 +113,9 @@ struct Server::Impl {
 
     router.set(zmq::sockopt::maxmsgsize, std::int64_t{kMaxMessageBytes});
     // A client that does not read its replies holds at most this many (each
-    // at most one basis chunk); past that ROUTER drops its replies.
+    // at most one basis chunk); past that ROUTER drops its replies. Not much
+    // lower: ZeroMQ learns of reads in batches, and at 8 it dropped replies
+    // of clients that read every one (bench/server/load_bench.cpp).
     router.set(zmq::sockopt::sndhwm, kReplyQueuePerClient);
     router.set(zmq::sockopt::rcvhwm, 1000);
     router.set(zmq::sockopt::linger, 200);
@@ -171,6 +174,7 @@ struct Server::Impl {
   }
 
   void serve_commands(const std::atomic<bool>& stop) {
+    yield_to_the_tick();
     zmq::pollitem_t items[] = {{router.handle(), 0, ZMQ_POLLIN, 0}};
     while (!stop.load(std::memory_order_relaxed)) {
       zmq::poll(items, 1, kMaxWait);

@@ -143,6 +143,39 @@ TEST_F(ServerRobustness, OversizedRequestIsRefusedAndCounted) {
   expect_still_serving(server);
 }
 
+// Defect: a name with invalid UTF-8 made libprotobuf log a 220-byte line per
+// 9-byte request. Now each is one counted error reply and nothing is logged.
+TEST_F(ServerRobustness, InvalidUtf8IsOneCountedErrorAndNoLogLine) {
+  ServerProcess server({pkg_});
+  CommandClient c(ctx_, server.cmd());
+  v1::Request r;
+  r.mutable_impulse()->set_instance(1);
+  r.mutable_impulse()->set_name(std::string("op\xc3\x28n", 5));
+  for (int i = 0; i < 100; ++i) {
+    const auto reply = c.call(r);
+    ASSERT_FALSE(reply.ok());
+    ASSERT_EQ(reply.error(),
+              "impulse: palette entry name is not valid UTF-8 (byte 2 of 5; expected UTF-8 text)");
+  }
+  EXPECT_EQ(c.call(stats_request()).stats().bad_requests(), 100u);
+  EXPECT_EQ(server.stop(), 0);
+  EXPECT_EQ(server.err(), "");
+}
+
+// Defect: with more instances than one tick period can synthesize, the one
+// loop only ticked and never answered. The command thread answers anyway.
+TEST_F(ServerRobustness, RequestsAreAnsweredWhileTheTickIsOverloaded) {
+  ServerProcess server({pkg_, "--rate", "1000", "--instances", "100000", "--max-instances", "100000"});
+  CommandClient c(ctx_, server.cmd());
+  std::uint64_t late = 0;
+  for (int i = 0; i < 50 && late == 0; ++i) {
+    const auto reply = c.call(stats_request(), 30s);
+    ASSERT_TRUE(reply.ok()) << reply.error();
+    late = reply.stats().late_ticks();
+  }
+  EXPECT_GT(late, 0u) << "the tick should be overloaded here, or the test proves nothing";
+}
+
 TEST_F(ServerRobustness, FloodOfRequestsDoesNotStopTheTick) {
   ServerProcess server({pkg_, "--rate", "100"});
   CommandClient flood(ctx_, server.cmd());

@@ -45,7 +45,7 @@ struct ServerOptions {
 // Limits that keep one client from disturbing the others.
 inline constexpr int kMaxRequestBytes = 64 * 1024;    // larger requests get an error reply (counted)
 inline constexpr int kMaxMessageBytes = 1024 * 1024;  // larger messages drop the peer (ZMQ_MAXMSGSIZE)
-inline constexpr int kReplyQueuePerClient = 8;        // replies queued per client (x 1 MiB chunks at most)
+inline constexpr int kReplyQueuePerClient = 32;  // replies queued per client (each at most a 1 MiB chunk)
 
 class Server {
  public:
