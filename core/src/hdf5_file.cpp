@@ -5,6 +5,7 @@
 #include <unistd.h>
 #include <algorithm>
 #include <cstring>
+#include <optional>
 
 namespace phasecast::core::h5 {
 namespace {
@@ -187,6 +188,44 @@ Handle File::open_dataset(const std::string& name) const {
   return Handle(check(H5Dopen2(file_.get(), name.c_str(), H5P_DEFAULT), "cannot open dataset"), H5Dclose);
 }
 
+namespace {
+
+// Where a dataset's raw data live and whether a filter may have shrunk them.
+void describe_storage(hid_t dataset, DatasetInfo& info) {
+  Handle dcpl(check(H5Dget_create_plist(dataset), "cannot read the dataset's creation properties"), H5Pclose);
+  const H5D_layout_t layout = H5Pget_layout(dcpl.get());
+  if (layout < 0) throw Failure("cannot read the dataset's layout");
+  info.external = layout == H5D_VIRTUAL || H5Pget_external_count(dcpl.get()) != 0;
+  const int filters = H5Pget_nfilters(dcpl.get());
+  if (filters < 0) throw Failure("cannot read the dataset's filters");
+  for (int i = 0; i < filters; ++i) {
+    unsigned flags = 0;
+    size_t n_values = 0;
+    const H5Z_filter_t id =
+        H5Pget_filter2(dcpl.get(), static_cast<unsigned>(i), &flags, &n_values, nullptr, 0, nullptr, nullptr);
+    // Shuffling and checksums keep the size; anything else may compress.
+    if (id != H5Z_FILTER_SHUFFLE && id != H5Z_FILTER_FLETCHER32) info.compressed = true;
+  }
+  info.stored_bytes = H5Dget_storage_size(dataset);  // 0 when unknown: then nothing is trusted
+}
+
+// Bytes of the data `info` declares, or nothing when that exceeds 2^64.
+std::optional<std::uint64_t> declared_bytes(const DatasetInfo& info) {
+  std::uint64_t bytes = info.element_bytes;
+  for (const std::uint64_t d : info.dims) {
+    if (d != 0 && bytes > UINT64_MAX / d) return std::nullopt;
+    bytes *= d;
+  }
+  return bytes;
+}
+
+std::string dataset_words(const DatasetInfo& info) {
+  if (info.dims.empty()) return fmt::format("a scalar {}", dtype_name(info.dtype));
+  return fmt::format("a {} {} dataset", describe_dims(info.dims), dtype_name(info.dtype));
+}
+
+}  // namespace
+
 DatasetInfo File::info(const std::string& name) const {
   Handle ds = open_dataset(name);
   Handle space(check(H5Dget_space(ds.get()), "cannot read dataspace"), H5Sclose);
@@ -198,7 +237,41 @@ DatasetInfo File::info(const std::string& name) const {
   DatasetInfo info;
   info.dims.assign(dims.begin(), dims.end());
   info.dtype = classify(type.get());
+  info.element_bytes = H5Tget_size(type.get());
+  describe_storage(ds.get(), info);
   return info;
+}
+
+std::uint64_t File::size_bytes() const {
+  hsize_t size = 0;
+  check(H5Fget_filesize(file_.get(), &size), "cannot read the file size");
+  return size;
+}
+
+std::string storage_problem(const DatasetInfo& info, std::uint64_t file_bytes) {
+  if (info.external) {
+    return "raw data stored outside the file (external storage or a virtual dataset; expected a "
+           "self-contained file)";
+  }
+  const std::optional<std::uint64_t> bytes = declared_bytes(info);
+  if (!bytes) {
+    return fmt::format("declares {}, more than 2^64 bytes (expected at most what the {}-byte file holds)",
+                       dataset_words(info), file_bytes);
+  }
+  if (info.stored_bytes > file_bytes) {
+    return fmt::format("its chunk index claims {} stored bytes (expected at most the {} bytes of the file)",
+                       info.stored_bytes, file_bytes);
+  }
+  if (!info.compressed && *bytes > info.stored_bytes) {
+    return fmt::format(
+        "declares {} ({} bytes) but the file stores {} bytes of it (expected all of it in the {}-byte file)",
+        dataset_words(info), *bytes, info.stored_bytes, file_bytes);
+  }
+  if (info.compressed && *bytes / kMaxInflation > info.stored_bytes) {
+    return fmt::format("declares {} ({} bytes) from {} compressed bytes (expected at most {} times as many)",
+                       dataset_words(info), *bytes, info.stored_bytes, kMaxInflation);
+  }
+  return "";
 }
 
 void File::read_raw(const std::string& name, Dtype dtype, void* out) const {
@@ -214,7 +287,7 @@ void File::read_rows_raw(const std::string& name, Dtype dtype, std::uint64_t fir
   hsize_t dims[2] = {0, 0};
   if (H5Sget_simple_extent_ndims(file_space.get()) != 2) throw Failure("expected a 2-D dataset");
   H5Sget_simple_extent_dims(file_space.get(), dims, nullptr);
-  if (first + count > dims[0]) {
+  if (count > dims[0] || first > dims[0] - count) {
     throw Failure("rows " + std::to_string(first) + ".." + std::to_string(first + count) + " past the end (" +
                   std::to_string(dims[0]) + " rows)");
   }
@@ -238,9 +311,13 @@ std::vector<std::string> File::read_strings(const std::string& name) const {
   if (H5Tis_variable_str(type.get()) > 0) {
     Handle mem = string_type(true);
     std::vector<char*> raw(static_cast<size_t>(n), nullptr);
-    check(H5Dread(ds.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, raw.data()), "cannot read strings");
-    for (char* s : raw) result.emplace_back(s ? s : "");
+    const herr_t status = H5Dread(ds.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, raw.data());
+    if (status >= 0) {
+      for (char* s : raw) result.emplace_back(s ? s : "");
+    }
+    // Also after a failed read: the strings read before the failure are ours to free.
     H5Dvlen_reclaim(mem.get(), space.get(), H5P_DEFAULT, raw.data());
+    check(status, "cannot read strings");
   } else {
     const size_t width = H5Tget_size(type.get());
     std::vector<char> raw(static_cast<size_t>(n) * width);
@@ -324,6 +401,9 @@ std::vector<float> File::read_attribute_floats(const std::string& name) const {
   Handle space(check(H5Aget_space(attr.get()), "cannot read attribute space"), H5Sclose);
   const hssize_t n = H5Sget_simple_extent_npoints(space.get());
   if (n < 0) throw Failure("cannot read attribute size");
+  if (static_cast<std::uint64_t>(n) > size_bytes() / sizeof(float)) {
+    throw Failure(fmt::format("declares {} floats, more than the {}-byte file holds", n, size_bytes()));
+  }
   std::vector<float> values(static_cast<size_t>(n));
   check(H5Aread(attr.get(), H5T_NATIVE_FLOAT, values.data()), "cannot read attribute");
   return values;
@@ -333,6 +413,12 @@ std::string File::read_attribute_string(const std::string& name) const {
   Handle attr(check(H5Aopen(file_.get(), name.c_str(), H5P_DEFAULT), "cannot open attribute"), H5Aclose);
   Handle type(check(H5Aget_type(attr.get()), "cannot read attribute type"), H5Tclose);
   if (H5Tget_class(type.get()) != H5T_STRING) throw Failure("expected a string");
+  // H5Aread writes every element of the attribute: the buffers below hold
+  // one string, so an array of them would overrun (found by fuzzing).
+  Handle space(check(H5Aget_space(attr.get()), "cannot read attribute space"), H5Sclose);
+  if (const hssize_t n = H5Sget_simple_extent_npoints(space.get()); n != 1) {
+    throw Failure(fmt::format("expected one string, got {}", n));
+  }
   if (H5Tis_variable_str(type.get()) > 0) {
     Handle mem = string_type(true);
     char* raw = nullptr;
@@ -341,7 +427,12 @@ std::string File::read_attribute_string(const std::string& name) const {
     H5free_memory(raw);
     return value;
   }
-  std::vector<char> raw(H5Tget_size(type.get()) + 1, '\0');
+  const size_t width = H5Tget_size(type.get());
+  if (width > size_bytes()) {
+    throw Failure(
+        fmt::format("declares a string of {} bytes, more than the {}-byte file holds", width, size_bytes()));
+  }
+  std::vector<char> raw(width + 1, '\0');
   check(H5Aread(attr.get(), type.get(), raw.data()), "cannot read attribute");
   return std::string(raw.data());
 }
@@ -437,6 +528,13 @@ DatasetInfo Reader::require(const std::string& name, Dtype dtype, size_t ndim) c
     fail(name, "expected a " + expected + " dataset, got " + describe_dims(info.dims) + " " +
                    dtype_name(info.dtype));
   }
+  std::string problem;
+  try {
+    problem = storage_problem(info, file_.size_bytes());
+  } catch (const Failure& e) {
+    fail(name, e.what());
+  }
+  if (!problem.empty()) fail(name, problem);
   return info;
 }
 
@@ -456,7 +554,7 @@ DatasetInfo Reader::require_shape(const std::string& name, Dtype dtype,
 }
 
 std::vector<std::string> Reader::strings(const std::string& name) const {
-  if (!file_.exists(name)) fail(name, "missing dataset (expected 1-D strings)");
+  require(name, Dtype::string, 1);
   try {
     return file_.read_strings(name);
   } catch (const Failure& e) {
@@ -468,6 +566,15 @@ double Reader::number(const std::string& attribute) const {
   if (!file_.has_attribute(attribute)) fail("/@" + attribute, "missing root attribute (expected a number)");
   try {
     return file_.read_attribute_number(attribute);
+  } catch (const Failure& e) {
+    fail("/@" + attribute, e.what());
+  }
+}
+
+std::vector<float> Reader::floats(const std::string& attribute) const {
+  if (!file_.has_attribute(attribute)) fail("/@" + attribute, "missing root attribute (expected floats)");
+  try {
+    return file_.read_attribute_floats(attribute);
   } catch (const Failure& e) {
     fail("/@" + attribute, e.what());
   }

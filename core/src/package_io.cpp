@@ -1,15 +1,26 @@
 // HDF5 reading and writing of the scene package (docs/package-format.md).
-// Reading checks each dataset's presence, rank and exact dtype here; counts,
-// cross-dataset consistency, indices and finiteness are checked by
-// validate_package() so that the writer enforces the very same rules.
+// Reading first checks every dataset's presence, rank, exact dtype and
+// declared size against what the file stores (h5::Reader::require), then the
+// shape rules on those extents (check_shapes), and only then allocates and
+// reads; indices and finiteness are checked by validate_package() so that the
+// writer enforces the very same rules.
 
+#include "package_shapes.h"
 #include "phasecast/core/hdf5_file.h"
 #include "phasecast/core/kinematics_rows.h"
 #include "phasecast/core/package.h"
 
 #include <fmt/format.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
+#include <csignal>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
 
 namespace phasecast::core {
 namespace {
@@ -31,7 +42,7 @@ PackageAttributes read_attributes(const Reader& r) {
   a.eps_u = r.number("eps_u");
   a.eps_a = r.number("eps_a");
   if (r.file().has_attribute("camera")) {
-    const auto c = r.file().read_attribute_floats("camera");
+    const auto c = r.floats("camera");
     if (c.size() != 10)
       r.fail("/@camera", fmt::format("expected 10 floats (eye, target, up, fov_y_deg), got {}", c.size()));
     std::array<float, 10> cam{};
@@ -41,6 +52,64 @@ PackageAttributes read_attributes(const Reader& r) {
   return a;
 }
 
+struct DatasetSpec {
+  const char* name;
+  h5::Dtype dtype;
+  size_t rank;
+};
+
+using h5::Dtype;
+constexpr DatasetSpec kRequired[] = {
+    {"/mesh/rest_positions", Dtype::f32, 2},   {"/mesh/triangles", Dtype::u32, 2},
+    {"/mesh/normals", Dtype::f32, 2},          {"/mesh/deformable", Dtype::u8, 1},
+    {"/mesh/attached", Dtype::u8, 1},          {"/palette/names", Dtype::string, 1},
+    {"/palette/alpha_impulse", Dtype::f32, 2}, {"/palette/alpha_forcing", Dtype::f32, 2},
+    {"/palette/transitions", Dtype::u8, 2},    {"/palette/on_end", Dtype::i32, 1},
+    {"/palette/kinematics", Dtype::f32, 2},    {"/reduction/mean_shape", Dtype::f32, 1},
+    {"/reduction/U_u", Dtype::f32, 2},         {"/reduction/singular_values", Dtype::f32, 1},
+    {"/reduction/rel_error", Dtype::f32, 1},   {"/portrait/q_u", Dtype::f32, 2},
+    {"/portrait/qdot_u", Dtype::f32, 2},       {"/portrait/irf_start", Dtype::i32, 1},
+    {"/portrait/irf_length", Dtype::i32, 1},   {"/portrait/irf_palette", Dtype::i32, 1},
+    {"/portrait/nearest_irf", Dtype::i32, 2},
+};
+constexpr DatasetSpec kOptional[] = {
+    {"/palette/group", Dtype::i32, 1},
+    {"/palette/max_in_a_row", Dtype::i32, 1},
+    {"/portrait/support", Dtype::f32, 2},
+};
+// Required when the /appearance group exists.
+constexpr DatasetSpec kAppearance[] = {
+    {"/portrait/q_a", Dtype::f32, 2},
+    {"/appearance/mean_transfer", Dtype::f32, 1},
+    {"/appearance/U_a", Dtype::f32, 2},
+    {"/appearance/singular_values", Dtype::f32, 1},
+    {"/appearance/rel_error", Dtype::f32, 1},
+    {"/appearance/cluster_nodes", Dtype::i32, 1},
+    {"/appearance/nrbf_centers", Dtype::f32, 2},
+    {"/appearance/nrbf_weights", Dtype::f32, 2},
+    {"/appearance/nrbf_widths", Dtype::f32, 1},
+    {"/appearance/nrbf_regularization", Dtype::f32, 1},
+};
+
+// The extents the file declares, each checked against what the file stores,
+// with the defaults read_from() fills in for absent optional datasets.
+PackageShapes declared_shapes(const Reader& r) {
+  PackageShapes s;
+  const auto add = [&](const DatasetSpec& d) { s[d.name] = r.require(d.name, d.dtype, d.rank).dims; };
+  for (const auto& d : kRequired) add(d);
+  for (const auto& d : kOptional) {
+    if (r.file().exists(d.name)) add(d);
+  }
+  if (r.file().exists("/appearance")) {
+    for (const auto& d : kAppearance) add(d);
+  } else {
+    s["/portrait/q_a"] = {s["/portrait/q_u"][0], 0};
+  }
+  s.try_emplace("/palette/group", s["/palette/names"]);
+  s.try_emplace("/palette/max_in_a_row", s["/palette/names"]);
+  return s;
+}
+
 ImpulsePalette read_palette(const Reader& r) {
   ImpulsePalette p;
   p.names = r.strings("/palette/names");
@@ -48,12 +117,7 @@ ImpulsePalette read_palette(const Reader& r) {
   p.alpha_forcing = r.matrix<float>("/palette/alpha_forcing");
   p.transitions = r.matrix<std::uint8_t>("/palette/transitions");
   p.on_end = r.vector<std::int32_t>("/palette/on_end");
-  const MatrixXfR k = r.matrix<float>("/palette/kinematics");
-  if (k.cols() != kKinematicsColumns) {
-    r.fail("/palette/kinematics", fmt::format("expected D x {} ({}), got {}x{}", kKinematicsColumns,
-                                              kKinematicsColumnNames, k.rows(), k.cols()));
-  }
-  p.kinematics = kinematics_from_rows(k);
+  p.kinematics = kinematics_from_rows(r.matrix<float>("/palette/kinematics"));
   // Run limits (max_in_a_row) came with the playback-fidelity work; packages
   // written before them have none: every entry its own group, no limit.
   const auto D = static_cast<std::int32_t>(p.names.size());
@@ -77,16 +141,16 @@ Appearance read_appearance(const Reader& r) {
   a.nrbf_centers = r.matrix<float>("/appearance/nrbf_centers");
   a.nrbf_weights = r.matrix<float>("/appearance/nrbf_weights");
   a.nrbf_widths = r.column<float>("/appearance/nrbf_widths");
-  const VectorXf reg = r.column<float>("/appearance/nrbf_regularization");
-  if (reg.size() != 1)
-    r.fail("/appearance/nrbf_regularization", fmt::format("expected 1 value, got {}", reg.size()));
-  a.nrbf_regularization = reg[0];
+  a.nrbf_regularization = r.column<float>("/appearance/nrbf_regularization", 1)[0];
   return a;
 }
 
+// Reads only after check_shapes() has accepted every extent, so that each
+// allocation below is bounded by the shape rules and the file's size.
 ScenePackage read_from(const Reader& r) {
   ScenePackage pkg;
   pkg.attributes = read_attributes(r);
+  check_shapes(declared_shapes(r), r.source());
 
   pkg.mesh.rest_positions = r.matrix<float>("/mesh/rest_positions");
   pkg.mesh.triangles = r.matrix<std::uint32_t>("/mesh/triangles");
@@ -204,12 +268,10 @@ std::vector<SupportKinematics> kinematics_from_rows(const MatrixXfR& k) {
   return out;
 }
 
-ScenePackage read_package(const std::filesystem::path& path) {
+namespace {
+
+ScenePackage read_in_process(const std::filesystem::path& path) {
   const std::string source = path.string();
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    throw PackageError(fmt::format("{}: no such package file", source));
-  }
   std::optional<h5::File> file;
   try {
     file.emplace(h5::File::open_read(path));
@@ -219,6 +281,102 @@ ScenePackage read_package(const std::filesystem::path& path) {
   ScenePackage pkg = read_from(h5::checked_reader<PackageError>(*file, source));
   validate_package(pkg, source);
   return pkg;
+}
+
+// Bytes of private data mappings this process holds (VmData), 0 if unknown.
+std::uint64_t data_in_use() {
+  std::ifstream status("/proc/self/status");
+  for (std::string line; std::getline(status, line);) {
+    if (line.starts_with("VmData:")) return std::strtoull(line.c_str() + 7, nullptr, 10) * 1024;
+  }
+  return 0;
+}
+
+// The child may allocate what reading a package of this size can need (all
+// its data, expanded as far as compression is allowed to, twice over) and no
+// more: a crafted length field makes libhdf5 allocate and clear gigabytes
+// before it notices (a string claiming 4 GB cost 10 s and 8 GB over the two
+// reads, docs/fuzzing.md); under the limit that allocation fails at once.
+void limit_memory(const std::filesystem::path& path) {
+  std::error_code ec;
+  const std::uint64_t file_bytes = std::filesystem::file_size(path, ec);
+  const std::uint64_t in_use = data_in_use();
+  if (ec || in_use == 0) return;
+  const std::uint64_t allowed = in_use + 2 * h5::kMaxInflation * file_bytes + (std::uint64_t{256} << 20);
+  const rlimit limit{allowed, allowed};
+  setrlimit(RLIMIT_DATA, &limit);
+}
+
+// The child of probe(): reads the package and writes "ok" or its error line.
+[[noreturn]] void probe_child(const std::filesystem::path& path, int out) {
+  // A crash here is an answer: the parent names the signal, so the child
+  // must die of it (not run a handler inherited from the caller) and
+  // leave no core file.
+  for (const int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT}) std::signal(sig, SIG_DFL);
+  const rlimit no_core{0, 0};
+  setrlimit(RLIMIT_CORE, &no_core);
+  limit_memory(path);
+  std::string answer = "ok";
+  try {
+    read_in_process(path);
+  } catch (const PackageError& e) {
+    answer = std::string("error ") + e.what();
+  } catch (const std::exception& e) {
+    answer = fmt::format("error {}: {} (expected a package)", path.string(), e.what());
+  }
+  const bool written = ::write(out, answer.data(), answer.size()) == static_cast<ssize_t>(answer.size());
+  ::_exit(written ? 0 : 1);  // no atexit handlers, no stdio flush: those belong to the parent
+}
+
+// libhdf5 1.10 crashes on some crafted metadata that passes its checksums
+// (a division by zero in H5D__chunk_set_info, a wild read in
+// H5F__accum_read: docs/fuzzing.md), and the HDF Group does not treat
+// hostile files as defects. So a package is first read in a forked child:
+// a crash there becomes one PackageError line instead of ending the caller,
+// and only a package the child read cleanly is read again in this process.
+// If no child can be started, the read goes ahead unprotected.
+void probe(const std::filesystem::path& path) {
+  int fds[2];
+  if (::pipe(fds) != 0) return;
+  const pid_t child = ::fork();
+  if (child == 0) {
+    ::close(fds[0]);
+    probe_child(path, fds[1]);
+  }
+  ::close(fds[1]);
+  if (child < 0) {
+    ::close(fds[0]);
+    return;
+  }
+  std::string answer;
+  char buf[4096];
+  for (ssize_t n; (n = ::read(fds[0], buf, sizeof buf)) != 0;) {
+    if (n > 0) answer.append(buf, static_cast<size_t>(n));
+    if (n < 0 && errno != EINTR) break;
+  }
+  ::close(fds[0]);
+  int status = 0;
+  const bool reaped = ::waitpid(child, &status, 0) == child;
+  if (answer == "ok") return;
+  if (answer.starts_with("error ")) throw PackageError(answer.substr(6));
+  const std::string how = reaped && WIFSIGNALED(status) ? strsignal(WTERMSIG(status)) : "no answer";
+  // The crash may in principle be ours, but every one seen was in libhdf5.
+  throw PackageError(
+      fmt::format("{}: reading it crashed the checking process ({}; expected a well-formed HDF5 file: this "
+                  "one is corrupt "
+                  "or crafted)",
+                  path.string(), how));
+}
+
+}  // namespace
+
+ScenePackage read_package(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    throw PackageError(fmt::format("{}: no such package file", path.string()));
+  }
+  probe(path);
+  return read_in_process(path);
 }
 
 void write_package(const ScenePackage& package, const std::filesystem::path& path) {

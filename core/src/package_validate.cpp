@@ -1,6 +1,10 @@
-// Every invariant of docs/package-format.md, checked on an in-memory package.
+// Every invariant of docs/package-format.md: the shape rules on dataset
+// extents (package_shapes.h; the reader applies them before reading data),
+// then the value rules on an in-memory package.
 // Each failure is one line: "<source>: <dataset>: <expectation>, got <value>".
 
+#include "package_shapes.h"
+#include "phasecast/core/kinematics_rows.h"
 #include "phasecast/core/package.h"
 
 #include <fmt/format.h>
@@ -18,22 +22,6 @@ class Checker {
 
   [[noreturn]] void fail(const std::string& where, const std::string& message) const {
     throw PackageError(fmt::format("{}: {}: {}", source_, where, message));
-  }
-
-  template <class M>
-  void shape(const std::string& where, const M& m, Eigen::Index rows, Eigen::Index cols,
-             const char* meaning) const {
-    if (m.rows() != rows || m.cols() != cols) {
-      fail(where,
-           fmt::format("expected shape {} = {}x{}, got {}x{}", meaning, rows, cols, m.rows(), m.cols()));
-    }
-  }
-
-  template <class V>
-  void length(const std::string& where, const V& v, size_t n, const char* meaning) const {
-    if (static_cast<size_t>(v.size()) != n) {
-      fail(where, fmt::format("expected length {} = {}, got {}", meaning, n, v.size()));
-    }
   }
 
   template <class Derived>
@@ -84,20 +72,156 @@ void check_attributes(const Checker& c, const PackageAttributes& a) {
   }
 }
 
+// ---- shapes: the extents of every dataset, agreeing with each other ---------------
+
+std::string describe(const Extent& e) {
+  std::string s;
+  for (size_t i = 0; i < e.size(); ++i) s += (i ? "x" : "") + std::to_string(e[i]);
+  return e.empty() ? "a scalar" : s;
+}
+
+class ShapeChecker {
+ public:
+  ShapeChecker(const Checker& c, const PackageShapes& shapes) : c_(c), shapes_(shapes) {}
+
+  const Checker& checker() const { return c_; }
+  bool has(const std::string& name) const { return shapes_.count(name) != 0; }
+
+  // Extent i of `name` (0 if the dataset has fewer), for the sizes S, N, ...
+  std::uint64_t dim(const std::string& name, size_t i) const {
+    const Extent& e = of(name);
+    return i < e.size() ? e[i] : 0;
+  }
+
+  void shape(const std::string& name, std::uint64_t rows, std::uint64_t cols, const char* meaning) const {
+    if (of(name) != Extent{rows, cols}) {
+      c_.fail(name,
+              fmt::format("expected shape {} = {}x{}, got {}", meaning, rows, cols, describe(of(name))));
+    }
+  }
+
+  void length(const std::string& name, std::uint64_t n, const char* meaning) const {
+    if (of(name) != Extent{n}) {
+      c_.fail(name, fmt::format("expected length {} = {}, got {}", meaning, n, describe(of(name))));
+    }
+  }
+
+ private:
+  const Extent& of(const std::string& name) const {
+    const auto it = shapes_.find(name);
+    if (it == shapes_.end()) c_.fail(name, "missing dataset");
+    return it->second;
+  }
+
+  const Checker& c_;
+  const PackageShapes& shapes_;
+};
+
+void check_mesh_shapes(const ShapeChecker& s) {
+  const std::uint64_t S = s.dim("/mesh/rest_positions", 0);
+  if (S == 0) s.checker().fail("/mesh/rest_positions", "expected at least one scene point");
+  s.shape("/mesh/rest_positions", S, 3, "S x 3");
+  const std::uint64_t F = s.dim("/mesh/triangles", 0);
+  if (F == 0) s.checker().fail("/mesh/triangles", "expected at least one triangle");
+  s.shape("/mesh/triangles", F, 3, "F x 3");
+  s.shape("/mesh/normals", S, 3, "S x 3");
+  s.length("/mesh/deformable", S, "S");
+  s.length("/mesh/attached", S, "S");
+}
+
+void check_palette_shapes(const ShapeChecker& s) {
+  const std::uint64_t D = s.dim("/palette/names", 0);
+  if (D == 0) s.checker().fail("/palette/names", "expected at least one palette entry");
+  const std::uint64_t k = s.dim("/palette/alpha_impulse", 1);
+  s.shape("/palette/alpha_impulse", D, k, "D x k");
+  s.shape("/palette/alpha_forcing", D, k, "D x k (k of alpha_impulse)");
+  s.shape("/palette/transitions", D + 1, D, "(D+1) x D");
+  s.length("/palette/on_end", D, "D");
+  s.shape("/palette/kinematics", D, kKinematicsColumns, "D x 11 (axis_x, ..., pulse_tau)");
+  s.length("/palette/group", D, "D");
+  s.length("/palette/max_in_a_row", D, "D");
+}
+
+void check_reduction_shapes(const ShapeChecker& s) {
+  const std::uint64_t M = 3 * s.dim("/mesh/rest_positions", 0);
+  s.length("/reduction/mean_shape", M, "3S");
+  const std::uint64_t r_u = s.dim("/reduction/U_u", 1);
+  if (r_u == 0) s.checker().fail("/reduction/U_u", "expected rank r_u >= 1");
+  s.shape("/reduction/U_u", M, r_u, "3S x r_u");
+  const std::uint64_t n = s.dim("/reduction/singular_values", 0);
+  if (n < r_u) {
+    s.checker().fail("/reduction/singular_values",
+                     fmt::format("expected at least r_u = {} values, got {}", r_u, n));
+  }
+  s.length("/reduction/rel_error", n, "that of singular_values");
+}
+
+void check_portrait_shapes(const ShapeChecker& s) {
+  const std::uint64_t N = s.dim("/portrait/q_u", 0);
+  if (N == 0) s.checker().fail("/portrait/q_u", "expected at least one state node");
+  const std::uint64_t r_u = s.dim("/reduction/U_u", 1);
+  const std::uint64_t r_a = s.has("/appearance/U_a") ? s.dim("/appearance/U_a", 1) : 0;
+  s.shape("/portrait/q_u", N, r_u, "N x r_u");
+  s.shape("/portrait/qdot_u", N, r_u, "N x r_u");
+  s.shape("/portrait/q_a", N, r_a, "N x r_a");
+  const std::uint64_t n_irf = s.dim("/portrait/irf_start", 0);
+  if (n_irf == 0) s.checker().fail("/portrait/irf_start", "expected at least one IRF");
+  s.length("/portrait/irf_length", n_irf, "n_irf");
+  s.length("/portrait/irf_palette", n_irf, "n_irf");
+  s.shape("/portrait/nearest_irf", N, s.dim("/palette/names", 0), "N x D");
+  if (s.has("/portrait/support")) s.shape("/portrait/support", N, kSupportFloats, "N x 12");
+}
+
+void check_appearance_shapes(const ShapeChecker& s) {
+  const std::uint64_t T = kTransferPerPoint * s.dim("/mesh/rest_positions", 0);
+  s.length("/appearance/mean_transfer", T, "48S");
+  const std::uint64_t r_a = s.dim("/appearance/U_a", 1);
+  s.shape("/appearance/U_a", T, r_a, "48S x r_a");
+  const std::uint64_t n = s.dim("/appearance/singular_values", 0);
+  if (n < r_a) {
+    s.checker().fail("/appearance/singular_values",
+                     fmt::format("expected at least r_a = {} values, got {}", r_a, n));
+  }
+  s.length("/appearance/rel_error", n, "that of singular_values");
+  const std::uint64_t Na = s.dim("/appearance/cluster_nodes", 0);
+  if (Na == 0) s.checker().fail("/appearance/cluster_nodes", "expected at least one cluster node");
+  s.shape("/appearance/nrbf_centers", Na, s.dim("/reduction/U_u", 1), "N_a x r_u");
+  s.shape("/appearance/nrbf_weights", Na, r_a, "N_a x r_a");
+  s.length("/appearance/nrbf_widths", Na, "N_a");
+  s.length("/appearance/nrbf_regularization", 1, "1 (mu)");
+}
+
+Extent extent(Eigen::Index rows, Eigen::Index cols) {
+  return {static_cast<std::uint64_t>(rows), static_cast<std::uint64_t>(cols)};
+}
+
+template <class V>
+Extent extent(const V& v) {
+  return {static_cast<std::uint64_t>(v.size())};
+}
+
+void add_appearance_shapes(const Appearance& a, PackageShapes& s) {
+  s["/appearance/mean_transfer"] = extent(a.mean_transfer);
+  s["/appearance/U_a"] = extent(a.U_a.rows(), a.U_a.cols());
+  s["/appearance/singular_values"] = extent(a.singular_values);
+  s["/appearance/rel_error"] = extent(a.rel_error);
+  s["/appearance/cluster_nodes"] = extent(a.cluster_nodes);
+  s["/appearance/nrbf_centers"] = extent(a.nrbf_centers.rows(), a.nrbf_centers.cols());
+  s["/appearance/nrbf_weights"] = extent(a.nrbf_weights.rows(), a.nrbf_weights.cols());
+  s["/appearance/nrbf_widths"] = extent(a.nrbf_widths);
+  s["/appearance/nrbf_regularization"] = {1};
+}
+
+// ---- values: finiteness, indices, flags, the rules between values ----------------
+// Each runs after check_shapes(), so every size it relies on has been checked.
+
 void check_mesh(const Checker& c, const SceneMesh& m) {
   const Eigen::Index S = m.rest_positions.rows();
-  if (S == 0) c.fail("/mesh/rest_positions", "expected at least one scene point");
-  c.shape("/mesh/rest_positions", m.rest_positions, S, 3, "S x 3");
   c.finite("/mesh/rest_positions", m.rest_positions);
-  if (m.triangles.rows() == 0) c.fail("/mesh/triangles", "expected at least one triangle");
-  c.shape("/mesh/triangles", m.triangles, m.triangles.rows(), 3, "F x 3");
   c.index_range("/mesh/triangles", m.triangles.data(), static_cast<size_t>(m.triangles.size()), 0, S,
                 "point indices");
-  c.shape("/mesh/normals", m.normals, S, 3, "S x 3");
   c.finite("/mesh/normals", m.normals);
-  c.length("/mesh/deformable", m.deformable, static_cast<size_t>(S), "S");
   c.index_range("/mesh/deformable", m.deformable.data(), m.deformable.size(), 0, 2, "flags");
-  c.length("/mesh/attached", m.attached, static_cast<size_t>(S), "S");
   c.index_range("/mesh/attached", m.attached.data(), m.attached.size(), 0, 2, "flags");
 }
 
@@ -119,41 +243,40 @@ void check_kinematics(const Checker& c, const std::vector<SupportKinematics>& ks
   }
 }
 
+// A name read from the file as it may appear in a one-line message: control
+// characters (a newline would split the line) written as \xNN.
+std::string printable(const std::string& name) {
+  std::string out;
+  for (const char ch : name) {
+    const auto u = static_cast<unsigned char>(ch);
+    out += u < 0x20 || u == 0x7f ? fmt::format("\\x{:02x}", u) : std::string(1, ch);
+  }
+  return out;
+}
+
 void check_palette(const Checker& c, const ImpulsePalette& p) {
   const size_t D = p.names.size();
-  if (D == 0) c.fail("/palette/names", "expected at least one palette entry");
   std::set<std::string> seen;
   for (const auto& n : p.names) {
     if (n.empty()) c.fail("/palette/names", "expected non-empty entry names");
     if (!seen.insert(n).second)
-      c.fail("/palette/names", fmt::format("expected unique names, got '{}' twice", n));
+      c.fail("/palette/names", fmt::format("expected unique names, got '{}' twice", printable(n)));
   }
   const auto Di = static_cast<Eigen::Index>(D);
-  c.shape("/palette/alpha_impulse", p.alpha_impulse, Di, p.alpha_impulse.cols(), "D x k");
-  c.shape("/palette/alpha_forcing", p.alpha_forcing, Di, p.alpha_impulse.cols(),
-          "D x k (k of alpha_impulse)");
   c.finite("/palette/alpha_impulse", p.alpha_impulse);
   c.finite("/palette/alpha_forcing", p.alpha_forcing);
-  c.shape("/palette/transitions", p.transitions, Di + 1, Di, "(D+1) x D");
   c.index_range("/palette/transitions", p.transitions.data(), static_cast<size_t>(p.transitions.size()), 0, 2,
                 "flags");
-  c.length("/palette/on_end", p.on_end, D, "D");
   c.index_range("/palette/on_end", p.on_end.data(), D, kEndHold, Di,
                 "-2 (hold), -1 (rest) or an entry index");
-  c.length("/palette/kinematics", p.kinematics, D, "D rows");
   check_kinematics(c, p.kinematics);
-  c.length("/palette/group", p.group, D, "D");
   c.index_range("/palette/group", p.group.data(), D, 0, Di, "an entry index");
-  c.length("/palette/max_in_a_row", p.max_in_a_row, D, "D");
   c.index_range("/palette/max_in_a_row", p.max_in_a_row.data(), D, 0, 1000000, "a count");
 }
 
 void check_reduction(const Checker& c, const Reduction& r, const SceneMesh& m) {
   const Eigen::Index M = 3 * m.rest_positions.rows();
-  c.length("/reduction/mean_shape", r.mean_shape, static_cast<size_t>(M), "3S");
   c.finite("/reduction/mean_shape", r.mean_shape);
-  if (r.U_u.cols() == 0) c.fail("/reduction/U_u", "expected rank r_u >= 1");
-  c.shape("/reduction/U_u", r.U_u, M, r.U_u.cols(), "3S x r_u");
   c.finite("/reduction/U_u", r.U_u);
   for (Eigen::Index i = 0; i < M; ++i) {
     if (m.deformable[static_cast<size_t>(i / 3)] == 0 && r.U_u.row(i).squaredNorm() != 0.0f) {
@@ -161,21 +284,12 @@ void check_reduction(const Checker& c, const Reduction& r, const SceneMesh& m) {
              fmt::format("expected zero rows for static points, got a non-zero row {} (point {})", i, i / 3));
     }
   }
-  const auto n = static_cast<size_t>(r.singular_values.size());
-  if (n < static_cast<size_t>(r.U_u.cols())) {
-    c.fail("/reduction/singular_values",
-           fmt::format("expected at least r_u = {} values, got {}", r.U_u.cols(), n));
-  }
   c.finite("/reduction/singular_values", r.singular_values);
-  c.length("/reduction/rel_error", r.rel_error, n, "that of singular_values");
   c.finite("/reduction/rel_error", r.rel_error);
 }
 
 void check_irfs(const Checker& c, const PhasePortrait& p, Eigen::Index N, int D) {
   const size_t n_irf = p.irf_start.size();
-  if (n_irf == 0) c.fail("/portrait/irf_start", "expected at least one IRF");
-  c.length("/portrait/irf_length", p.irf_length, n_irf, "n_irf");
-  c.length("/portrait/irf_palette", p.irf_palette, n_irf, "n_irf");
   c.index_range("/portrait/irf_start", p.irf_start.data(), n_irf, 0, N, "state nodes");
   c.index_range("/portrait/irf_palette", p.irf_palette.data(), n_irf, 0, D, "palette indices");
   for (size_t i = 0; i < n_irf; ++i) {
@@ -185,7 +299,6 @@ void check_irfs(const Checker& c, const PhasePortrait& p, Eigen::Index N, int D)
                          p.irf_start[i], p.irf_length[i], N));
     }
   }
-  c.shape("/portrait/nearest_irf", p.nearest_irf, N, D, "N x D");
   for (Eigen::Index j = 0; j < N; ++j) {
     for (int d = 0; d < D; ++d) {
       const std::int32_t irf = p.nearest_irf(j, d);
@@ -199,45 +312,23 @@ void check_irfs(const Checker& c, const PhasePortrait& p, Eigen::Index N, int D)
   }
 }
 
-void check_portrait(const Checker& c, const PhasePortrait& p, int r_u, int r_a, int D) {
-  const Eigen::Index N = p.q_u.rows();
-  if (N == 0) c.fail("/portrait/q_u", "expected at least one state node");
-  c.shape("/portrait/q_u", p.q_u, N, r_u, "N x r_u");
+void check_portrait(const Checker& c, const PhasePortrait& p, int D) {
   c.finite("/portrait/q_u", p.q_u);
-  c.shape("/portrait/qdot_u", p.qdot_u, N, r_u, "N x r_u");
   c.finite("/portrait/qdot_u", p.qdot_u);
-  c.shape("/portrait/q_a", p.q_a, N, r_a, "N x r_a");
   c.finite("/portrait/q_a", p.q_a);
-  check_irfs(c, p, N, D);
-  if (p.support.rows() != 0) {
-    c.shape("/portrait/support", p.support, N, kSupportFloats, "N x 12");
-    c.finite("/portrait/support", p.support);
-  }
+  check_irfs(c, p, p.q_u.rows(), D);
+  c.finite("/portrait/support", p.support);
 }
 
-void check_appearance(const Checker& c, const Appearance& a, Eigen::Index S, Eigen::Index N, int r_u) {
-  const Eigen::Index T = kTransferPerPoint * S;
-  c.length("/appearance/mean_transfer", a.mean_transfer, static_cast<size_t>(T), "48S");
+void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
   c.finite("/appearance/mean_transfer", a.mean_transfer);
-  c.shape("/appearance/U_a", a.U_a, T, a.U_a.cols(), "48S x r_a");
   c.finite("/appearance/U_a", a.U_a);
-  const auto n = static_cast<size_t>(a.singular_values.size());
-  if (n < static_cast<size_t>(a.U_a.cols())) {
-    c.fail("/appearance/singular_values",
-           fmt::format("expected at least r_a = {} values, got {}", a.U_a.cols(), n));
-  }
   c.finite("/appearance/singular_values", a.singular_values);
-  c.length("/appearance/rel_error", a.rel_error, n, "that of singular_values");
   c.finite("/appearance/rel_error", a.rel_error);
-  const size_t Na = a.cluster_nodes.size();
-  if (Na == 0) c.fail("/appearance/cluster_nodes", "expected at least one cluster node");
-  c.index_range("/appearance/cluster_nodes", a.cluster_nodes.data(), Na, 0, N, "state nodes");
-  const auto Nai = static_cast<Eigen::Index>(Na);
-  c.shape("/appearance/nrbf_centers", a.nrbf_centers, Nai, r_u, "N_a x r_u");
+  c.index_range("/appearance/cluster_nodes", a.cluster_nodes.data(), a.cluster_nodes.size(), 0, N,
+                "state nodes");
   c.finite("/appearance/nrbf_centers", a.nrbf_centers);
-  c.shape("/appearance/nrbf_weights", a.nrbf_weights, Nai, a.U_a.cols(), "N_a x r_a");
   c.finite("/appearance/nrbf_weights", a.nrbf_weights);
-  c.length("/appearance/nrbf_widths", a.nrbf_widths, Na, "N_a");
   for (Eigen::Index i = 0; i < a.nrbf_widths.size(); ++i) {
     if (!(a.nrbf_widths[i] > 0 && std::isfinite(a.nrbf_widths[i]))) {
       c.fail("/appearance/nrbf_widths",
@@ -298,16 +389,62 @@ bool ImpulsePalette::can_move_support(int to, double s, double dt) const {
   return frames_of_support_motion(k.rate, k.range_min, k.range_max, s, dt, 1) >= 1;
 }
 
+PackageShapes shapes_of(const ScenePackage& p) {
+  const auto& m = p.mesh;
+  const auto& pal = p.palette;
+  const auto& r = p.reduction;
+  const auto& pp = p.portrait;
+  PackageShapes s = {
+      {"/mesh/rest_positions", extent(m.rest_positions.rows(), m.rest_positions.cols())},
+      {"/mesh/triangles", extent(m.triangles.rows(), m.triangles.cols())},
+      {"/mesh/normals", extent(m.normals.rows(), m.normals.cols())},
+      {"/mesh/deformable", extent(m.deformable)},
+      {"/mesh/attached", extent(m.attached)},
+      {"/palette/names", extent(pal.names)},
+      {"/palette/alpha_impulse", extent(pal.alpha_impulse.rows(), pal.alpha_impulse.cols())},
+      {"/palette/alpha_forcing", extent(pal.alpha_forcing.rows(), pal.alpha_forcing.cols())},
+      {"/palette/transitions", extent(pal.transitions.rows(), pal.transitions.cols())},
+      {"/palette/on_end", extent(pal.on_end)},
+      {"/palette/kinematics", {pal.kinematics.size(), static_cast<std::uint64_t>(kKinematicsColumns)}},
+      {"/palette/group", extent(pal.group)},
+      {"/palette/max_in_a_row", extent(pal.max_in_a_row)},
+      {"/reduction/mean_shape", extent(r.mean_shape)},
+      {"/reduction/U_u", extent(r.U_u.rows(), r.U_u.cols())},
+      {"/reduction/singular_values", extent(r.singular_values)},
+      {"/reduction/rel_error", extent(r.rel_error)},
+      {"/portrait/q_u", extent(pp.q_u.rows(), pp.q_u.cols())},
+      {"/portrait/qdot_u", extent(pp.qdot_u.rows(), pp.qdot_u.cols())},
+      {"/portrait/q_a", extent(pp.q_a.rows(), pp.q_a.cols())},
+      {"/portrait/irf_start", extent(pp.irf_start)},
+      {"/portrait/irf_length", extent(pp.irf_length)},
+      {"/portrait/irf_palette", extent(pp.irf_palette)},
+      {"/portrait/nearest_irf", extent(pp.nearest_irf.rows(), pp.nearest_irf.cols())},
+  };
+  // A support of no rows is an absent one: write_package() leaves it out.
+  if (pp.support.rows() != 0) s["/portrait/support"] = extent(pp.support.rows(), pp.support.cols());
+  if (p.appearance) add_appearance_shapes(*p.appearance, s);
+  return s;
+}
+
+void check_shapes(const PackageShapes& shapes, const std::string& source) {
+  const Checker c(source);
+  const ShapeChecker s(c, shapes);
+  check_mesh_shapes(s);
+  check_palette_shapes(s);
+  check_reduction_shapes(s);
+  check_portrait_shapes(s);
+  if (s.has("/appearance/U_a")) check_appearance_shapes(s);
+}
+
 void validate_package(const ScenePackage& pkg, const std::string& source) {
   const Checker c(source);
   check_attributes(c, pkg.attributes);
+  check_shapes(shapes_of(pkg), source);
   check_mesh(c, pkg.mesh);
   check_palette(c, pkg.palette);
   check_reduction(c, pkg.reduction, pkg.mesh);
-  check_portrait(c, pkg.portrait, pkg.rank_u(), pkg.rank_a(), pkg.palette.size());
-  if (pkg.appearance) {
-    check_appearance(c, *pkg.appearance, pkg.mesh.rest_positions.rows(), pkg.portrait.nodes(), pkg.rank_u());
-  }
+  check_portrait(c, pkg.portrait, pkg.palette.size());
+  if (pkg.appearance) check_appearance(c, *pkg.appearance, pkg.portrait.nodes());
 }
 
 }  // namespace phasecast::core

@@ -146,7 +146,9 @@ TEST_F(PackageFileRejection, MissingAttribute) {
 
 TEST_F(PackageFileRejection, KinematicsColumns) {
   replace<float>("/palette/kinematics", std::vector<float>(9, 0.0f), {3, 3});
-  EXPECT_THAT(rejection(path_), HasSubstr("/palette/kinematics: expected D x 11"));
+  EXPECT_THAT(
+      rejection(path_),
+      HasSubstr("/palette/kinematics: expected shape D x 11 (axis_x, ..., pulse_tau) = 3x11, got 3x3"));
 }
 
 TEST_F(PackageFileRejection, AppearanceBasisRows) {
@@ -246,6 +248,12 @@ TEST_F(PackageRule, NrbfWidthsPositive) {
 TEST_F(PackageRule, AppearanceCoordinatesMatchRank) {
   p.portrait.q_a.conservativeResize(Eigen::NoChange, p.portrait.q_a.cols() + 1);
   EXPECT_THAT(invalid(p), HasSubstr("/portrait/q_a: expected shape N x r_a"));
+}
+
+TEST_F(PackageRule, NamesFromTheFileKeepMessagesOnOneLine) {
+  p.palette.names = {"a\nb", "a\nb", "open"};
+  EXPECT_THAT(invalid(p),
+              AllOf(HasSubstr("expected unique names, got 'a\\x0ab' twice"), Not(HasSubstr("\n"))));
 }
 
 TEST_F(PackageRule, MessagesAreOneLine) {

@@ -69,7 +69,19 @@ class Handle {
 struct DatasetInfo {
   std::vector<std::uint64_t> dims;
   Dtype dtype = Dtype::other;
+  std::uint64_t element_bytes = 0;  // of one element in memory (a pointer for variable-length strings)
+  std::uint64_t stored_bytes = 0;   // what the file holds for it (chunks written, contiguous extent)
+  bool compressed = false;          // a filter that may shrink the data (deflate, szip, ...)
+  bool external = false;            // raw data in another file: external storage or a virtual dataset
 };
+
+// Why the file cannot hold the data `info` declares, or "" if it can: the
+// bound every checked read applies before it allocates anything (issue 18:
+// a header declaring 9.5 GB in a small file ended in std::bad_alloc).
+// Uncompressed data must all be stored; compressed data may expand at most
+// kMaxInflation times, deflate's limit; nothing may claim more than the file.
+inline constexpr std::uint64_t kMaxInflation = 1032;
+std::string storage_problem(const DatasetInfo& info, std::uint64_t file_bytes);
 
 class File {
  public:
@@ -81,6 +93,7 @@ class File {
   void remove_attribute(const std::string& name);
   bool exists(const std::string& name) const;
   DatasetInfo info(const std::string& name) const;
+  std::uint64_t size_bytes() const;  // of the file on disk
 
   // Reads the whole dataset into `out` (sized by the caller from info()).
   template <class T>
@@ -153,6 +166,8 @@ class Reader {
       : file_(file), source_(std::move(source)), raise_(std::move(raise)) {}
 
   [[noreturn]] void fail(const std::string& where, const std::string& what) const;
+  // The dataset's info, failing unless it exists with this rank and dtype and
+  // the file holds all the data it declares (storage_problem()).
   DatasetInfo require(const std::string& name, Dtype dtype, size_t ndim) const;
   // Like require(); each nonzero entry of `shape` must also match exactly.
   DatasetInfo require_shape(const std::string& name, Dtype dtype,
@@ -180,9 +195,10 @@ class Reader {
     read_into(name, v.data(), n);
     return v;
   }
-  std::vector<std::string> strings(const std::string& name) const;
-  double number(const std::string& attribute) const;     // root attribute
-  std::string text(const std::string& attribute) const;  // root attribute
+  std::vector<std::string> strings(const std::string& name) const;  // a 1-D string dataset
+  double number(const std::string& attribute) const;                // root attribute
+  std::string text(const std::string& attribute) const;             // root attribute
+  std::vector<float> floats(const std::string& attribute) const;    // root attribute
   const File& file() const { return file_; }
   const std::string& source() const { return source_; }
 

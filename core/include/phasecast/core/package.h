@@ -176,7 +176,11 @@ void validate_package(const ScenePackage& package, const std::string& source);
 
 // Reads and validates a package. Throws PackageError with a one-line message
 // for anything that is not a valid version-1 package (missing or truncated
-// file, not HDF5, missing dataset, wrong shape or dtype, NaN/Inf, bad index).
+// file, not HDF5, missing dataset, wrong shape or dtype, a declared size the
+// file does not hold, NaN/Inf, bad index). Nothing is allocated for a
+// dataset before its extent has been checked. The file is read first in a
+// forked child process, because libhdf5 itself can crash on crafted files:
+// such a crash becomes a PackageError too (docs/fuzzing.md).
 ScenePackage read_package(const std::filesystem::path& path);
 
 // Validates, then writes atomically: a temporary file next to `path` renamed
