@@ -90,12 +90,20 @@ std::size_t utf8_valid_prefix(std::string_view s) {
 }
 
 // Names and paths travel as bytes (proto/phasecast.proto) so that libprotobuf
-// does not log every malformed one; they must still be UTF-8.
-void check_utf8(const char* field, const std::string& value) {
+// does not log every malformed one; they must still be UTF-8, and without
+// control characters, which would break (a newline) or cut (a NUL) the
+// one-line error that echoes them.
+void check_text(const char* field, const std::string& value) {
   const auto ok = utf8_valid_prefix(value);
   if (ok != value.size()) {
     throw RequestError(
         fmt::format("{} is not valid UTF-8 (byte {} of {}; expected UTF-8 text)", field, ok, value.size()));
+  }
+  const auto control = std::find_if(value.begin(), value.end(),
+                                    [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; });
+  if (control != value.end()) {
+    throw RequestError(fmt::format("{} has a control character 0x{:02x} at byte {} (expected printable text)",
+                                   field, static_cast<unsigned char>(*control), control - value.begin()));
   }
 }
 
@@ -241,7 +249,7 @@ void SynthesisService::impulse(const v1::Impulse& r, v1::ImpulseAccepted& out) {
   int d = 0;
   switch (r.entry_case()) {
     case v1::Impulse::kName:
-      check_utf8("palette entry name", r.name());
+      check_text("palette entry name", r.name());
       d = engine_.palette_index(r.instance(), r.name());
       break;
     case v1::Impulse::kIndex:
@@ -328,7 +336,7 @@ void SynthesisService::list_instances(v1::Reply& reply) const {
 
 void SynthesisService::create_instance(const v1::CreateInstance& r, const std::string& client,
                                        v1::InstanceInfo& out) {
-  check_utf8("scene name", r.scene());
+  check_text("scene name", r.scene());
   if (engine_.instances().size() >= limits_.max_instances) {
     throw LimitError(fmt::format("{} instances exist (expected at most {}; see --max-instances)",
                                  engine_.instances().size(), limits_.max_instances));
@@ -360,7 +368,7 @@ void SynthesisService::destroy_instance(const v1::DestroyInstance& r, v1::Instan
 }
 
 void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) const {
-  check_utf8("scene name", r.scene());
+  check_text("scene name", r.scene());
   const auto& s = engine_.scenes()[static_cast<std::size_t>(engine_.scene_index(r.scene()))];
   const auto parts = core::basis_parts(*s.data);
   const auto it = std::find_if(parts.begin(), parts.end(), [&](const core::BasisPartView& v) {
@@ -394,7 +402,7 @@ void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) con
 }
 
 void SynthesisService::record_start(const v1::RecordStart& r, v1::RecordStatus& out) {
-  check_utf8("path", r.path());
+  check_text("path", r.path());
   check_record_name(r.path());
   std::error_code ec;
   std::filesystem::create_directories(record_dir_, ec);  // the default recordings/ appears on first use

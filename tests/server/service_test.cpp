@@ -177,7 +177,14 @@ TEST(Service, InvalidUtf8IsRefused) {
   }
   create.mutable_create_instance()->set_scene("pl\u00e4te");  // valid UTF-8, unknown scene
   EXPECT_NE(s.handle(create).error().find("unknown scene"), std::string::npos);
-  EXPECT_EQ(s.stats().bad_requests, 6u);
+  // Found by the request fuzzer: a newline or NUL in a name broke or cut the one-line error.
+  create.mutable_create_instance()->set_scene(std::string("a\nb", 3));
+  EXPECT_EQ(s.handle(create).error(),
+            "create_instance: scene name has a control character 0x0a at byte 1 (expected printable text)");
+  create.mutable_create_instance()->set_scene(std::string("a\0b", 3));
+  EXPECT_EQ(s.handle(create).error(),
+            "create_instance: scene name has a control character 0x00 at byte 1 (expected printable text)");
+  EXPECT_EQ(s.stats().bad_requests, 8u);
 }
 
 TEST(Service, UnknownPackageFailsWithThePath) {
