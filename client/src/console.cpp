@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <google/protobuf/util/json_util.h>
 
+#include <algorithm>
 #include <atomic>
 #include <map>
 #include <thread>
@@ -33,18 +34,60 @@ std::atomic<bool> g_interrupted{false};
 }  // namespace
 
 struct Console::Impl {
+  // One instance's frame stream, kept between wait_frames calls.
+  struct Stream {
+    std::string endpoint;
+    std::unique_ptr<FrameSubscriber> subscriber;
+    SequenceTracker sequence;
+  };
+
   ConsoleOptions options;
   CommandClient command;
-  std::optional<v1::SceneList> scenes;  // cached: palettes do not change while a server runs
-  std::map<std::uint32_t, std::unique_ptr<FrameSubscriber>> subscribers;
+  std::optional<v1::SceneList> scenes;  // cached: palettes do not change while a server runs...
+  std::uint64_t scenes_connection = 0;  // ...so it is asked again only after a new connection
+  std::map<std::uint32_t, Stream> streams;
   lua_State* L = nullptr;
 
   explicit Impl(ConsoleOptions o)
-      : options(std::move(o)), command(options.endpoint, options.timeout, options.attempts) {}
+      : options(std::move(o)), command(options.endpoint, options.timeout, options.attempts, options.curve) {}
 
   const v1::SceneList& scene_list() {
-    if (!scenes) scenes = command.list_scenes();
+    if (scenes && command.connections() != scenes_connection) recheck_scenes();
+    if (!scenes) {
+      scenes = command.list_scenes();
+      scenes_connection = command.connections();
+    }
     return *scenes;
+  }
+
+  // The connection to the server was made again (a restart?): ask for the
+  // scenes again and say once if the server now serves other packages.
+  void recheck_scenes() {
+    const v1::SceneList before = *scenes;
+    scenes = command.list_scenes();
+    scenes_connection = command.connections();
+    const std::string change = scene_change(before, *scenes);
+    if (!change.empty()) {
+      fmt::print(stderr, "phasecast-console: the server at {} came back with {}; scenes read again\n",
+                 options.endpoint, change);
+    }
+  }
+
+  // "", or what differs between two scene lists, e.g. "plate: hash 00ab.. -> 00cd..".
+  static std::string scene_change(const v1::SceneList& before, const v1::SceneList& after) {
+    std::string change;
+    for (const auto& a : after.scenes()) {
+      const auto b = std::find_if(before.scenes().begin(), before.scenes().end(),
+                                  [&](const v1::SceneInfo& s) { return s.name() == a.name(); });
+      if (b == before.scenes().end()) {
+        change += fmt::format("{}new scene {}", change.empty() ? "" : ", ", a.name());
+      } else if (b->content_hash() != a.content_hash()) {
+        change += fmt::format("{}{}: hash {:016x} -> {:016x}", change.empty() ? "" : ", ", a.name(),
+                              b->content_hash(), a.content_hash());
+      }
+    }
+    if (after.scenes_size() < before.scenes_size() && change.empty()) change = "fewer scenes";
+    return change.empty() ? change : "other packages (" + change + ")";
   }
 
   const v1::SceneInfo& scene(const std::string& name) {
@@ -66,13 +109,61 @@ struct Console::Impl {
     throw NetworkError(fmt::format("no instance {} on the server", id));
   }
 
-  FrameSubscriber& subscriber(std::uint32_t id) {
-    auto& sub = subscribers[id];
-    if (!sub) {
-      const std::string pub = resolve_pub_endpoint(scene_list().pub_endpoint(), options.endpoint);
-      sub = std::make_unique<FrameSubscriber>(pub, id);
+  // The frame stream of instance `id`, subscribed again when the server now
+  // announces another frame endpoint.
+  Stream& stream(std::uint32_t id) {
+    const std::string pub = resolve_pub_endpoint(scene_list().pub_endpoint(), options.endpoint);
+    auto& stream = streams[id];
+    if (!stream.subscriber || stream.endpoint != pub) {
+      stream.subscriber = std::make_unique<FrameSubscriber>(pub, id, options.curve);
+      stream.endpoint = pub;
+      stream.sequence = {};
     }
-    return *sub;
+    return stream;
+  }
+
+  // Frames queued since the last wait are old: drop them, keeping the
+  // sequence numbers, so that a restart is told from a stale queue.
+  static void skip_queued(Stream& s) {
+    while (auto f = s.subscriber->receive(std::chrono::milliseconds(0))) s.sequence.observe(f->seq());
+  }
+
+  // Waits until instance `id` has published `n` more frames; returns the
+  // frame number reached. A restarted server numbers frames from 0 again:
+  // the count then goes on from there instead of waiting for the old numbers.
+  std::uint64_t wait_frames(std::uint32_t id, std::uint64_t n) {
+    auto& s = stream(id);
+    skip_queued(s);
+    std::uint64_t target = instance(id).frame() + n;
+    std::optional<std::uint64_t> last;
+    auto silent_since = std::chrono::steady_clock::now();
+    for (;;) {
+      if (g_interrupted.exchange(false)) throw NetworkError("interrupted");
+      auto f = s.subscriber->receive(std::chrono::milliseconds(20));
+      if (s.subscriber->take_reconnected() && scenes) recheck_scenes();
+      if (!f) {
+        if (std::chrono::steady_clock::now() - silent_since > options.frame_timeout) {
+          throw NetworkError(fmt::format("wait_frames: no frame of instance {} for {} ms{}", id,
+                                         options.frame_timeout.count(), problem_suffix(*s.subscriber)));
+        }
+        continue;
+      }
+      silent_since = std::chrono::steady_clock::now();
+      if (s.sequence.observe(f->seq())) {
+        fmt::print(
+            stderr,
+            "phasecast-console: instance {}: frame numbers started again at {} (a restarted server?)\n", id,
+            f->frame());
+        target = f->frame() + (last && *last < target ? target - *last : n);
+      }
+      last = f->frame();
+      if (f->frame() >= target) return f->frame();
+    }
+  }
+
+  static std::string problem_suffix(FrameSubscriber& subscriber) {
+    const std::string problem = subscriber.connection_problem();
+    return problem.empty() ? std::string() : " (" + problem + ")";
   }
 };
 
@@ -208,7 +299,7 @@ int l_destroy(lua_State* L) {
     v1::Request r;
     r.mutable_destroy_instance()->set_instance(id);
     c.command.call(r, fmt::format("destroy({})", id));
-    c.subscribers.erase(id);
+    c.streams.erase(id);
     return 0;
   });
 }
@@ -268,37 +359,16 @@ int l_wait_frames(lua_State* L) {
   if (n < 0) luaL_argerror(L, 1, "frame count must be >= 0");
   const bool has_id = !lua_isnoneornil(L, 2);
   const std::uint32_t given = has_id ? instance_arg(L, 2) : 0;
-  std::string error;
-  lua_Integer reached = 0;
-  try {
-    auto& c = self(L);
+  return guarded(L, [L, n, has_id, given](Console::Impl& c) {
     std::uint32_t id = given;
     if (!has_id) {
       const auto list = c.command.list_instances();
       if (list.instances_size() == 0) throw NetworkError("wait_frames: the server has no instance");
       id = list.instances(0).instance();
     }
-    auto& sub = c.subscriber(id);
-    const std::uint64_t target = c.instance(id).frame() + static_cast<std::uint64_t>(n);
-    std::uint64_t frame = 0;
-    auto silent_since = std::chrono::steady_clock::now();
-    while (frame < target) {
-      if (g_interrupted.exchange(false)) throw NetworkError("interrupted");
-      if (auto f = sub.receive(std::chrono::milliseconds(20))) {
-        frame = f->frame();
-        silent_since = std::chrono::steady_clock::now();
-      } else if (std::chrono::steady_clock::now() - silent_since > c.options.frame_timeout) {
-        throw NetworkError(fmt::format("wait_frames: no frame of instance {} for {} ms", id,
-                                       c.options.frame_timeout.count()));
-      }
-    }
-    reached = static_cast<lua_Integer>(frame);
-  } catch (const std::exception& e) {
-    error = e.what();
-  }
-  if (!error.empty()) raise(L, error);
-  lua_pushinteger(L, reached);
-  return 1;
+    lua_pushinteger(L, static_cast<lua_Integer>(c.wait_frames(id, static_cast<std::uint64_t>(n))));
+    return 1;
+  });
 }
 
 int l_record(lua_State* L) {

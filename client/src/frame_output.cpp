@@ -36,7 +36,7 @@ std::filesystem::path find_ffmpeg() {
 }
 
 FrameOutput::FrameOutput(LowRankRenderer& renderer, int width, int height, OutputOptions options)
-    : renderer_(renderer), width_(width), height_(height), options_(std::move(options)) {
+    : renderer_(&renderer), width_(width), height_(height), options_(std::move(options)) {
   if (options_.dump_frame) check_vertex_dump_path(options_.dump_path);
   if (options_.png_dir) std::filesystem::create_directories(*options_.png_dir);
   if (!options_.video) return;
@@ -66,16 +66,18 @@ FrameOutput::~FrameOutput() {
 void FrameOutput::render(const FrameState& frame) {
   if (!first_) first_ = std::chrono::steady_clock::now();
   const auto start = std::chrono::steady_clock::now();
-  const Image image = renderer_.render(frame);
+  const Image image = renderer_->render(frame);
   stats_.render_seconds += seconds_since(start);
   ++stats_.frames;
-  if (options_.png_dir) write_png(image, *options_.png_dir / frame_file_name(frame.frame));
+  if (last_frame_ && frame.frame <= *last_frame_) ++session_;
+  last_frame_ = frame.frame;
+  if (options_.png_dir) write_png(image, *options_.png_dir / frame_file_name(frame.frame, session_));
   if (ffmpeg_ && std::fwrite(image.rgba.data(), 1, image.rgba.size(), ffmpeg_) != image.rgba.size()) {
     throw std::runtime_error(
         fmt::format("--video {}: ffmpeg stopped accepting frames", options_.video->string()));
   }
   if (options_.dump_frame && *options_.dump_frame == frame.frame && !dumped_) {
-    write_vertex_dump(renderer_.evaluate(frame), options_.dump_path);
+    write_vertex_dump(renderer_->evaluate(frame), options_.dump_path);
     dumped_ = true;
   }
   stats_.wall_seconds = seconds_since(*first_);

@@ -69,8 +69,9 @@ Image read_png(const std::filesystem::path& path) {
   return image;
 }
 
-std::string frame_file_name(std::uint64_t frame) {
-  return fmt::format("frame_{:06d}.png", frame);
+std::string frame_file_name(std::uint64_t frame, unsigned session) {
+  if (session == 0) return fmt::format("frame_{:06d}.png", frame);
+  return fmt::format("restart{:02d}_frame_{:06d}.png", session, frame);
 }
 
 double psnr(const Image& a, const Image& b) {

@@ -1,6 +1,7 @@
 #include "phasecast/client/network.h"
 
 #include "phasecast/core/basis.h"
+#include "phasecast/core/curve_keys.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -9,6 +10,8 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <cerrno>
 #include <cstring>
 #include <regex>
 #include <type_traits>
@@ -152,7 +155,184 @@ ClientBasis basis_header(const v1::SceneInfo& scene) {
   return b;
 }
 
+// zmq::poll, where a signal (Ctrl-C, SIGTERM) counts as "nothing yet": the
+// caller's loop then sees the interrupt flag and ends cleanly.
+int poll_items(zmq::pollitem_t* items, std::size_t count, std::chrono::milliseconds timeout) {
+  try {
+    return zmq::poll(items, count, timeout);
+  } catch (const zmq::error_t& e) {
+    if (e.num() == EINTR) return 0;
+    throw;
+  }
+}
+
+// ---- connection events --------------------------------------------------------
+
+// What the connections of one client socket went through. ZeroMQ connects and
+// reconnects by itself and tells only its socket monitor: this is how a client
+// learns that its server went away and came back, and why a handshake failed.
+struct ConnectionEvents {
+  std::uint64_t connects = 0;     // TCP connections made
+  std::uint64_t handshakes = 0;   // of those, ZMTP (and CURVE) handshakes completed
+  std::string failure;            // the last failed handshake, in words; "" after a good one
+  bool failure_detailed = false;  // the server said why (ZAP status, mechanism): kept over "closed"
+};
+
+// A failed handshake in words, naming the option that fixes it.
+std::string handshake_failure(std::uint16_t event, std::uint32_t value, bool curve) {
+  if (event == ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) {
+    return fmt::format(
+        "the server refused this client's CURVE key (ZAP status {}; is its public key in the server's "
+        "--allow-clients file?)",
+        value);
+  }
+  if (event == ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL && value == ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH) {
+    return curve ? "the server does not use CURVE (it was started without --curve-secret-key; drop "
+                   "--server-key)"
+                 : "the server requires CURVE (give --server-key with the server's public key file)";
+  }
+  if (event == ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL) {
+    return fmt::format("the {}handshake failed (ZMTP protocol error 0x{:x}{})", curve ? "CURVE " : "", value,
+                       curve ? "; is --server-key this server's public key?" : "");
+  }
+  // No detail: the server closed the connection in the middle, which is what
+  // a CURVE server does with a hello it cannot decrypt or a plain greeting.
+  const std::string why = value ? fmt::format(" ({})", zmq_strerror(static_cast<int>(value))) : "";
+  return curve ? fmt::format(
+                     "the server closed the connection during the CURVE handshake{} (is --server-key "
+                     "this server's public key, and does the server use CURVE?)",
+                     why)
+               : fmt::format(
+                     "the server closed the connection during the handshake{} (a server that requires "
+                     "CURVE does that: give --server-key)",
+                     why);
+}
+
+constexpr int kMonitoredEvents = ZMQ_EVENT_CONNECTED | ZMQ_EVENT_HANDSHAKE_SUCCEEDED |
+                                 ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
+                                 ZMQ_EVENT_HANDSHAKE_FAILED_AUTH;
+
+// The monitor of one socket (zmq_socket_monitor) and the PAIR its events
+// arrive on. Set up before the socket connects, so no event is missed.
+class SocketMonitor {
+ public:
+  SocketMonitor(zmq::socket_t& socket, bool curve) : socket_(socket), curve_(curve) {
+    static std::atomic<unsigned> counter{0};
+    const std::string endpoint = fmt::format("inproc://phasecast-monitor-{}", counter++);
+    if (zmq_socket_monitor(socket_.handle(), endpoint.c_str(), kMonitoredEvents) != 0) {
+      throw NetworkError(fmt::format("cannot monitor a ZeroMQ socket: {}", zmq_strerror(zmq_errno())));
+    }
+    // The monitor sends from ZeroMQ's I/O thread and would wait there when
+    // this side fell behind: no receive limit, and events are read often.
+    pair_.set(zmq::sockopt::rcvhwm, 0);
+    pair_.set(zmq::sockopt::linger, 0);
+    pair_.connect(endpoint);
+  }
+  // Stops the monitor before its PAIR goes, so no event is sent to nobody.
+  ~SocketMonitor() { zmq_socket_monitor(socket_.handle(), nullptr, 0); }
+  SocketMonitor(const SocketMonitor&) = delete;
+  SocketMonitor& operator=(const SocketMonitor&) = delete;
+
+  zmq::socket_t& events_socket() { return pair_; }
+
+  // Reads the pending events into `events` without waiting.
+  void drain(ConnectionEvents& events) {
+    for (;;) {
+      std::vector<zmq::message_t> parts;
+      if (!zmq::recv_multipart(pair_, std::back_inserter(parts), zmq::recv_flags::dontwait)) return;
+      if (parts.size() != 2 || parts[0].size() != 6) continue;
+      std::uint16_t event = 0;
+      std::uint32_t value = 0;
+      std::memcpy(&event, parts[0].data(), sizeof event);
+      std::memcpy(&value, static_cast<const char*>(parts[0].data()) + sizeof event, sizeof value);
+      if (event == ZMQ_EVENT_CONNECTED) {
+        ++events.connects;
+      } else if (event == ZMQ_EVENT_HANDSHAKE_SUCCEEDED) {
+        ++events.handshakes;
+        events.failure.clear();
+        events.failure_detailed = false;
+      } else if (event & kMonitoredEvents) {
+        // Which side notices first is a race; the reason the server gave wins.
+        const bool detailed = event != ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL;
+        if (detailed || !events.failure_detailed) events.failure = handshake_failure(event, value, curve_);
+        events.failure_detailed = events.failure_detailed || detailed;
+      }
+    }
+  }
+
+ private:
+  zmq::socket_t& socket_;
+  zmq::socket_t pair_{context(), zmq::socket_type::pair};
+  bool curve_;
+};
+
+// Why a connection that should carry messages does not, as far as its events
+// tell; "" when they tell nothing.
+std::string connection_problem(const ConnectionEvents& e, bool curve) {
+  if (!e.failure.empty()) return e.failure;
+  if (e.connects > e.handshakes && e.handshakes == 0) {
+    return curve ? "the server closes every connection during the CURVE handshake (is --server-key this "
+                   "server's public key, and does the server use CURVE?)"
+                 : "the server closes every connection during the handshake (a server that requires CURVE "
+                   "does that: give --server-key)";
+  }
+  return {};
+}
+
+void apply_curve(zmq::socket_t& socket, const CurveClientKeys& keys) {
+  if (!keys.enabled()) return;
+  socket.set(zmq::sockopt::curve_serverkey, keys.server_public);
+  socket.set(zmq::sockopt::curve_publickey, keys.client_public);
+  socket.set(zmq::sockopt::curve_secretkey, keys.client_secret);
+}
+
+// `read()` of a key file, its error naming the option too.
+template <class Read>
+auto read_key_file(const char* option, Read&& read) {
+  try {
+    return read();
+  } catch (const core::KeyFileError& e) {
+    throw std::invalid_argument(fmt::format("{}: {}", option, e.what()));
+  }
+}
+
 }  // namespace
+
+CurveClientKeys load_curve_client_keys(const std::filesystem::path& server_key,
+                                       const std::filesystem::path& client_key) {
+  CurveClientKeys keys;
+  if (server_key.empty()) {
+    if (!client_key.empty()) {
+      throw std::invalid_argument(fmt::format(
+          "--client-key {} needs --server-key FILE (the server's public key; CURVE authenticates both sides)",
+          client_key.string()));
+    }
+    return keys;
+  }
+  if (!zmq_has("curve")) {
+    throw std::invalid_argument(
+        fmt::format("--server-key {}: this build's libzmq has no CURVE support", server_key.string()));
+  }
+  keys.server_public = read_key_file("--server-key", [&] { return core::read_public_key_file(server_key); });
+  if (!client_key.empty()) {
+    const auto pair = read_key_file("--client-key", [&] { return core::read_secret_key_file(client_key); });
+    keys.client_public = pair.public_z85;
+    keys.client_secret = pair.secret_z85;
+    return keys;
+  }
+  // No identity of our own: a key pair for this process only, which a server
+  // with an allow-list refuses.
+  std::array<char, 41> pub{}, sec{};
+  if (zmq_curve_keypair(pub.data(), sec.data()) != 0) {
+    throw std::invalid_argument(fmt::format("--server-key {}: cannot make an ephemeral CURVE key pair: {}",
+                                            server_key.string(), zmq_strerror(zmq_errno())));
+  }
+  keys.client_public = pub.data();
+  keys.client_secret = sec.data();
+  return keys;
+}
+
+namespace {}  // namespace
 
 std::string basis_part_name(v1::BasisPart part) {
   const auto* spec = core::find_basis_part_spec(part);
@@ -165,20 +345,58 @@ struct CommandClient::Impl {
   std::string endpoint;
   std::chrono::milliseconds timeout;
   int attempts;
+  CurveClientKeys curve;
   std::unique_ptr<zmq::socket_t> socket;
+  std::unique_ptr<SocketMonitor> monitor;  // of `socket`, which must outlive it
+  ConnectionEvents events;                 // summed over every socket so far
 
   void reconnect() {
+    if (monitor) monitor->drain(events);
+    monitor.reset();
     socket = std::make_unique<zmq::socket_t>(context(), zmq::socket_type::dealer);
     socket->set(zmq::sockopt::linger, 0);
+    apply_curve(*socket, curve);
+    monitor = std::make_unique<SocketMonitor>(*socket, curve.enabled());
     socket->connect(endpoint);
+  }
+
+  // The reply to `request` within one attempt's timeout, or nullopt.
+  std::optional<v1::Reply> await_reply(const v1::Request& request, const std::string& what) {
+    auto& s = *socket;
+    zmq::pollitem_t item{static_cast<void*>(s), 0, ZMQ_POLLIN, 0};
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      const auto left =
+          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      if (poll_items(&item, 1, std::max(left, std::chrono::milliseconds(1))) <= 0) continue;
+      std::vector<zmq::message_t> parts;
+      (void)zmq::recv_multipart(s, std::back_inserter(parts));
+      v1::Reply reply;
+      if (parts.empty() ||
+          !reply.ParseFromArray(parts.back().data(), static_cast<int>(parts.back().size()))) {
+        throw NetworkError(fmt::format("{}: the reply from {} does not parse as a Reply", what, endpoint));
+      }
+      if (reply.id() != request.id() && reply.id() != 0) continue;  // a late answer to an abandoned attempt
+      return reply;
+    }
+    return std::nullopt;
+  }
+
+  // "(is phasecast-server running?)", or what the connection saw instead.
+  std::string no_reply_hint() {
+    monitor->drain(events);
+    const std::string problem = connection_problem(events, curve.enabled());
+    return problem.empty() ? "is phasecast-server running?" : problem;
   }
 };
 
-CommandClient::CommandClient(std::string endpoint, std::chrono::milliseconds timeout, int attempts)
+CommandClient::CommandClient(std::string endpoint, std::chrono::milliseconds timeout, int attempts,
+                             CurveClientKeys curve)
     : endpoint_(std::move(endpoint)), impl_(std::make_unique<Impl>()) {
   impl_->endpoint = endpoint_;
   impl_->timeout = timeout;
   impl_->attempts = std::max(1, attempts);
+  impl_->curve = std::move(curve);
   try {
     impl_->reconnect();
   } catch (const zmq::error_t& e) {
@@ -195,31 +413,28 @@ v1::Reply CommandClient::call(v1::Request request, const std::string& what) {
   request.set_id(next_id_++);
   const std::string payload = request.SerializeAsString();
   for (int attempt = 0; attempt < impl_->attempts; ++attempt) {
-    auto& s = *impl_->socket;
-    s.send(zmq::message_t(), zmq::send_flags::sndmore);
-    s.send(zmq::buffer(payload), zmq::send_flags::none);
-    zmq::pollitem_t item{static_cast<void*>(s), 0, ZMQ_POLLIN, 0};
-    const auto deadline = std::chrono::steady_clock::now() + impl_->timeout;
-    while (std::chrono::steady_clock::now() < deadline) {
-      const auto left =
-          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-      if (zmq::poll(&item, 1, std::max(left, std::chrono::milliseconds(1))) <= 0) continue;
-      std::vector<zmq::message_t> parts;
-      (void)zmq::recv_multipart(s, std::back_inserter(parts));
-      v1::Reply reply;
-      if (parts.empty() ||
-          !reply.ParseFromArray(parts.back().data(), static_cast<int>(parts.back().size()))) {
-        throw NetworkError(fmt::format("{}: the reply from {} does not parse as a Reply", what, endpoint_));
-      }
-      if (reply.id() != request.id() && reply.id() != 0) continue;  // a late answer to an abandoned attempt
-      if (!reply.ok()) throw NetworkError(fmt::format("{}: server refused: {}", what, reply.error()));
-      return reply;
+    impl_->socket->send(zmq::message_t(), zmq::send_flags::sndmore);
+    impl_->socket->send(zmq::buffer(payload), zmq::send_flags::none);
+    if (auto reply = impl_->await_reply(request, what)) {
+      if (!reply->ok()) throw NetworkError(fmt::format("{}: server refused: {}", what, reply->error()));
+      return *reply;
     }
-    impl_->reconnect();  // Lazy Pirate: a fresh socket drops the lost request
+    if (attempt + 1 < impl_->attempts)
+      impl_->reconnect();  // Lazy Pirate: a fresh socket drops the lost request
   }
-  throw NetworkError(
-      fmt::format("{}: no reply from {} after {} attempts of {} ms (is phasecast-server running?)", what,
-                  endpoint_, impl_->attempts, impl_->timeout.count()));
+  const std::string hint = impl_->no_reply_hint();
+  impl_->reconnect();  // the next call starts on a fresh socket too
+  throw NoReplyError(fmt::format("{}: no reply from {} after {} attempts of {} ms ({})", what, endpoint_,
+                                 impl_->attempts, impl_->timeout.count(), hint));
+}
+
+void CommandClient::set_attempts(int attempts) {
+  impl_->attempts = std::max(1, attempts);
+}
+
+std::uint64_t CommandClient::connections() {
+  impl_->monitor->drain(impl_->events);
+  return impl_->events.handshakes;
 }
 
 v1::SceneList CommandClient::list_scenes() {
@@ -256,12 +471,24 @@ ClientBasis CommandClient::download_basis(
 
 struct FrameSubscriber::Impl {
   zmq::socket_t socket{context(), zmq::socket_type::sub};
+  std::unique_ptr<SocketMonitor> monitor;  // of `socket`, which must outlive it
+  ConnectionEvents events;
+  bool curve = false;
+  std::uint64_t acknowledged = 0;  // handshakes take_reconnected() has answered for
+  std::uint64_t returned_at = 0;   // handshakes receive() last returned early for
+
+  // A connection was lost and made again and nobody has been told yet.
+  bool reconnect_pending() const { return events.handshakes > 1 && events.handshakes != acknowledged; }
 };
 
-FrameSubscriber::FrameSubscriber(const std::string& endpoint, std::uint32_t instance)
+FrameSubscriber::FrameSubscriber(const std::string& endpoint, std::uint32_t instance,
+                                 const CurveClientKeys& curve)
     : impl_(std::make_unique<Impl>()), instance_(instance) {
   impl_->socket.set(zmq::sockopt::linger, 0);
   impl_->socket.set(zmq::sockopt::subscribe, fmt::format("inst/{}/", instance));
+  apply_curve(impl_->socket, curve);
+  impl_->curve = curve.enabled();
+  impl_->monitor = std::make_unique<SocketMonitor>(impl_->socket, impl_->curve);
   try {
     impl_->socket.connect(endpoint);
   } catch (const zmq::error_t& e) {
@@ -273,33 +500,60 @@ FrameSubscriber::~FrameSubscriber() = default;
 
 std::optional<v1::Frame> FrameSubscriber::receive(std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
-  zmq::pollitem_t item{static_cast<void*>(impl_->socket), 0, ZMQ_POLLIN, 0};
+  std::array<zmq::pollitem_t, 2> items{
+      {{static_cast<void*>(impl_->socket), 0, ZMQ_POLLIN, 0},
+       {static_cast<void*>(impl_->monitor->events_socket()), 0, ZMQ_POLLIN, 0}}};
   for (;;) {
+    impl_->monitor->drain(impl_->events);
+    // Frames of a restarted server wait until the caller has looked at it.
+    if (impl_->reconnect_pending() && impl_->returned_at != impl_->events.handshakes) {
+      impl_->returned_at = impl_->events.handshakes;
+      return std::nullopt;
+    }
     const auto left =
         std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0 || zmq::poll(&item, 1, left) <= 0) return std::nullopt;
-    std::vector<zmq::message_t> parts;
-    (void)zmq::recv_multipart(impl_->socket, std::back_inserter(parts));
-    v1::Frame frame;
-    if (parts.size() != 2 || !frame.ParseFromArray(parts[1].data(), static_cast<int>(parts[1].size())) ||
-        frame.instance() != instance_) {
-      ++malformed_;
-      continue;
+    // Past the deadline one last look without waiting (timeout 0: a non-blocking read).
+    if (poll_items(items.data(), items.size(), std::max(left, std::chrono::milliseconds(0))) <= 0) {
+      return std::nullopt;
     }
-    return frame;
+    if (items[0].revents & ZMQ_POLLIN) {
+      std::vector<zmq::message_t> parts;
+      (void)zmq::recv_multipart(impl_->socket, std::back_inserter(parts));
+      v1::Frame frame;
+      if (parts.size() == 2 && frame.ParseFromArray(parts[1].data(), static_cast<int>(parts[1].size())) &&
+          frame.instance() == instance_) {
+        return frame;
+      }
+      ++malformed_;
+    }
+    if (left.count() <= 0) return std::nullopt;
   }
+}
+
+bool FrameSubscriber::take_reconnected() {
+  impl_->monitor->drain(impl_->events);
+  const bool again = impl_->reconnect_pending();
+  impl_->acknowledged = impl_->events.handshakes;
+  return again;
+}
+
+std::string FrameSubscriber::connection_problem() {
+  impl_->monitor->drain(impl_->events);
+  return client::connection_problem(impl_->events, impl_->curve);
 }
 
 // ---- helpers --------------------------------------------------------------------
 
-void SequenceTracker::observe(std::uint64_t seq) {
+bool SequenceTracker::observe(std::uint64_t seq) {
+  const bool restarted = last && seq <= *last;
   if (last && seq > *last + 1) {
     missed += seq - *last - 1;
     ++gaps;
-  } else if (last && seq <= *last) {
+  } else if (restarted) {
     ++restarts;
   }
   last = seq;
+  return restarted;
 }
 
 std::string resolve_pub_endpoint(const std::string& pub, const std::string& command) {

@@ -2,6 +2,7 @@
 
 #include "phasecast/client/frame_output.h"
 #include "phasecast/client/frame_sources.h"
+#include "phasecast/client/image_io.h"
 #include "phasecast/client/network.h"
 #include "phasecast/core/hash.h"
 
@@ -15,6 +16,7 @@
 #include <csignal>
 #include <ostream>
 #include <thread>
+#include <utility>
 
 namespace phasecast::client {
 namespace {
@@ -45,6 +47,11 @@ void check_source(const RenderOptions& o) {
     throw std::invalid_argument("--instance needs --connect tcp://host:5555 or --replay stream.rec");
   }
   if (o.instance && !o.create.empty()) throw std::invalid_argument("give --instance or --create, not both");
+  if ((!o.server_key.empty() || !o.client_key.empty()) && o.connect.empty()) {
+    throw std::invalid_argument(
+        fmt::format("{} needs --connect tcp://host:5555 (CURVE secures the connection)",
+                    o.server_key.empty() ? "--client-key" : "--server-key"));
+  }
   for (const auto& [name, value] :
        {std::pair{"--frame-timeout", o.frame_timeout_s}, std::pair{"--request-timeout", o.request_timeout_s},
         std::pair{"--give-up-after", o.give_up_after_s}}) {
@@ -82,7 +89,8 @@ Camera camera_for(const ClientBasis& basis, const RenderOptions& o) {
   return c;
 }
 
-// Backend, renderer and outputs for one set of bases.
+// Backend, renderer and outputs. The renderer holds one set of bases; the
+// backend and the outputs last the whole run.
 struct RenderTarget {
   std::unique_ptr<RenderBackend> backend;
   std::unique_ptr<LowRankRenderer> renderer;
@@ -91,10 +99,7 @@ struct RenderTarget {
   // `frame_rate`: frames per second of the stream (1 / dt), for the video.
   RenderTarget(const ClientBasis& basis, const RenderOptions& o, const ShLight& light, double frame_rate) {
     backend = make_render_backend(o.backend, o.width, o.height);
-    renderer = std::make_unique<LowRankRenderer>(*backend, basis, o.width, o.height);
-    renderer->set_light(light);
-    renderer->set_camera(camera_for(basis, o));
-    renderer->set_exposure(o.exposure);
+    make_renderer(basis, o, light);
     OutputOptions out;
     out.png_dir = o.out_dir;
     out.video = o.video;
@@ -102,6 +107,22 @@ struct RenderTarget {
     out.dump_frame = o.dump_frame;
     out.dump_path = o.dump_path;
     output = std::make_unique<FrameOutput>(*renderer, o.width, o.height, out);
+  }
+
+  // New bases (the server came back with another package): a new renderer on
+  // the same context; the window, the PNG numbering and the video go on.
+  void replace_bases(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
+    renderer.reset();  // frees the old bases' GPU buffers first
+    make_renderer(basis, o, light);
+    output->set_renderer(*renderer);
+  }
+
+ private:
+  void make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
+    renderer = std::make_unique<LowRankRenderer>(*backend, basis, o.width, o.height);
+    renderer->set_light(light);
+    renderer->set_camera(camera_for(basis, o));
+    renderer->set_exposure(o.exposure);
   }
 };
 
@@ -247,93 +268,247 @@ ClientBasis download(CommandClient& cmd, const v1::SceneInfo& scene, std::ostrea
   return cmd.download_basis(scene, 1u << 20, progress);
 }
 
-void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log) {
-  using namespace std::chrono;
-  const auto request_timeout = duration_cast<milliseconds>(duration<double>(o.request_timeout_s));
-  auto cmd = std::make_unique<CommandClient>(o.connect, request_timeout, 3);
-  std::optional<std::uint32_t> created;
-  Subscription sub = resolve(*cmd, o, created);
-  if (!o.create.empty()) created = sub.instance;
-  ClientBasis basis = download(*cmd, sub.scene, log);
-  auto target = std::make_unique<RenderTarget>(basis, o, light, 1.0 / sub.scene.dt());
-  keep_sizes_only(basis);
-  fmt::print(log, "phasecast-render: {} ({}), following instance {} of '{}' on {}\n",
-             target->renderer->gl_description(), o.backend, sub.instance, basis.scene, sub.pub_endpoint);
-  auto subscriber = std::make_unique<FrameSubscriber>(sub.pub_endpoint, sub.instance);
-  SequenceTracker sequence;
-  RenderStats done;  // stats of renderers replaced after a basis change
-  std::uint64_t reconnects = 0, rendered = 0, rejected = 0;
-  const auto frame_timeout = duration_cast<milliseconds>(duration<double>(o.frame_timeout_s));
-  while (!g_interrupted && target->backend->open() && (o.max_frames == 0 || rendered < o.max_frames)) {
-    if (auto frame = subscriber->receive(frame_timeout)) {
-      sequence.observe(frame->seq());
-      const FrameState state = frame_state(*frame);
-      try {
-        validate_frame(state, basis, fmt::format("instance {}", sub.instance));
-      } catch (const std::invalid_argument& e) {
-        // One bad frame must not end the session: report it, keep the last good one.
-        ++rejected;
-        fmt::print(log, "phasecast-render: skipped {}\n", e.what());
-        continue;
-      }
-      target->output->render(state);
-      report_progress(log, target->output->stats(), state.frame, o.max_frames);
-      ++rendered;
-      continue;
-    }
-    // Silence: keep the last frame on screen/disk and reconnect with backoff.
-    fmt::print(log, "phasecast-render: no frames for {:.1f} s; reconnecting to {}\n", o.frame_timeout_s,
-               o.connect);
-    const auto give_up =
-        steady_clock::now() + duration_cast<steady_clock::duration>(duration<double>(o.give_up_after_s));
-    auto backoff = milliseconds(250);
-    for (;;) {
-      if (g_interrupted) break;
-      try {
-        cmd = std::make_unique<CommandClient>(o.connect, request_timeout, 1);
-        sub = resolve(*cmd, o, created);
-        if (!o.create.empty()) created = sub.instance;
-        break;
-      } catch (const NetworkError& e) {
-        if (steady_clock::now() + backoff > give_up) {
-          throw NetworkError(fmt::format("server at {} gone for more than {:.0f} s: {}", o.connect,
-                                         o.give_up_after_s, e.what()));
-        }
-        std::this_thread::sleep_for(backoff);
-        backoff = std::min(backoff * 2, milliseconds(4000));
-      }
-    }
-    if (g_interrupted) break;
-    ++reconnects;
-    if (sub.scene.content_hash() != basis.content_hash || sub.scene.name() != basis.scene) {
-      fmt::print(log, "phasecast-render: bases changed (hash {:016x} -> {:016x}); downloading again\n",
-                 basis.content_hash, sub.scene.content_hash());
-      basis = download(*cmd, sub.scene, log);
-      target->output->finish();
-      const auto& s = target->output->stats();
-      done.frames += s.frames;
-      done.render_seconds += s.render_seconds;
-      done.wall_seconds += s.wall_seconds;
-      target.reset();
-      target = std::make_unique<RenderTarget>(basis, o, light, 1.0 / sub.scene.dt());
-      keep_sizes_only(basis);
-    } else {
-      fmt::print(log, "phasecast-render: reconnected; bases unchanged (hash {:016x})\n", basis.content_hash);
-    }
-    subscriber = std::make_unique<FrameSubscriber>(sub.pub_endpoint, sub.instance);
-    sequence.last.reset();  // a new subscription: numbering may start anywhere
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+std::chrono::milliseconds milliseconds_of(double seconds) {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::duration<double>(seconds));
+}
+
+// Follows one instance of a server, also across restarts of the server
+// (docs/client.md, "Network mode"). Frames are drawn while they match the
+// bases the client holds; when the connection comes back after a loss, when
+// the sequence starts again or when a frame is rejected, it asks the server
+// again and downloads the bases before drawing on if their hash changed.
+// Each such event is one line, never one per frame. --give-up-after bounds
+// the time without a rendered frame, whatever the reason.
+class NetworkSession {
+ public:
+  NetworkSession(const RenderOptions& o, const ShLight& light, std::ostream& log)
+      : o_(o),
+        light_(light),
+        log_(log),
+        curve_(load_curve_client_keys(o.server_key, o.client_key)),
+        request_timeout_(milliseconds_of(o.request_timeout_s)),
+        frame_timeout_(milliseconds_of(o.frame_timeout_s)) {
+    cmd_ = std::make_unique<CommandClient>(o.connect, request_timeout_, 3, curve_);
+    sub_ = resolve(*cmd_, o, created_);
+    if (!o.create.empty()) created_ = sub_.instance;
+    basis_ = download(*cmd_, sub_.scene, log);
+    target_ = std::make_unique<RenderTarget>(basis_, o, light, 1.0 / sub_.scene.dt());
+    keep_sizes_only(basis_);
+    fmt::print(log, "phasecast-render: {} ({}), following instance {} of '{}' on {}{}\n",
+               target_->renderer->gl_description(), o.backend, sub_.instance, basis_.scene, sub_.pub_endpoint,
+               curve_.enabled() ? " (CURVE)" : "");
+    subscribe();
+    last_rendered_ = std::chrono::steady_clock::now();
   }
-  target->output->finish();
-  RenderStats total = target->output->stats();
-  total.frames += done.frames;
-  total.render_seconds += done.render_seconds;
-  total.wall_seconds += done.wall_seconds;
-  report(log, total, o.width, o.height);
-  fmt::print(log,
-             "phasecast-render: sequence gaps {} ({} frames missed), stream restarts {}, reconnects {}, "
-             "malformed messages {}, rejected frames {}\n",
-             sequence.gaps, sequence.missed, sequence.restarts, reconnects, subscriber->malformed(),
-             rejected);
+
+  void run() {
+    while (keep_going()) {
+      check_give_up();
+      const auto left = milliseconds_of(o_.give_up_after_s - seconds_since(last_rendered_));
+      auto frame =
+          subscriber_->receive(std::max(std::chrono::milliseconds(1), std::min(left, frame_timeout_)));
+      if (subscriber_->take_reconnected()) {
+        ++reconnects_;
+        const bool resubscribed = recheck(
+            fmt::format("the frame connection to {} was lost and made again", sub_.pub_endpoint), true);
+        if (resubscribed) continue;  // `frame` came through the old subscription
+        restart_explained_ = true;   // the new server's first frame steps back: already checked
+      }
+      if (frame) {
+        handle(*frame);
+      } else if (seconds_since(last_received_) >= o_.frame_timeout_s) {
+        reconnect(fmt::format("no frames for {:.1f} s", o_.frame_timeout_s));
+      }
+    }
+  }
+
+  void finish() {
+    target_->output->finish();
+    report(log_, target_->output->stats(), o_.width, o_.height);
+    fmt::print(log_,
+               "phasecast-render: sequence gaps {} ({} frames missed), stream restarts {}, reconnects {}, "
+               "malformed messages {}, rejected frames {}\n",
+               sequence_.gaps, sequence_.missed, sequence_.restarts, reconnects_,
+               malformed_ + subscriber_->malformed(), rejected_);
+  }
+
+ private:
+  bool keep_going() const {
+    return !g_interrupted && target_->backend->open() && (o_.max_frames == 0 || rendered_ < o_.max_frames);
+  }
+
+  void handle(const v1::Frame& frame) {
+    last_received_ = std::chrono::steady_clock::now();
+    if (sequence_.observe(frame.seq()) && !std::exchange(restart_explained_, false)) {
+      // A restarted server, maybe with another package: ask before drawing.
+      const auto why =
+          fmt::format("instance {}: the stream started again (seq {})", sub_.instance, frame.seq());
+      if (recheck(why, true)) return;
+    }
+    const FrameState state = frame_state(frame);
+    try {
+      check_frame(frame, state);
+    } catch (const std::invalid_argument& e) {
+      reject(e.what());
+      return;
+    }
+    if (rejected_run_ > 1)
+      fmt::print(log_, "phasecast-render: rendering again after {} rejected frames\n", rejected_run_);
+    rejected_run_ = 0;
+    render(state);
+  }
+
+  // The frame must fit the bases held (one bad frame never ends the session).
+  void check_frame(const v1::Frame& frame, const FrameState& state) const {
+    const std::string source = fmt::format("instance {}", sub_.instance);
+    if (!frame.scene().empty() && frame.scene() != basis_.scene) {
+      throw std::invalid_argument(
+          fmt::format("{}: frame {}: scene '{}' (expected '{}', whose bases this client holds)", source,
+                      state.frame, frame.scene(), basis_.scene));
+    }
+    validate_frame(state, basis_, source);
+  }
+
+  void render(const FrameState& state) {
+    const unsigned session = target_->output->session();
+    target_->output->render(state);
+    if (target_->output->session() != session && o_.out_dir) {
+      fmt::print(log_, "phasecast-render: frame numbers started again at {}; PNGs from now on: {}\n",
+                 state.frame, frame_file_name(state.frame, target_->output->session()));
+    }
+    report_progress(log_, target_->output->stats(), state.frame, o_.max_frames);
+    ++rendered_;
+    last_rendered_ = std::chrono::steady_clock::now();
+    stalled_.clear();
+  }
+
+  // The first rejected frame of a run is printed and makes the client ask the
+  // server again (another package?); the rest of the run is only counted, and
+  // asks again at most once per --frame-timeout.
+  void reject(const std::string& why) {
+    ++rejected_;
+    ++rejected_run_;
+    stalled_ = fmt::format("every frame was rejected (last: {})", why);
+    if (rejected_run_ == 1) fmt::print(log_, "phasecast-render: skipped {}\n", why);
+    if (rejected_run_ == 1 || seconds_since(last_recheck_) >= o_.frame_timeout_s) recheck(why, false);
+  }
+
+  // Asks the server which instance and bases to follow; downloads the bases
+  // when their hash changed. `announce`: say why and what came out, even when
+  // nothing changed. Returns whether the subscription was replaced.
+  bool recheck(const std::string& why, bool announce) {
+    last_recheck_ = std::chrono::steady_clock::now();
+    if (announce) fmt::print(log_, "phasecast-render: {}; checking the server's bases\n", why);
+    try {
+      return adopt(resolve(*cmd_, o_, created_), false, announce);
+    } catch (const NetworkError& e) {
+      reconnect(e.what());  // gone again, or the instance is not there (yet)
+      return true;
+    }
+  }
+
+  // The server is gone: new connections until one answers, or until
+  // --give-up-after has passed without a rendered frame.
+  void reconnect(const std::string& why) {
+    fmt::print(log_, "phasecast-render: {}; reconnecting to {}\n", why, o_.connect);
+    log_.flush();
+    auto backoff = std::chrono::milliseconds(250);
+    while (!g_interrupted) {
+      check_give_up();
+      try {
+        // One try per attempt while the server is gone; once it answers, the
+        // download and later requests get the usual three.
+        cmd_ = std::make_unique<CommandClient>(o_.connect, request_timeout_, 1, curve_);
+        const Subscription next = resolve(*cmd_, o_, created_);
+        cmd_->set_attempts(3);
+        ++reconnects_;
+        adopt(next, true, true);
+        return;
+      } catch (const NoReplyError& e) {
+        // The request waited for the server, which answers it as soon as it is
+        // back: try again at once.
+        stalled_ = fmt::format("server at {} gone: {}", o_.connect, e.what());
+        continue;
+      } catch (const NetworkError& e) {
+        stalled_ = fmt::format("server at {}: {}", o_.connect, e.what());
+      }
+      // The server answered but refused (an instance not there yet?): pause.
+      const auto left = milliseconds_of(o_.give_up_after_s - seconds_since(last_rendered_));
+      std::this_thread::sleep_for(std::clamp(left, std::chrono::milliseconds(0), backoff));
+      backoff = std::min(backoff * 2, std::chrono::milliseconds(1000));
+    }
+  }
+
+  // Takes `next` as the subscription, with new bases if their hash changed.
+  bool adopt(const Subscription& next, bool resubscribe, bool announce) {
+    const bool changed =
+        next.scene.content_hash() != basis_.content_hash || next.scene.name() != basis_.scene;
+    if (changed) {
+      fmt::print(log_, "phasecast-render: bases changed (hash {:016x} -> {:016x}); downloading again\n",
+                 basis_.content_hash, next.scene.content_hash());
+      ClientBasis fresh = download(*cmd_, next.scene, log_);
+      target_->replace_bases(fresh, o_, light_);
+      keep_sizes_only(fresh);
+      basis_ = std::move(fresh);
+    } else if (announce) {
+      fmt::print(log_, "phasecast-render: reconnected; bases unchanged (hash {:016x})\n",
+                 basis_.content_hash);
+    }
+    log_.flush();
+    resubscribe =
+        resubscribe || changed || next.instance != sub_.instance || next.pub_endpoint != sub_.pub_endpoint;
+    sub_ = next;
+    if (!o_.create.empty()) created_ = sub_.instance;
+    if (resubscribe) subscribe();
+    return resubscribe;
+  }
+
+  void subscribe() {
+    if (subscriber_) malformed_ += subscriber_->malformed();
+    subscriber_ = std::make_unique<FrameSubscriber>(sub_.pub_endpoint, sub_.instance, curve_);
+    sequence_.last.reset();  // a new subscription: numbering may start anywhere
+    restart_explained_ = false;
+    last_received_ = std::chrono::steady_clock::now();
+  }
+
+  void check_give_up() {
+    if (seconds_since(last_rendered_) <= o_.give_up_after_s) return;
+    std::string why = stalled_;
+    if (why.empty()) {
+      const std::string problem = subscriber_->connection_problem();
+      why = fmt::format("no frames of instance {} came from {}{}", sub_.instance, sub_.pub_endpoint,
+                        problem.empty() ? "" : ": " + problem);
+    }
+    throw NetworkError(
+        fmt::format("no frame rendered for {:.0f} s (--give-up-after): {}", o_.give_up_after_s, why));
+  }
+
+  const RenderOptions& o_;
+  const ShLight& light_;
+  std::ostream& log_;
+  const CurveClientKeys curve_;
+  const std::chrono::milliseconds request_timeout_, frame_timeout_;
+  std::unique_ptr<CommandClient> cmd_;
+  std::optional<std::uint32_t> created_;  // --create: the instance made, made again after a restart
+  Subscription sub_;
+  ClientBasis basis_;  // sizes, scene and hash only, once on the GPU
+  std::unique_ptr<RenderTarget> target_;
+  std::unique_ptr<FrameSubscriber> subscriber_;
+  SequenceTracker sequence_;
+  std::uint64_t reconnects_ = 0, rendered_ = 0, rejected_ = 0, rejected_run_ = 0, malformed_ = 0;
+  bool restart_explained_ = false;  // a reconnect was checked; the step back of seq it brings needs no check
+  std::chrono::steady_clock::time_point last_rendered_, last_received_, last_recheck_;
+  std::string stalled_;  // why nothing is rendered, for the give-up message; "" while frames are drawn
+};
+
+void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log) {
+  NetworkSession session(o, light, log);
+  session.run();
+  session.finish();
 }
 
 }  // namespace

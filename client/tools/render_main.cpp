@@ -38,7 +38,11 @@ int main(int argc, char** argv) {
                              fmt::join(phasecast::client::render_backend_names(), ", ")));
   app.add_option("--size", size, "image size WIDTHxHEIGHT (default 512x512)");
   app.add_option("--frames", o.max_frames, "stop after this many frames (0: all / until interrupted)");
-  app.add_option("--out", out, "write PNG frames frame_%06d.png (server frame numbers) into this directory");
+  app.add_option(
+      "--out", out,
+      "write PNG frames into this directory: frame_%06d.png (the server's frame numbers); when "
+      "frame numbers start again (a restarted server), restart01_frame_%06d.png, restart02_..., so "
+      "no file is replaced");
   app.add_option("--video", video, "write an MP4 through ffmpeg");
   app.add_option("--light", o.light,
                  fmt::format("SH light probe: {} (default grace)",
@@ -55,9 +59,17 @@ int main(int argc, char** argv) {
   app.add_option("--frame-timeout", o.frame_timeout_s,
                  "network: seconds without frames before reconnecting (default 3)");
   app.add_option("--give-up-after", o.give_up_after_s,
-                 "network: seconds of failed reconnects before exiting (default 60)");
+                 "network: exit with status 1 when no frame could be rendered for this many seconds (server "
+                 "gone, no frames, only rejected frames; default 60)");
   app.add_option("--request-timeout", o.request_timeout_s,
                  "network: seconds to wait for each reply (default 2)");
+  std::string server_key, client_key;
+  app.add_option("--server-key", server_key,
+                 "network: CURVE: the server's public key file (NAME.pub); encrypts both connections and "
+                 "checks the server's identity");
+  app.add_option("--client-key", client_key,
+                 "network: CURVE: this client's secret key file (NAME.key), for servers with an allow-list "
+                 "(--allow-clients); without it a fresh key pair is used");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -77,6 +89,8 @@ int main(int argc, char** argv) {
     if (!package.empty()) o.package = package;
     if (!out.empty()) o.out_dir = out;
     if (!video.empty()) o.video = video;
+    o.server_key = server_key;
+    o.client_key = client_key;
     if (!dump.empty()) {
       std::size_t used = 0;
       try {

@@ -9,6 +9,7 @@
 #include "phasecast/client/image_io.h"
 #include "phasecast/client/network.h"
 #include "phasecast/client/render_backend.h"
+#include "phasecast/core/curve_keys.h"
 #include "phasecast/core/recording.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
@@ -226,10 +227,77 @@ TEST(ClientBackends, WindowWithoutDisplaySaysWhatToUseInstead) {
 
 TEST(ClientNetwork, SequenceGapsAndRestartsAreCounted) {
   SequenceTracker t;
-  for (std::uint64_t s : {0, 1, 2, 5, 6, 9, 0, 1}) t.observe(s);
+  std::vector<bool> restarted;
+  for (std::uint64_t s : {0, 1, 2, 5, 6, 9, 0, 1}) restarted.push_back(t.observe(s));
   EXPECT_EQ(t.gaps, 2u);
   EXPECT_EQ(t.missed, 4u);
   EXPECT_EQ(t.restarts, 1u);
+  EXPECT_EQ(restarted, (std::vector<bool>{false, false, false, false, false, false, true, false}));
+}
+
+TEST(ClientNetwork, FramesOfARestartedServerGetTheirOwnFileNames) {
+  EXPECT_EQ(frame_file_name(7, 0), "frame_000007.png");
+  EXPECT_EQ(frame_file_name(7, 1), "restart01_frame_000007.png");
+  EXPECT_EQ(frame_file_name(1234567, 12), "restart12_frame_1234567.png");
+}
+
+// --server-key / --client-key as both clients read them (load_curve_client_keys).
+class CurveKeyOptions : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::scratch_dir("curve_key_options");
+    core::write_key_files(dir_ / "server", {kServerPublic, kServerSecret});
+    core::write_key_files(dir_ / "client", {kClientPublic, kClientSecret});
+    std::ofstream(dir_ / "bad.pub") << "public = not-a-key\n";
+  }
+  std::filesystem::path file(const std::string& name) const { return dir_ / name; }
+
+  // Any 40 characters of the Z85 alphabet are well-formed keys.
+  static constexpr const char* kServerPublic = "rq:rM>}U?@Lns47E1%kR.o@n%FcmmsL/@{H8]yf7";
+  static constexpr const char* kServerSecret = "JTKVSB%%)wK0E.X)V>+}o?pNmC{O&4W4b!Ni{Lh6";
+  static constexpr const char* kClientPublic = "Yne@$w-vo<fVvi]a<NY6T1ed:M$fCG*[IaLV{hID";
+  static constexpr const char* kClientSecret = "D:)Q[IlAW!ahhC2ac:9*A}h:p?([4%wOTJ%JR%cs";
+  std::filesystem::path dir_;
+};
+
+TEST_F(CurveKeyOptions, NoKeysMeansNoCurve) {
+  EXPECT_FALSE(load_curve_client_keys({}, {}).enabled());
+}
+
+TEST_F(CurveKeyOptions, KeyFilesAreRead) {
+  const auto keys = load_curve_client_keys(file("server.pub"), file("client.key"));
+  EXPECT_TRUE(keys.enabled());
+  EXPECT_EQ(keys.server_public, kServerPublic);
+  EXPECT_EQ(keys.client_public, kClientPublic);
+  EXPECT_EQ(keys.client_secret, kClientSecret);
+}
+
+TEST_F(CurveKeyOptions, ServerKeyAloneMakesAFreshEphemeralPair) {
+  const auto a = load_curve_client_keys(file("server.pub"), {});
+  const auto b = load_curve_client_keys(file("server.pub"), {});
+  EXPECT_EQ(a.server_public, kServerPublic);
+  EXPECT_TRUE(core::is_z85_key(a.client_public));
+  EXPECT_TRUE(core::is_z85_key(a.client_secret));
+  EXPECT_NE(a.client_public, b.client_public);  // never a key shared between runs
+}
+
+TEST_F(CurveKeyOptions, ErrorsNameTheOptionAndTheFile) {
+  EXPECT_EQ(
+      error_of<std::invalid_argument>([&] { load_curve_client_keys({}, file("client.key")); }),
+      fmt::format("--client-key {} needs --server-key FILE (the server's public key; CURVE authenticates "
+                  "both sides)",
+                  file("client.key").string()));
+  EXPECT_EQ(error_of<std::invalid_argument>([&] { load_curve_client_keys(file("none.pub"), {}); }),
+            fmt::format("--server-key: key file '{}' cannot be read: No such file or directory",
+                        file("none.pub").string()));
+  EXPECT_THAT(error_of<std::invalid_argument>([&] { load_curve_client_keys(file("bad.pub"), {}); }),
+              ::testing::StartsWith(
+                  fmt::format("--server-key: key file '{}' line 1: expected", file("bad.pub").string())));
+  // The public file given where this client's secret one belongs.
+  EXPECT_THAT(error_of<std::invalid_argument>(
+                  [&] { load_curve_client_keys(file("server.pub"), file("client.pub")); }),
+              ::testing::StartsWith(fmt::format("--client-key: key file '{}' is not a secret key file",
+                                                file("client.pub").string())));
 }
 
 TEST(ClientNetwork, WildcardPubHostTakesTheCommandHost) {

@@ -3,6 +3,7 @@
 // server's frame numbers equal to local rendering, two clients agree,
 // sequence gaps, reconnect with the content-hash re-check, refused requests.
 
+#include "child_process.h"
 #include "phasecast/client/image_io.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
@@ -17,6 +18,7 @@
 #include <sys/wait.h>
 
 #include <chrono>
+#include <csignal>
 #include <fstream>
 #include <regex>
 #include <thread>
@@ -214,6 +216,71 @@ TEST_F(NetworkRender, ReconnectWithUnchangedBasesDoesNotDownloadAgain) {
   const auto log = testing::read_file(dir_ / "same.log");
   EXPECT_THAT(log, HasSubstr("reconnected; bases unchanged (hash 0000000000001234)"));
   EXPECT_EQ(peer->basis_requests(), 0u);
+}
+
+// --give-up-after bounds the time without a rendered frame in every state:
+// a renderer that never exits fails these tests by running into the limit.
+class GiveUp : public NetworkRender {
+ protected:
+  // Runs the renderer against `peer`; its exit code, stdout and stderr.
+  testing::ToolResult run_until_it_gives_up(const testing::TestPeer& peer, const std::string& name) const {
+    testing::ChildProcess tool("phasecast-render",
+                               {"--connect", peer.cmd_endpoint(), "--size", "32x32", "--frame-timeout", "0.5",
+                                "--request-timeout", "0.3", "--give-up-after", "2"},
+                               dir_ / name);
+    const auto code = tool.wait(std::chrono::seconds(60));
+    if (!code) tool.stop(SIGKILL);
+    return {code.value_or(-1), tool.out(), tool.err()};
+  }
+};
+
+TEST_F(GiveUp, WhenEveryFrameIsRejected) {
+  // A server whose frames never fit the bases it serves (the flood of the
+  // issue: it used to print every frame and never exit).
+  testing::PeerOptions options;
+  for (std::uint64_t s = 0; s < 100000; ++s) options.corrupt_seq.insert(s);
+  testing::TestPeer peer(package_, options);
+  const auto r = run_until_it_gives_up(peer, "rejected");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_THAT(
+      r.err, ::testing::MatchesRegex(
+                 "phasecast-render: no frame rendered for 2 s \\(--give-up-after\\): every frame was "
+                 "rejected \\(last: instance 1: frame [0-9]+: q_u has 5 values \\(expected r_u = 4\\)\\)\n"));
+  // Once per event, not once per frame: only the first rejected frame is printed.
+  std::size_t skipped = 0;
+  for (auto at = r.out.find("skipped instance 1"); at != std::string::npos;
+       at = r.out.find("skipped", at + 1))
+    ++skipped;
+  EXPECT_EQ(skipped, 1u) << r.out;
+}
+
+TEST_F(GiveUp, WhenNoFramesCome) {
+  testing::PeerOptions options;
+  options.hold_until_downloads = 1000;  // answers every request, publishes nothing
+  testing::TestPeer peer(package_, options);
+  const auto r = run_until_it_gives_up(peer, "silent");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_THAT(r.err,
+              ::testing::StartsWith("phasecast-render: no frame rendered for 2 s (--give-up-after): no "
+                                    "frames of instance 1 came from tcp://127.0.0.1:"));
+  EXPECT_THAT(r.out, HasSubstr("no frames for 0.5 s; reconnecting"));
+}
+
+TEST_F(GiveUp, WhenTheServerIsGone) {
+  auto peer = std::make_unique<testing::TestPeer>(package_, testing::PeerOptions{});
+  testing::ChildProcess tool("phasecast-render",
+                             {"--connect", peer->cmd_endpoint(), "--size", "32x32", "--out", path("gone"),
+                              "--frame-timeout", "0.5", "--request-timeout", "0.3", "--give-up-after", "2"},
+                             dir_ / "gone");
+  for (int i = 0; i < 3000 && files_in(dir_ / "gone") < 5; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  peer.reset();
+  const auto code = tool.wait(std::chrono::seconds(60));
+  if (!code) tool.stop(SIGKILL);
+  EXPECT_EQ(code, std::optional<int>(1)) << tool.out();
+  EXPECT_THAT(tool.err(),
+              ::testing::MatchesRegex("phasecast-render: no frame rendered for 2 s \\(--give-up-after\\): "
+                                      "server at tcp://127.0.0.1:[0-9]+ gone: list_scenes: no reply .*\n"));
 }
 
 TEST_F(NetworkRender, RefusedAndUnansweredRequestsGiveOneLineErrors) {

@@ -6,8 +6,10 @@
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
+#include <array>
 #include <chrono>
 #include <fstream>
+#include <stdexcept>
 
 namespace phasecast::testing {
 namespace {
@@ -30,9 +32,16 @@ std::string varint(std::uint64_t n) {
 }  // namespace
 
 struct TestPeer::Sockets {
+  zmq::socket_t zap{context(), zmq::socket_type::rep};  // bound only with an allow-list
   zmq::socket_t router{context(), zmq::socket_type::router};
   zmq::socket_t pub{context(), zmq::socket_type::pub};
 };
+
+core::CurveKeyPair make_curve_key_pair() {
+  std::array<char, 41> pub{}, sec{};
+  if (zmq_curve_keypair(pub.data(), sec.data()) != 0) throw std::runtime_error("zmq_curve_keypair failed");
+  return {pub.data(), sec.data()};
+}
 
 std::vector<v1::Frame> irf_stream(const core::ScenePackage& p, int irf, std::uint32_t instance) {
   const auto& pp = p.portrait;
@@ -89,6 +98,13 @@ TestPeer::TestPeer(const core::ScenePackage& package, PeerOptions options)
     : package_(package), options_(std::move(options)), sockets_(std::make_unique<Sockets>()) {
   sockets_->router.set(zmq::sockopt::linger, 0);
   sockets_->pub.set(zmq::sockopt::linger, 0);
+  sockets_->zap.set(zmq::sockopt::linger, 0);
+  if (!options_.allowed_clients.empty()) sockets_->zap.bind("inproc://zeromq.zap.01");  // ZAP's fixed address
+  for (auto* socket : {&sockets_->router, &sockets_->pub}) {
+    if (options_.curve_secret.empty()) continue;
+    socket->set(zmq::sockopt::curve_server, true);
+    socket->set(zmq::sockopt::curve_secretkey, options_.curve_secret);
+  }
   sockets_->router.bind(options_.cmd_endpoint);
   sockets_->pub.bind(options_.pub_endpoint);
   cmd_endpoint_ = sockets_->router.get(zmq::sockopt::last_endpoint);
@@ -186,13 +202,36 @@ v1::Reply TestPeer::answer(const v1::Request& request) {
   return reply;
 }
 
+// ZAP (RFC 27): [version, request id, domain, address, identity, mechanism,
+// client key] -> [version, request id, status, text, user id, metadata].
+void TestPeer::answer_zap() {
+  std::vector<zmq::message_t> parts;
+  (void)zmq::recv_multipart(sockets_->zap, std::back_inserter(parts));
+  if (parts.size() < 6) return;
+  bool allowed = false;
+  if (parts.size() == 7 && parts[6].size() == 32) {
+    std::array<char, 41> z85{};
+    zmq_z85_encode(z85.data(), static_cast<const std::uint8_t*>(parts[6].data()), 32);
+    allowed = options_.allowed_clients.count(z85.data()) > 0;
+  }
+  if (!allowed) ++refused_clients_;
+  const std::vector<std::string> reply{
+      "1.0", parts[1].to_string(), allowed ? "200" : "400", allowed ? "OK" : "not on the allow-list", "", ""};
+  std::vector<zmq::const_buffer> buffers;
+  for (const auto& r : reply) buffers.push_back(zmq::buffer(r));
+  zmq::send_multipart(sockets_->zap, buffers);
+}
+
 void TestPeer::serve() {
   using clock = std::chrono::steady_clock;
   auto next_frame = clock::now();
   std::uint64_t seq = 0;
-  zmq::pollitem_t item{static_cast<void*>(sockets_->router), 0, ZMQ_POLLIN, 0};
+  std::array<zmq::pollitem_t, 2> items{{{static_cast<void*>(sockets_->router), 0, ZMQ_POLLIN, 0},
+                                        {static_cast<void*>(sockets_->zap), 0, ZMQ_POLLIN, 0}}};
+  auto& item = items[0];
   while (!stop_) {
-    zmq::poll(&item, 1, std::chrono::milliseconds(1));
+    zmq::poll(items.data(), items.size(), std::chrono::milliseconds(1));
+    if (items[1].revents & ZMQ_POLLIN) answer_zap();
     if (item.revents & ZMQ_POLLIN) {
       std::vector<zmq::message_t> parts;
       (void)zmq::recv_multipart(sockets_->router, std::back_inserter(parts));

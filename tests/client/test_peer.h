@@ -6,6 +6,7 @@
 // client can be tested before the real server lands; it is not a server.
 // Also: a writer for recordings (docs/protocol.md "Recording").
 
+#include "phasecast/core/curve_keys.h"
 #include "phasecast/core/package.h"
 #include "phasecast/proto/phasecast.pb.h"
 
@@ -37,6 +38,10 @@ struct PeerOptions {
   // hold_extra_ms after the last (clients subscribe after their GL setup).
   int hold_until_downloads = 0;
   int hold_extra_ms = 600;
+  // CURVE: with a secret key (Z85) both sockets are CURVE servers; with
+  // allowed_clients as well, a ZAP handler admits only those public keys.
+  std::string curve_secret;
+  std::set<std::string> allowed_clients;
 };
 
 class TestPeer {
@@ -50,24 +55,30 @@ class TestPeer {
   const std::string& pub_endpoint() const { return pub_endpoint_; }
   std::uint64_t frames_published() const { return published_; }
   std::uint64_t basis_requests() const { return basis_requests_; }
+  // ZAP requests refused (clients not on allowed_clients).
+  std::uint64_t refused_clients() const { return refused_clients_; }
   // The Frame for state node t of the published IRF, as the peer sends it.
   v1::Frame frame_at(std::uint64_t seq) const;
 
  private:
   void serve();
+  void answer_zap();
   v1::Reply answer(const v1::Request& request);
 
   const core::ScenePackage& package_;
   PeerOptions options_;
   std::string cmd_endpoint_, pub_endpoint_;
   std::atomic<bool> stop_{false};
-  std::atomic<std::uint64_t> published_{0}, basis_requests_{0};
+  std::atomic<std::uint64_t> published_{0}, basis_requests_{0}, refused_clients_{0};
   int downloads_done_ = 0;  // serve() thread only
   std::chrono::steady_clock::time_point last_download_{};
   struct Sockets;
   std::unique_ptr<Sockets> sockets_;
   std::thread thread_;
 };
+
+// A fresh CURVE key pair (zmq_curve_keypair), Z85.
+core::CurveKeyPair make_curve_key_pair();
 
 // Writes "PHCREC1\n", a header naming `package_file` with `content_hash`,
 // a `created` entry and then every frame, each varint-length-delimited.

@@ -3,6 +3,8 @@
 // a phasecast-server's command socket (impulses, instances, recording, stats)
 // and follow its frame stream (wait_frames). docs/console.md lists the API.
 
+#include "phasecast/client/network.h"
+
 #include <chrono>
 #include <filesystem>
 #include <memory>
@@ -16,6 +18,7 @@ struct ConsoleOptions {
   std::chrono::milliseconds timeout{2000};        // per request attempt
   int attempts = 3;                               // Lazy Pirate retries before giving up
   std::chrono::milliseconds frame_timeout{5000};  // wait_frames gives up after this silence
+  CurveClientKeys curve;                          // --server-key / --client-key; none: plain connections
 };
 
 // A script or chunk failed; what() is "chunk:line: message".

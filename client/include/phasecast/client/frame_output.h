@@ -1,7 +1,8 @@
 #pragma once
 // What happens to each rendered frame: a PNG named by the server's frame
-// number, an MP4 through ffmpeg, the vertex dump of one chosen frame, and the
-// frames/s figures (render-only and end-to-end).
+// number (and the session: frame numbers start again when a server restarts,
+// files never replace earlier ones), an MP4 through ffmpeg, the vertex dump
+// of one chosen frame, and the frames/s figures (render-only and end-to-end).
 
 #include "phasecast/client/low_rank_renderer.h"
 
@@ -15,7 +16,7 @@
 namespace phasecast::client {
 
 struct OutputOptions {
-  std::optional<std::filesystem::path> png_dir;  // frame_%06d.png here
+  std::optional<std::filesystem::path> png_dir;  // frame_file_name(frame, session) here
   std::optional<std::filesystem::path> video;    // MP4 through ffmpeg
   double video_fps = 60;
   std::optional<std::uint64_t> dump_frame;  // --dump-vertices FRAME path
@@ -42,20 +43,29 @@ class FrameOutput {
   FrameOutput(const FrameOutput&) = delete;
   FrameOutput& operator=(const FrameOutput&) = delete;
 
+  // Renders `frame` with the current renderer. A frame number not above the
+  // last one starts a new session (a restarted server): its PNG names carry it.
   void render(const FrameState& frame);
+  // Renders with `renderer` from now on (new bases); files, video and
+  // figures go on, so nothing written so far is replaced.
+  void set_renderer(LowRankRenderer& renderer) { renderer_ = &renderer; }
   // Closes the video; throws if a requested vertex dump never happened.
   void finish();
   const RenderStats& stats() const { return stats_; }
   bool dumped() const { return dumped_; }
+  // 0 until frame numbers first go back, then 1, 2, ... (frame_file_name).
+  unsigned session() const { return session_; }
 
  private:
-  LowRankRenderer& renderer_;
+  LowRankRenderer* renderer_;
   int width_, height_;
   OutputOptions options_;
   std::FILE* ffmpeg_ = nullptr;
   RenderStats stats_;
   std::optional<std::chrono::steady_clock::time_point> first_;
   bool dumped_ = false;
+  unsigned session_ = 0;
+  std::optional<std::uint64_t> last_frame_;
 };
 
 }  // namespace phasecast::client

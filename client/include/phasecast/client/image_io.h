@@ -15,8 +15,10 @@ void write_png(const Image& image, const std::filesystem::path& path);
 Image read_png(const std::filesystem::path& path);
 
 // "frame_000123.png": named by the server's frame number so two renderers of
-// one instance can be compared file by file.
-std::string frame_file_name(std::uint64_t frame);
+// one instance can be compared file by file. Frame numbers start again when a
+// server restarts; the frames of the n-th restart (`session` n >= 1) are
+// "restart01_frame_000123.png", ..., so that no file replaces an earlier one.
+std::string frame_file_name(std::uint64_t frame, unsigned session = 0);
 
 // Peak signal-to-noise ratio over RGB in dB (infinity for identical images)
 // and the largest channel difference (0..255). Throws std::invalid_argument

@@ -32,9 +32,11 @@ struct RenderOptions {
   std::string eye, target, up;  // "x,y,z" overrides of the scene camera
   std::optional<float> fov_y_deg;
 
-  double frame_timeout_s = 3;    // network: silence after which the server counts as gone
-  double give_up_after_s = 60;   // network: stop reconnecting after this long
-  double request_timeout_s = 2;  // network: wait this long for each reply (3 attempts)
+  double frame_timeout_s = 3;        // network: silence after which the server counts as gone
+  double give_up_after_s = 60;       // network: exit when no frame could be rendered for this long
+  double request_timeout_s = 2;      // network: wait this long for each reply (3 attempts)
+  std::filesystem::path server_key;  // network: the server's CURVE public key file (NAME.pub)
+  std::filesystem::path client_key;  // network: this client's CURVE secret key file (NAME.key)
 };
 
 // Throws std::invalid_argument naming the offending option; every failure
