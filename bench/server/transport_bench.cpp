@@ -56,7 +56,7 @@ void BM_PublishThroughput(benchmark::State& state) {
     });
   }
   auto publish = [&] {
-    for (const auto& f : service.tick(Clock::now())) {
+    for (const auto& f : service.tick()) {
       pub.send(zmq::buffer(f.topic), zmq::send_flags::sndmore);
       pub.send(zmq::buffer(f.payload), zmq::send_flags::none);
     }

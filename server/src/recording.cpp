@@ -124,7 +124,7 @@ void RecordingWriter::append(const v1::RecordEntry& entry) {
   if (entry.has_frame()) ++tick_frames_;
 }
 
-void RecordingWriter::end_tick(std::chrono::steady_clock::time_point) {
+void RecordingWriter::end_tick() {
   {
     std::lock_guard lock(shared_->mutex);
     if (shared_->failure.empty() && bytes_ + buffer_.size() > max_bytes_) {

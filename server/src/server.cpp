@@ -190,7 +190,7 @@ struct Server::Impl {
   // ZeroMQ, so max_tick_seconds is what a subscriber feels.
   void tick(Clock::time_point deadline) {
     const auto start = Clock::now();
-    for (const auto& f : service.tick(start)) {
+    for (const auto& f : service.tick()) {
       // PUB never blocks: a subscriber past its high-water mark loses this frame.
       pub.send(zmq::buffer(f.topic), zmq::send_flags::sndmore | zmq::send_flags::dontwait);
       pub.send(zmq::buffer(f.payload), zmq::send_flags::dontwait);
@@ -203,9 +203,10 @@ struct Server::Impl {
     service.count_tick(took, start - deadline > period / 4);
   }
 
-  void run_ticks(const std::atomic<bool>& stop) {
+  // Ticks until `stop` (the caller's) or `done` (a failed command thread).
+  void run_ticks(const std::atomic<bool>& stop, const std::atomic<bool>& done) {
     auto next = Clock::now();
-    while (!stop.load(std::memory_order_relaxed)) {
+    while (!stop.load(std::memory_order_relaxed) && !done.load(std::memory_order_relaxed)) {
       const auto now = Clock::now();
       if (now < next) {
         std::this_thread::sleep_until(std::min(next, now + kMaxWait));
@@ -219,7 +220,7 @@ struct Server::Impl {
 
   void run(const std::atomic<bool>& stop) {
     std::atomic<bool> done{false};
-    std::exception_ptr command_failure;
+    std::exception_ptr tick_failure, command_failure;
     std::thread zap_thread;
     if (zap) zap_thread = std::thread([&] { zap->run(done); });
     std::thread commands([&] {
@@ -227,21 +228,20 @@ struct Server::Impl {
         serve_commands(done);
       } catch (...) {
         command_failure = std::current_exception();
+        done = true;  // a server that cannot answer stops rather than ticks on deaf
       }
     });
     try {
-      run_ticks(stop);
+      run_ticks(stop, done);
     } catch (...) {
-      done = true;
-      commands.join();
-      if (zap_thread.joinable()) zap_thread.join();
-      throw;
+      tick_failure = std::current_exception();
     }
     done = true;
     commands.join();
     if (zap_thread.joinable()) zap_thread.join();
     service.stop_recording();
-    if (command_failure) std::rethrow_exception(command_failure);
+    for (const auto& failure : {tick_failure, command_failure})
+      if (failure) std::rethrow_exception(failure);
   }
 
   SynthesisService service;

@@ -527,10 +527,10 @@ v1::RecordStatus SynthesisService::stop_recording() {
   return s;
 }
 
-const std::vector<PublishedFrame>& SynthesisService::tick(std::chrono::steady_clock::time_point now) {
+const std::vector<PublishedFrame>& SynthesisService::tick() {
   std::lock_guard lock(mutex_);
   try {
-    tick_and_record(now);
+    tick_and_record();
   } catch (const RecordingError& e) {
     // A full disk must not stop the stream: the recording ends, serving goes on.
     recording_error_ = e.what();
@@ -539,7 +539,7 @@ const std::vector<PublishedFrame>& SynthesisService::tick(std::chrono::steady_cl
   return published_;
 }
 
-void SynthesisService::tick_and_record(std::chrono::steady_clock::time_point now) {
+void SynthesisService::tick_and_record() {
   engine_.tick(tick_result_);
   const TickResult& r = tick_result_;
   ++stats_.ticks;
@@ -560,7 +560,7 @@ void SynthesisService::tick_and_record(std::chrono::steady_clock::time_point now
     }
   }
   stats_.frames_published += published_.size();
-  if (recorder_) recorder_->end_tick(now);  // queues the tick for the writer thread; throws if it failed
+  if (recorder_) recorder_->end_tick();  // queues the tick for the writer thread; throws if it failed
 }
 
 }  // namespace phasecast::server

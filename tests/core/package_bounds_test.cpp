@@ -22,16 +22,7 @@ using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-// The reader's message for `path`, or "" if it was accepted. Any other
-// exception (std::bad_alloc, std::length_error) escapes and fails the test.
-std::string rejection(const std::filesystem::path& path) {
-  try {
-    core::read_package(path);
-  } catch (const core::PackageError& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::package_rejection;
 
 // Raw HDF5 C API calls, so the tests can write what our writer never would.
 class RawFile {
@@ -108,13 +99,13 @@ class DeclaredSize : public ::testing::Test {
 };
 
 TEST_F(DeclaredSize, TheUnmodifiedPackageIsAccepted) {
-  EXPECT_EQ(rejection(path_), "");
+  EXPECT_EQ(package_rejection(path_), "");
 }
 
 // 2^31 x 2^31 float32 is 2^64 bytes: Eigen's size check threw std::bad_alloc.
 TEST_F(DeclaredSize, AMatrixBeyondAnyMemoryIsRefused) {
   RawFile(path_).declare("/portrait/q_u", H5T_IEEE_F32LE, {hsize_t{1} << 31, hsize_t{1} << 31});
-  EXPECT_THAT(rejection(path_),
+  EXPECT_THAT(package_rejection(path_),
               AllOf(HasSubstr("plate.h5: /portrait/q_u: declares a 2147483648x2147483648 float32 dataset"),
                     HasSubstr("more than 2^64 bytes"), Not(HasSubstr("\n"))));
 }
@@ -122,7 +113,7 @@ TEST_F(DeclaredSize, AMatrixBeyondAnyMemoryIsRefused) {
 // 2^62 int32: std::vector's constructor threw std::length_error.
 TEST_F(DeclaredSize, AVectorBeyondAnyMemoryIsRefused) {
   RawFile(path_).declare("/portrait/irf_start", H5T_STD_I32LE, {hsize_t{1} << 62});
-  EXPECT_THAT(rejection(path_),
+  EXPECT_THAT(package_rejection(path_),
               HasSubstr("plate.h5: /portrait/irf_start: declares a 4611686018427387904 int32 "
                         "dataset, more than 2^64 bytes"));
 }
@@ -133,8 +124,9 @@ TEST_F(DeclaredSize, StringsBeyondAnyMemoryAreRefused) {
   H5Tset_size(type, H5T_VARIABLE);
   RawFile(path_).declare("/palette/names", type, {hsize_t{1} << 61});
   H5Tclose(type);
-  EXPECT_THAT(rejection(path_), HasSubstr("plate.h5: /palette/names: declares a 2305843009213693952 string "
-                                          "dataset, more than 2^64 bytes"));
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("plate.h5: /palette/names: declares a 2305843009213693952 string "
+                        "dataset, more than 2^64 bytes"));
 }
 
 // 9.5 GB of U_u that would fit in memory on a large machine, declared in a
@@ -145,7 +137,7 @@ TEST_F(DeclaredSize, ADatasetLargerThanTheFileIsRefused) {
   RawFile(path_).declare("/reduction/U_u", H5T_IEEE_F32LE, {rows, cols});
   const std::uint64_t bytes = 4 * rows * cols;
   EXPECT_THAT(
-      rejection(path_),
+      package_rejection(path_),
       HasSubstr(fmt::format("plate.h5: /reduction/U_u: declares a {}x{} float32 dataset ({} bytes) but "
                             "the file stores 0 bytes of it (expected all of it in the {}-byte file)",
                             rows, cols, bytes, file_bytes())));
@@ -156,7 +148,7 @@ TEST_F(DeclaredSize, ADatasetWithUnwrittenChunksIsRefused) {
   const auto N = static_cast<hsize_t>(package_.portrait.nodes());
   RawFile(path_).declare("/portrait/qdot_u", H5T_IEEE_F32LE, {N, 4});
   EXPECT_THAT(
-      rejection(path_),
+      package_rejection(path_),
       HasSubstr(fmt::format("/portrait/qdot_u: declares a {}x4 float32 dataset ({} bytes) but the file "
                             "stores 0 bytes of it",
                             N, 16 * N)));
@@ -171,7 +163,8 @@ TEST_F(DeclaredSize, RawDataInAnotherFileIsRefused) {
       .write(reinterpret_cast<const char*>(q.data()), static_cast<std::streamsize>(q.size() * sizeof(float)));
   RawFile(path_).declare_external("/portrait/q_u", H5T_IEEE_F32LE,
                                   {static_cast<hsize_t>(q.rows()), static_cast<hsize_t>(q.cols())}, outside);
-  EXPECT_THAT(rejection(path_), HasSubstr("plate.h5: /portrait/q_u: raw data stored outside the file"));
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("plate.h5: /portrait/q_u: raw data stored outside the file"));
 }
 
 // Found while tracing a fuzzer hang in the scene attribute: the name was
@@ -179,7 +172,7 @@ TEST_F(DeclaredSize, RawDataInAnotherFileIsRefused) {
 // writes every element (here 3 x 64 bytes into 65: a heap overflow).
 TEST_F(DeclaredSize, ASceneAttributeOfSeveralStringsIsRefused) {
   RawFile(path_).string_array_attribute("scene", {"plate", "more", "and more"}, 64);
-  EXPECT_THAT(rejection(path_), HasSubstr("plate.h5: /@scene: expected one string, got 3"));
+  EXPECT_THAT(package_rejection(path_), HasSubstr("plate.h5: /@scene: expected one string, got 3"));
 }
 
 // Shapes are checked on the declared extents of every dataset before any
@@ -201,7 +194,7 @@ TEST_F(DeclaredSize, ShapesAreCheckedBeforeAnyDataIsRead) {
   f.seekp(static_cast<std::streamoff>(at));
   f.write("\x7f\x7f\x7f\x7f", 4);  // fails the chunk's Fletcher-32 checksum
   f.close();
-  EXPECT_THAT(rejection(path_),
+  EXPECT_THAT(package_rejection(path_),
               HasSubstr(fmt::format("/mesh/normals: expected shape S x 3 = {}x3, got {}x3", S, S + 1)));
 }
 

@@ -19,15 +19,7 @@ using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-// The reader's message for `path`, or "" if it was accepted.
-std::string rejection(const std::filesystem::path& path) {
-  try {
-    core::read_package(path);
-  } catch (const core::PackageError& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::package_rejection;
 
 class PackageFileRejection : public ::testing::Test {
  protected:
@@ -52,21 +44,23 @@ class PackageFileRejection : public ::testing::Test {
 };
 
 TEST_F(PackageFileRejection, ValidFileIsAccepted) {
-  EXPECT_EQ(rejection(path_), "");
+  EXPECT_EQ(package_rejection(path_), "");
 }
 
 TEST_F(PackageFileRejection, MissingFile) {
-  EXPECT_THAT(rejection(dir_ / "nope.h5"), AllOf(HasSubstr("nope.h5"), HasSubstr("no such package file")));
+  EXPECT_THAT(package_rejection(dir_ / "nope.h5"),
+              AllOf(HasSubstr("nope.h5"), HasSubstr("no such package file")));
 }
 
 TEST_F(PackageFileRejection, NotHdf5) {
   std::ofstream(dir_ / "text.h5") << "this is not a package\n";
-  EXPECT_THAT(rejection(dir_ / "text.h5"), AllOf(HasSubstr("text.h5"), HasSubstr("not an HDF5 file")));
+  EXPECT_THAT(package_rejection(dir_ / "text.h5"),
+              AllOf(HasSubstr("text.h5"), HasSubstr("not an HDF5 file")));
 }
 
 TEST_F(PackageFileRejection, Truncated) {
   std::filesystem::resize_file(path_, std::filesystem::file_size(path_) / 2);
-  EXPECT_THAT(rejection(path_), AllOf(HasSubstr("plate.h5"), HasSubstr("truncated")));
+  EXPECT_THAT(package_rejection(path_), AllOf(HasSubstr("plate.h5"), HasSubstr("truncated")));
 }
 
 TEST_F(PackageFileRejection, CorruptedBulkDataFailsItsChecksum) {
@@ -81,13 +75,13 @@ TEST_F(PackageFileRejection, CorruptedBulkDataFailsItsChecksum) {
   f.seekp(static_cast<std::streamoff>(at));
   f.write("\x7f\x7f\x7f\x7f", 4);
   f.close();
-  EXPECT_THAT(rejection(path_),
+  EXPECT_THAT(package_rejection(path_),
               AllOf(HasSubstr("plate.h5"), HasSubstr("/reduction/U_u"), HasSubstr("corrupt")));
 }
 
 TEST_F(PackageFileRejection, MissingDataset) {
   remove("/portrait/q_u");
-  EXPECT_THAT(rejection(path_),
+  EXPECT_THAT(package_rejection(path_),
               AllOf(HasSubstr("plate.h5: /portrait/q_u: missing dataset"), HasSubstr("2-D float32")));
 }
 
@@ -103,12 +97,13 @@ TEST_F(PackageFileRejection, PackagesWithoutRunRulesLoadWithoutLimits) {
 
 TEST_F(PackageFileRejection, WrongDtype) {
   replace<std::int32_t>("/mesh/triangles", std::vector<std::int32_t>(6, 0), {2, 3});
-  EXPECT_THAT(rejection(path_), HasSubstr("/mesh/triangles: expected a 2-D uint32 dataset, got 2x3 int32"));
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("/mesh/triangles: expected a 2-D uint32 dataset, got 2x3 int32"));
 }
 
 TEST_F(PackageFileRejection, WrongRank) {
   replace<float>("/portrait/qdot_u", std::vector<float>(10, 0.0f), {10});
-  EXPECT_THAT(rejection(path_),
+  EXPECT_THAT(package_rejection(path_),
               HasSubstr("/portrait/qdot_u: expected a 2-D float32 dataset, got 10 float32"));
 }
 
@@ -116,7 +111,7 @@ TEST_F(PackageFileRejection, InconsistentRank) {
   const auto p = testing::make_plate_package();
   const auto N = static_cast<std::uint64_t>(p.portrait.nodes());
   replace<float>("/portrait/qdot_u", std::vector<float>(N * 3, 0.0f), {N, 3});
-  EXPECT_THAT(rejection(path_),
+  EXPECT_THAT(package_rejection(path_),
               HasSubstr(fmt::format("/portrait/qdot_u: expected shape N x r_u = {}x4, got {}x3", N, N)));
 }
 
@@ -125,36 +120,38 @@ TEST_F(PackageFileRejection, NotANumber) {
   std::vector<float> q(p.portrait.q_u.data(), p.portrait.q_u.data() + p.portrait.q_u.size());
   q[17] = std::nanf("");
   replace<float>("/portrait/q_u", q, {static_cast<std::uint64_t>(p.portrait.q_u.rows()), 4});
-  EXPECT_THAT(rejection(path_), HasSubstr("/portrait/q_u: expected finite values, got nan at flat index 17"));
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("/portrait/q_u: expected finite values, got nan at flat index 17"));
 }
 
 TEST_F(PackageFileRejection, TriangleIndexOutOfRange) {
   replace<std::uint32_t>("/mesh/triangles", {0, 1, 9999}, {1, 3});
-  EXPECT_THAT(rejection(path_),
+  EXPECT_THAT(package_rejection(path_),
               HasSubstr("/mesh/triangles: expected point indices in [0, 85), got 9999 at flat index 2"));
 }
 
 TEST_F(PackageFileRejection, UnknownFormatVersion) {
   core::h5::File::open_write(path_).write_attribute("format_version", std::int32_t{2});
-  EXPECT_THAT(rejection(path_), HasSubstr("/@format_version: unknown format_version 2 (this build reads 1)"));
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("/@format_version: unknown format_version 2 (this build reads 1)"));
 }
 
 TEST_F(PackageFileRejection, MissingAttribute) {
   core::h5::File::open_write(path_).remove_attribute("dt");
-  EXPECT_THAT(rejection(path_), HasSubstr("/@dt: missing root attribute"));
+  EXPECT_THAT(package_rejection(path_), HasSubstr("/@dt: missing root attribute"));
 }
 
 TEST_F(PackageFileRejection, KinematicsColumns) {
   replace<float>("/palette/kinematics", std::vector<float>(9, 0.0f), {3, 3});
   EXPECT_THAT(
-      rejection(path_),
+      package_rejection(path_),
       HasSubstr("/palette/kinematics: expected shape D x 11 (axis_x, ..., pulse_tau) = 3x11, got 3x3"));
 }
 
 TEST_F(PackageFileRejection, AppearanceBasisRows) {
   const auto r_a = static_cast<std::uint64_t>(testing::make_plate_package().rank_a());
   replace<float>("/appearance/U_a", std::vector<float>(4 * r_a, 0.0f), {4, r_a});
-  EXPECT_THAT(rejection(path_), HasSubstr("/appearance/U_a: expected shape 48S x r_a"));
+  EXPECT_THAT(package_rejection(path_), HasSubstr("/appearance/U_a: expected shape 48S x r_a"));
 }
 
 // ---- in-memory rules, shared by reader and writer ---------------------------------

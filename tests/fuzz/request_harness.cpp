@@ -174,11 +174,10 @@ std::string RequestHarness::check(const v1::Request* request, const v1::Reply& r
 }
 
 std::string RequestHarness::tick() {
-  now_ += std::chrono::microseconds(16667);
   const std::size_t instances = service_.engine().instances().size();
   most_instances_ = std::max(most_instances_, instances);
   try {
-    const auto& frames = service_.tick(now_);
+    const auto& frames = service_.tick();
     if (frames.size() != instances) {
       return fmt::format("tick published {} frames for {} instances (expected one each)", frames.size(),
                          instances);

@@ -67,7 +67,6 @@ class RequestHarness {
   // mutable: the service offers engine() only non-const; the const members just read it.
   mutable server::SynthesisService service_;
   std::filesystem::path work_dir_;
-  std::chrono::steady_clock::time_point now_{};
   std::uint64_t next_id_ = 1u << 31;  // ids of the harness's own requests
   std::size_t most_instances_ = 0;
 };

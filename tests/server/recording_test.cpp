@@ -51,11 +51,11 @@ std::filesystem::path record_session(const Fixture& f, int lead) {
   s.engine().create_instance("plate");
   s.engine().create_instance("plate");
   EXPECT_TRUE(s.handle(impulse(1, "open")).ok());
-  for (int i = 0; i < lead; ++i) s.tick(Clock::now());
+  for (int i = 0; i < lead; ++i) s.tick();
   const auto path = f.dir / "session.phcrec";
   s.start_recording(path);
   EXPECT_TRUE(s.handle(impulse(2, "open")).ok());
-  for (int i = 0; i < 30; ++i) s.tick(Clock::now());
+  for (int i = 0; i < 30; ++i) s.tick();
   v1::Request create;
   create.mutable_create_instance()->set_scene("plate");
   EXPECT_TRUE(s.handle(create).ok());
@@ -63,11 +63,11 @@ std::filesystem::path record_session(const Fixture& f, int lead) {
   auto later = impulse(2, "stop");
   later.mutable_impulse()->set_at_frame(lead + 50);
   EXPECT_TRUE(s.handle(later).ok());
-  for (int i = 0; i < 40; ++i) s.tick(Clock::now());
+  for (int i = 0; i < 40; ++i) s.tick();
   v1::Request destroy;
   destroy.mutable_destroy_instance()->set_instance(1);
   EXPECT_TRUE(s.handle(destroy).ok());
-  for (int i = 0; i < 10; ++i) s.tick(Clock::now());
+  for (int i = 0; i < 10; ++i) s.tick();
   EXPECT_EQ(s.stop_recording().frames_written(), 30u * 2 + 40u * 3 + 10u * 2);
   return path;
 }
@@ -250,7 +250,7 @@ TEST(Recording, WriteFailureEndsTheRecordingButNotTheStream) {
   // The writer thread meets the failure; a later tick learns of it.
   std::size_t ticks = 0, published = 0;
   for (; ticks < 200 || (s.recording() && ticks < 20000); ++ticks) {
-    published += s.tick(Clock::now()).size();
+    published += s.tick().size();
     if (ticks >= 200) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   setrlimit(RLIMIT_FSIZE, &old);
@@ -302,7 +302,7 @@ TEST(Recording, SizeCapEndsTheRecordingWithWholeTicks) {
   std::filesystem::remove(path);
   s.start_recording(path);
   std::size_t published = 0;
-  for (int i = 0; i < 1000; ++i) published += s.tick(Clock::now()).size();
+  for (int i = 0; i < 1000; ++i) published += s.tick().size();
   EXPECT_EQ(published, 1000u);
   EXPECT_FALSE(s.recording());
   EXPECT_EQ(s.recording_error(),

@@ -52,7 +52,7 @@ TEST(Service, ServesSeveralScenesWithTheirOwnRanks) {
   ASSERT_TRUE(s.handle(create).ok());
   create.mutable_create_instance()->set_scene("plate");
   ASSERT_TRUE(s.handle(create).ok());
-  const auto& frames = s.tick(Clock::now());
+  const auto& frames = s.tick();
   ASSERT_EQ(frames.size(), 2u);
   v1::Frame a, b;
   ASSERT_TRUE(a.ParseFromString(frames[0].payload));
@@ -225,7 +225,7 @@ std::vector<v1::RecordEntry> small_recording(const TwoScenes& f) {
   s.engine().create_instance("plate");
   const auto path = f.dir / "small.phcrec";
   s.start_recording(path);
-  for (int i = 0; i < 3; ++i) s.tick(Clock::now());
+  for (int i = 0; i < 3; ++i) s.tick();
   s.stop_recording();
   return core::read_recording_file(path).entries;
 }
@@ -288,7 +288,7 @@ TEST(Service, AnswersEachRequestKindWithItsResult) {
   const auto started = ask([](v1::Request& r) { r.mutable_record_start()->set_path("kinds.phcrec"); });
   EXPECT_TRUE(started.record().recording());
   EXPECT_EQ(started.record().path(), (f.dir / "kinds.phcrec").string());
-  s.tick(Clock::now());
+  s.tick();
   const auto stats = ask([](v1::Request& r) { r.mutable_stats(); }).stats();
   EXPECT_EQ(stats.ticks(), 1u);
   EXPECT_EQ(stats.impulses_applied(), 1u);

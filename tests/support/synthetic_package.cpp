@@ -309,4 +309,13 @@ core::ScenePackage make_plate_package(const PlateOptions& o) {
   return p;
 }
 
+std::string package_rejection(const std::filesystem::path& path) {
+  try {
+    core::read_package(path);
+  } catch (const core::PackageError& e) {
+    return e.what();
+  }
+  return "";
+}
+
 }  // namespace phasecast::testing

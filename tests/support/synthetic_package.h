@@ -25,4 +25,8 @@ struct PlateOptions {
 
 core::ScenePackage make_plate_package(const PlateOptions& options = {});
 
+// The reader's one-line message for the package at `path`, or "" if it was
+// accepted. Any other exception (std::bad_alloc, ...) escapes and fails the test.
+std::string package_rejection(const std::filesystem::path& path);
+
 }  // namespace phasecast::testing

@@ -44,7 +44,7 @@ class RecordingWriter {
   // RecordingError when the recording has ended: a write or fsync failed,
   // the queue passed `max_queued_bytes` (the disk fell behind), or the file
   // would pass its size cap. Everything queued before stays in the file.
-  void end_tick(std::chrono::steady_clock::time_point now);
+  void end_tick();
   // Waits for the queue to be written, fsyncs and closes; later calls do
   // nothing. Throws RecordingError if any write failed.
   void close();

@@ -89,7 +89,7 @@ class SynthesisService {
   // Advances every instance one frame and returns their messages in id order;
   // the recording (if any) gets the applied impulses, then the frames.
   // The result is the caller's until its next tick() call.
-  const std::vector<PublishedFrame>& tick(std::chrono::steady_clock::time_point now);
+  const std::vector<PublishedFrame>& tick();
 
   // Starts writing the stream to `path`, a new file (RecordingError if
   // already recording or the file exists or cannot be created); stop closes
@@ -120,7 +120,7 @@ class SynthesisService {
   void record_created(std::uint32_t id);
   void record_destroyed(const v1::InstanceInfo& info);
   void record_impulses(const std::vector<AppliedImpulse>& applied);
-  void tick_and_record(std::chrono::steady_clock::time_point now);
+  void tick_and_record();
   void start_recording_locked(const std::filesystem::path& path);
   std::unique_ptr<RecordingWriter> take_recorder(v1::RecordStatus& status);
 
