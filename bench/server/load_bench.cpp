@@ -1,9 +1,9 @@
 // phasecast-bench-server-load: holds a real phasecast-server process under
 // the load of issue 18 and reports whether it keeps its tick:
 //   - `--subscribers` SUB sockets on every instance, drained by one thread,
-//   - one subscriber that never reads,
+//   - one subscriber that never reads (stalled: its ZeroMQ reads no further ahead),
 //   - `--downloaders` clients downloading every basis part back to back,
-//   - one client that sends `--unread` basis requests and never reads replies,
+//   - `--unread-clients` stalled clients, each sending `--unread` basis requests,
 //   - the server recording the stream,
 //   - a prober timing a stats request every 10 ms (command reply latency).
 // At the end it reads the server's stats: late ticks, the longest tick, and
@@ -46,8 +46,10 @@ struct Options {
   int subscribers = 1000;
   int downloaders = 2;
   int unread = 200;
+  int unread_clients = 4;
   double seconds = 20;
-  bool baseline = false;  // the server predates the limit options (a build of an older commit)
+  std::vector<std::string> server_args;  // passed on, e.g. --max-pending-reply-bytes
+  bool baseline = false;                 // the server predates the limit options (a build of an older commit)
 };
 
 // The server as a child process on free loopback ports.
@@ -68,11 +70,16 @@ struct ServerChild {
       std::freopen(log.c_str(), "w", stdout);
       std::freopen((dir / "server.err").c_str(), "w",
                    stderr);  // not the bench's pipe: it would outlive the bench
+      std::vector<std::string> args{o.server, o.package,          "--instances", inst,    "--rate",
+                                    rate,     "--record",         rec,           "--cmd", "tcp://127.0.0.1:*",
+                                    "--pub",  "tcp://127.0.0.1:*"};
       // The prober and the downloaders go faster than the default request rate allows.
-      const char* extra = o.baseline ? nullptr : "--max-request-rate";
-      execl(o.server.c_str(), o.server.c_str(), o.package.c_str(), "--instances", inst.c_str(), "--rate",
-            rate.c_str(), "--record", rec.c_str(), "--cmd", "tcp://127.0.0.1:*", "--pub", "tcp://127.0.0.1:*",
-            extra, "100000", static_cast<char*>(nullptr));
+      if (!o.baseline) args.insert(args.end(), {"--max-request-rate", "100000"});
+      args.insert(args.end(), o.server_args.begin(), o.server_args.end());
+      std::vector<char*> argv;
+      for (auto& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      execv(o.server.c_str(), argv.data());
       _exit(127);
     }
     for (int i = 0; i < 600 && cmd.empty(); ++i) {
@@ -122,6 +129,15 @@ v1::Reply call(zmq::socket_t& s, const v1::Request& r) {
   return reply;
 }
 
+// A peer that has stopped reading, as a hung process would: without this its
+// ZeroMQ I/O thread keeps reading ahead (up to rcvhwm = 1000 messages) into
+// the client's memory, and the server's queues never fill.
+void stall(zmq::socket_t& s) {
+  s.set(zmq::sockopt::rcvhwm, 1);
+  s.set(zmq::sockopt::rcvbuf, 4096);
+  s.set(zmq::sockopt::linger, 0);
+}
+
 zmq::socket_t dealer(zmq::context_t& ctx, const std::string& endpoint) {
   zmq::socket_t s(ctx, zmq::socket_type::dealer);
   s.set(zmq::sockopt::linger, 0);
@@ -146,7 +162,7 @@ int run(const Options& o) {
   ServerChild server(o);
   zmq::context_t ctx(2);
   std::atomic<bool> stop{false};
-  std::atomic<std::uint64_t> frames{0}, basis_bytes{0}, download_failures{0};
+  std::atomic<std::uint64_t> frames{0}, basis_bytes{0}, download_failures{0}, download_refusals{0};
   auto control = dealer(ctx, server.cmd);
   v1::Request list;
   list.mutable_list_scenes();
@@ -178,7 +194,7 @@ int run(const Options& o) {
   });
   zmq::socket_t sleeper(ctx, zmq::socket_type::sub);  // subscribes and never reads
   sleeper.set(zmq::sockopt::subscribe, "");
-  sleeper.set(zmq::sockopt::linger, 0);
+  stall(sleeper);
   sleeper.connect(server.pub);
   for (int d = 0; d < o.downloaders; ++d) {
     threads.emplace_back([&] {
@@ -192,6 +208,11 @@ int run(const Options& o) {
               r.mutable_basis()->set_offset(off);
               r.mutable_basis()->set_max_bytes(4u << 20);
               const auto reply = call(s, r);
+              if (!reply.ok()) {  // over --max-pending-reply-bytes: start the part again later
+                ++download_refusals;
+                std::this_thread::sleep_for(10ms);
+                break;
+              }
               off += reply.basis().data().size();
               basis_bytes += reply.basis().data().size();
               if (reply.basis().data().empty()) break;
@@ -205,24 +226,31 @@ int run(const Options& o) {
         }
     });
   }
-  auto hostile = dealer(ctx, server.cmd);  // asks for large replies and never reads them
-  for (int i = 0; i < o.unread; ++i) {
-    v1::Request r;
-    r.mutable_basis()->set_scene(scene.name());
-    r.mutable_basis()->set_part(v1::U_U);
-    r.mutable_basis()->set_max_bytes(4u << 20);
-    const std::string bytes = r.SerializeAsString();
-    std::array<zmq::const_buffer, 2> out{zmq::buffer(std::string_view()), zmq::buffer(bytes)};
-    zmq::send_multipart(hostile, out);
+  std::vector<zmq::socket_t> hostile;  // ask for large replies and never read them
+  for (int c = 0; c < o.unread_clients; ++c) {
+    auto& h = hostile.emplace_back(ctx, zmq::socket_type::dealer);
+    stall(h);
+    h.connect(server.cmd);
+    for (int i = 0; i < o.unread; ++i) {
+      v1::Request r;
+      r.mutable_basis()->set_scene(scene.name());
+      r.mutable_basis()->set_part(v1::U_U);
+      r.mutable_basis()->set_max_bytes(4u << 20);
+      const std::string bytes = r.SerializeAsString();
+      std::array<zmq::const_buffer, 2> out{zmq::buffer(std::string_view()), zmq::buffer(bytes)};
+      zmq::send_multipart(h, out);
+    }
   }
 
   std::vector<double> latencies;
+  std::uint64_t peak_pending = 0;
   int lost = 0;
   const auto until = Clock::now() + std::chrono::duration<double>(o.seconds);
   while (Clock::now() < until) {
     const auto t0 = Clock::now();
     try {
-      call(control, stats_request());
+      const auto probe = call(control, stats_request());
+      peak_pending = std::max(peak_pending, probe.stats().pending_reply_bytes());
       latencies.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     } catch (const std::exception&) {
       ++lost;  // no reply within 10 s
@@ -237,25 +265,27 @@ int run(const Options& o) {
 
   fmt::print(
       "load: {} Hz, {} instances, {} subscribers + 1 never reading, {} downloaders ({:.0f} MiB of bases), "
-      "{} unread basis requests, recording {}, {:.0f} s\n",
+      "{} stalled clients x {} unread basis requests, recording {}, {:.0f} s\n",
       o.rate, o.instances, o.subscribers, o.downloaders, static_cast<double>(basis_bytes) / (1 << 20),
-      o.unread, stats.recording() ? "on" : "OFF", o.seconds);
+      o.unread_clients, o.unread, stats.recording() ? "on" : "OFF", o.seconds);
   fmt::print("ticks {}, late {} ({:.2f} %), longest tick {:.2f} ms\n", stats.ticks(), stats.late_ticks(),
              100.0 * static_cast<double>(stats.late_ticks()) /
                  static_cast<double>(std::max<std::uint64_t>(1, stats.ticks())),
              stats.max_tick_seconds() * 1e3);
   fmt::print(
       "command replies: {} probes, p50 {:.2f} ms, p99 {:.2f} ms, max {:.2f} ms, {} without a reply in 10 s; "
-      "{} downloads without a reply in 10 s\n",
+      "{} downloads without a reply in 10 s, {} basis requests refused\n",
       latencies.size(), percentile(latencies, 0.5), percentile(latencies, 0.99), percentile(latencies, 1.0),
-      lost, download_failures.load());
+      lost, download_failures.load(), download_refusals.load());
   fmt::print("frames received by the subscribers: {} of {} published x {} ({:.1f} %)\n", frames.load(),
              stats.frames_published(), o.subscribers,
              100.0 * static_cast<double>(frames) /
                  static_cast<double>(std::max<std::uint64_t>(
                      1, stats.frames_published() * static_cast<std::uint64_t>(o.subscribers))));
-  fmt::print("server memory: peak {:.0f} MiB, now {:.0f} MiB; recording error: '{}'\n", hwm, rss,
-             stats.recording_error());
+  fmt::print(
+      "server memory: peak {:.0f} MiB, now {:.0f} MiB; reply bytes queued for clients: peak {:.1f} MiB; "
+      "recording error: '{}'\n",
+      hwm, rss, static_cast<double>(peak_pending) / (1 << 20), stats.recording_error());
   return 0;
 }
 
@@ -272,8 +302,13 @@ int main(int argc, char** argv) {
   app.add_option("--subscribers", o.subscribers, "subscribers on every instance")->capture_default_str();
   app.add_option("--downloaders", o.downloaders, "clients downloading bases back to back")
       ->capture_default_str();
-  app.add_option("--unread", o.unread, "basis requests whose replies are never read")->capture_default_str();
+  app.add_option("--unread", o.unread, "basis requests whose replies are never read, per stalled client")
+      ->capture_default_str();
+  app.add_option("--unread-clients", o.unread_clients, "stalled clients sending --unread basis requests each")
+      ->capture_default_str();
   app.add_option("--seconds", o.seconds, "duration")->capture_default_str();
+  app.add_option("--server-arg", o.server_args, "an argument passed on to the server (repeat for more)")
+      ->allow_extra_args(false);
   app.add_flag("--baseline", o.baseline, "the server is an older build without the limit options");
   CLI11_PARSE(app, argc, argv);
   if (o.package.empty()) o.package = phasecast::bench::cloth_ranks_package_file().string();

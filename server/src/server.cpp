@@ -11,6 +11,8 @@
 #include <chrono>
 #include <cstdio>
 #include <iterator>
+#include <map>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -93,6 +95,64 @@ class ZapHandler {
   std::atomic<std::uint64_t> refused{0};
 };
 
+// Reply bytes handed to ZeroMQ and not yet freed by it (written to the
+// connection, or dropped with it), in all and per client. Shared with the
+// queued messages, which ZeroMQ's I/O thread may free as late as the
+// context's end.
+class PendingReplies {
+ public:
+  using Counter = std::shared_ptr<std::atomic<std::uint64_t>>;
+
+  Counter of(const std::string& client) {
+    std::lock_guard lock(mutex_);
+    auto& c = by_client_[client];
+    if (!c) c = std::make_shared<std::atomic<std::uint64_t>>(0);
+    Counter found = c;
+    if (by_client_.size() > kPruneAbove) prune();
+    return found;
+  }
+  PendingReplyBytes count(const std::string& client) const {
+    std::lock_guard lock(mutex_);
+    const auto it = by_client_.find(client);
+    return {all_, it == by_client_.end() ? 0 : it->second->load()};
+  }
+  std::atomic<std::uint64_t>& all() { return all_; }
+
+ private:
+  static constexpr std::size_t kPruneAbove = 4096;  // clients come and go; forget the idle ones
+  void prune() {
+    std::erase_if(by_client_,
+                  [](const auto& e) { return e.second.use_count() == 1 && e.second->load() == 0; });
+  }
+
+  mutable std::mutex mutex_;
+  std::map<std::string, Counter> by_client_;
+  std::atomic<std::uint64_t> all_{0};
+};
+
+// A serialized reply handed to ZeroMQ without a copy, counted until freed.
+struct QueuedReply {
+  std::string bytes;
+  std::shared_ptr<PendingReplies> pending;
+  PendingReplies::Counter client;
+};
+
+zmq::message_t queued_reply(std::string bytes, const std::shared_ptr<PendingReplies>& pending,
+                            const std::string& client) {
+  auto* r = new QueuedReply{std::move(bytes), pending, pending->of(client)};
+  r->pending->all() += r->bytes.size();
+  *r->client += r->bytes.size();
+  return zmq::message_t(
+      r->bytes.data(), r->bytes.size(),
+      [](void*, void* hint) {
+        auto* done = static_cast<QueuedReply*>(hint);
+        done->pending->all() -= done->bytes.size();
+        *done->client -= done->bytes.size();
+        delete done;
+      },
+      r);
+}
+
 }  // namespace
 
 struct Server::Impl {
@@ -108,6 +168,8 @@ struct Server::Impl {
     }
     service.set_record_dir(o.record_dir);
     service.set_limits(o.limits);
+    service.set_pending_reply_bytes(
+        [pending = pending_replies](const std::string& client) { return pending->count(client); });
     period = std::chrono::duration<double>(1.0 / o.rate_hz);
     set_up_security(o);
 
@@ -153,6 +215,7 @@ struct Server::Impl {
       service.count_bad_message();
       return true;
     }
+    const std::string client = client_of(parts[0], parts[2]);
     v1::Reply reply;
     if (parts[2].size() > static_cast<std::size_t>(kMaxRequestBytes)) {
       service.count_bad_message();
@@ -160,11 +223,10 @@ struct Server::Impl {
       reply.set_error(fmt::format("request: {} bytes (expected at most {} bytes per request)",
                                   parts[2].size(), kMaxRequestBytes));
     } else {
-      reply = service.handle(std::string_view(parts[2].data<char>(), parts[2].size()),
-                             client_of(parts[0], parts[2]));
+      reply = service.handle(std::string_view(parts[2].data<char>(), parts[2].size()), client);
     }
     std::array<zmq::message_t, 3> out{std::move(parts[0]), zmq::message_t(),
-                                      zmq::message_t(reply.SerializeAsString())};
+                                      queued_reply(reply.SerializeAsString(), pending_replies, client)};
     try {
       zmq::send_multipart(router, out, zmq::send_flags::dontwait);  // a peer at its HWM loses the reply
     } catch (const zmq::error_t&) {
@@ -245,6 +307,7 @@ struct Server::Impl {
   }
 
   SynthesisService service;
+  std::shared_ptr<PendingReplies> pending_replies = std::make_shared<PendingReplies>();
   zmq::context_t context{1};
   std::unique_ptr<ZapHandler> zap;  // before the sockets: ZeroMQ asks it during their handshakes
   zmq::socket_t router;

@@ -228,7 +228,7 @@ void SynthesisService::answer(const v1::Request& r, const std::string& client, v
     case v1::Request::kDestroyInstance:
       return destroy_instance(r.destroy_instance(), *reply.mutable_destroyed());
     case v1::Request::kBasis:
-      return basis(r.basis(), *reply.mutable_basis());
+      return basis(r.basis(), client, *reply.mutable_basis());
     case v1::Request::kRecordStart:
       return record_start(r.record_start(), *reply.mutable_record());
     case v1::Request::kRecordStop:
@@ -367,7 +367,8 @@ void SynthesisService::destroy_instance(const v1::DestroyInstance& r, v1::Instan
   record_destroyed(out);
 }
 
-void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) const {
+void SynthesisService::basis(const v1::BasisRequest& r, const std::string& client,
+                             v1::BasisChunk& out) const {
   check_text("scene name", r.scene());
   const auto& s = engine_.scenes()[static_cast<std::size_t>(engine_.scene_index(r.scene()))];
   const auto parts = core::basis_parts(*s.data);
@@ -388,6 +389,7 @@ void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) con
   }
   const std::uint64_t cap = r.max_bytes() == 0 ? kDefaultChunkBytes : std::min(r.max_bytes(), kMaxChunkBytes);
   const std::uint64_t n = std::min(cap, total - r.offset());
+  check_pending_replies(client, n);
   out.set_scene(s.name);
   out.set_part(r.part());
   out.set_offset(r.offset());
@@ -399,6 +401,28 @@ void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) con
   info.set_dtype(it->dtype);
   for (const auto d : it->shape) info.add_shape(d);
   info.set_total_bytes(total);
+}
+
+// Replies wait in ZeroMQ's per-connection queues until the client reads
+// them; these bound what one client and all of them together can hold.
+void SynthesisService::check_pending_replies(const std::string& client, std::uint64_t chunk_bytes) const {
+  const PendingReplyBytes pending = pending_reply_bytes_(client);
+  const std::uint64_t per_client = limits_.max_pending_reply_bytes_per_client;
+  if (pending.client + chunk_bytes > per_client) {
+    throw LimitError(
+        fmt::format("{} bytes of replies are waiting for this client to read them and this chunk has {} "
+                    "bytes (expected at "
+                    "most {}; see --max-pending-reply-bytes-per-client)",
+                    pending.client, chunk_bytes, per_client));
+  }
+  const std::uint64_t all = limits_.max_pending_reply_bytes;
+  if (pending.all + chunk_bytes > all) {
+    throw LimitError(
+        fmt::format("{} bytes of replies are waiting for clients to read them and this chunk has {} bytes "
+                    "(expected at most "
+                    "{} in all; see --max-pending-reply-bytes)",
+                    pending.all, chunk_bytes, all));
+  }
 }
 
 void SynthesisService::record_start(const v1::RecordStart& r, v1::RecordStatus& out) {
@@ -436,6 +460,7 @@ void SynthesisService::report_stats(v1::Stats& out) const {
   out.set_recording_bytes(recorder_ ? recorder_->bytes_queued() : 0);
   out.set_max_tick_seconds(stats_.max_tick_seconds);
   out.set_recording_error(recording_error_);
+  out.set_pending_reply_bytes(pending_reply_bytes_({}).all);
   for (const auto& [id, inst] : engine_.instances()) instance_info(id, *out.add_instances());
 }
 

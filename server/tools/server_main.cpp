@@ -144,6 +144,16 @@ int main(int argc, char** argv) {
                  "requests per second one client may send (bursts of one second's worth)")
       ->check(CLI::Range(1.0, 1e9))
       ->capture_default_str();
+  app.add_option("--max-pending-reply-bytes", o.limits.max_pending_reply_bytes,
+                 "reply bytes queued for all clients together (slow readers); basis chunks past it are "
+                 "refused")
+      ->check(CLI::Range(std::uint64_t{1} << 20, ~std::uint64_t{0}))
+      ->capture_default_str();
+  app.add_option("--max-pending-reply-bytes-per-client", o.limits.max_pending_reply_bytes_per_client,
+                 "reply bytes queued for one client (CURVE key, else connection); its basis chunks past it "
+                 "are refused")
+      ->check(CLI::Range(std::uint64_t{1} << 20, ~std::uint64_t{0}))
+      ->capture_default_str();
   std::string secret_key, allow_clients;
   app.add_option("--curve-secret-key", secret_key,
                  "this server's CURVE secret key file (NAME.key from phasecast-keygen): encrypts and "

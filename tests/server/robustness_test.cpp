@@ -5,8 +5,10 @@
 #include "server_process.h"
 #include "synthetic_package.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <thread>
 
 namespace phasecast::testing {
@@ -219,6 +221,79 @@ TEST_F(ServerRobustness, SubscriberThatNeverReadsDoesNotStallOthers) {
     caught_up = f->frame() >= now;
   }
   EXPECT_TRUE(caught_up);
+  expect_still_serving(server);
+}
+
+// Clients that ask for basis chunks and never read them hold the server's
+// memory; all of them together hold at most --max-pending-reply-bytes, after
+// which basis requests are refused by name while small replies still go, and
+// when they leave the bytes are freed and downloads work again.
+TEST_F(ServerRobustness, RepliesWaitingForSlowClientsAreBoundedInAll) {
+  PlateOptions big;
+  big.grid = 128;  // U_u is 16 384 points x 3 x 4 floats: 768 KiB, one chunk per request
+  big.appearance = false;
+  const auto pkg = std::filesystem::path(pkg_).parent_path() / "big_plate.h5";
+  core::write_package(make_plate_package(big), pkg);
+  constexpr std::uint64_t kLimit = 4u << 20;
+  ServerProcess server({pkg.string(), "--max-pending-reply-bytes", std::to_string(kLimit),
+                        "--max-pending-reply-bytes-per-client", std::to_string(kLimit)});
+  CommandClient watcher(ctx_, server.cmd());
+  v1::Request list;
+  list.mutable_list_scenes();
+  const auto scenes = watcher.call(list);
+  ASSERT_TRUE(scenes.ok()) << scenes.error();
+  const auto& scene = scenes.scenes().scenes(0);
+  const auto largest = *std::max_element(scene.parts().begin(), scene.parts().end(),
+                                         [](auto& a, auto& b) { return a.total_bytes() < b.total_bytes(); });
+  ASSERT_GT(largest.total_bytes(), 512u << 10);
+  v1::Request chunk;
+  chunk.mutable_basis()->set_scene(scene.name());
+  chunk.mutable_basis()->set_part(largest.part());
+
+  std::vector<zmq::socket_t> slow;
+  for (int c = 0; c < 4; ++c) {
+    auto& s = slow.emplace_back(ctx_, zmq::socket_type::dealer);
+    // Its ZeroMQ reads ahead of the application up to rcvhwm replies: one, and
+    // a small kernel buffer, leave the replies in the server's queues.
+    s.set(zmq::sockopt::rcvhwm, 1);
+    s.set(zmq::sockopt::rcvbuf, 4096);
+    s.set(zmq::sockopt::linger, 0);
+    s.connect(server.cmd());
+  }
+  auto ask_and_never_read = [&](zmq::socket_t& s) {
+    const std::string body = chunk.SerializeAsString();
+    s.send(zmq::message_t(), zmq::send_flags::sndmore);
+    s.send(zmq::buffer(body));
+  };
+  // The slow clients keep asking, far past the limit once the kernel's socket
+  // buffers are full: the server refuses chunks once the queued ones reach it.
+  // Small replies (stats) still go.
+  std::string refusal;
+  for (int round = 0; round < 400 && refusal.empty(); ++round) {
+    for (auto& s : slow) ask_and_never_read(s);
+    const auto stats = watcher.call(stats_request());
+    ASSERT_TRUE(stats.ok()) << stats.error();
+    EXPECT_LE(stats.stats().pending_reply_bytes(), kLimit);
+    const auto r = watcher.call(chunk);
+    if (!r.ok()) refusal = r.error();
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_NE(refusal.find("basis: "), std::string::npos) << refusal;
+  EXPECT_NE(
+      refusal.find(fmt::format("bytes of replies are waiting for clients to read them and this chunk has "
+                               "{} bytes (expected at most 4194304 in all; see --max-pending-reply-bytes)",
+                               largest.total_bytes())),
+      std::string::npos)
+      << refusal;
+  EXPECT_GE(watcher.call(stats_request()).stats().limited_requests(), 1u);
+
+  slow.clear();  // their connections close and ZeroMQ frees what they never read
+  bool served = false;
+  for (int attempt = 0; attempt < 200 && !served; ++attempt) {
+    served = watcher.call(chunk).ok();
+    if (!served) std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_TRUE(served);
   expect_still_serving(server);
 }
 

@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include <functional>
 
 namespace phasecast::server {
@@ -159,6 +161,47 @@ TEST(Service, RequestRateIsBoundedPerClient) {
   EXPECT_EQ(error,
             "stats: more than 50 requests/s from this client (expected at most --max-request-rate 50)");
   EXPECT_TRUE(s.handle(stats, "calm").ok());
+}
+
+// Basis chunks stop when the transport's queued reply bytes would pass the
+// asking client's bound or the global one; other replies go on, and stats
+// report the count.
+TEST(Service, BasisChunksStopAtThePendingReplyBounds) {
+  const TwoScenes f("pending");
+  SynthesisService s(60);
+  s.load_package(f.plate);
+  ServiceLimits limits;
+  limits.max_pending_reply_bytes = 1000;
+  limits.max_pending_reply_bytes_per_client = 500;
+  s.set_limits(limits);
+  std::map<std::string, std::uint64_t> pending{{"slow", 0}, {"calm", 0}};
+  s.set_pending_reply_bytes([&](const std::string& client) {
+    return PendingReplyBytes{pending["slow"] + pending["calm"], pending.count(client) ? pending[client] : 0};
+  });
+  v1::Request chunk;
+  chunk.mutable_basis()->set_scene("plate");
+  chunk.mutable_basis()->set_part(v1::TRIANGLES);
+  chunk.mutable_basis()->set_max_bytes(400);
+  EXPECT_TRUE(s.handle(chunk, "slow").ok());
+  pending["slow"] = 100;
+  EXPECT_TRUE(s.handle(chunk, "slow").ok());  // 100 + 400 is the client's bound itself
+  pending["slow"] = 101;
+  EXPECT_EQ(
+      s.handle(chunk, "slow").error(),
+      "basis: 101 bytes of replies are waiting for this client to read them and this chunk has 400 bytes "
+      "(expected at most 500; see --max-pending-reply-bytes-per-client)");
+  EXPECT_TRUE(s.handle(chunk, "calm").ok());  // another client is not held back by it
+  pending["slow"] = 501;
+  pending["calm"] = 100;
+  EXPECT_EQ(s.handle(chunk, "calm").error(),
+            "basis: 601 bytes of replies are waiting for clients to read them and this chunk has 400 bytes "
+            "(expected at most 1000 in all; see --max-pending-reply-bytes)");
+  v1::Request stats;
+  stats.mutable_stats();
+  const auto r = s.handle(stats, "calm");
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r.stats().pending_reply_bytes(), 601u);
+  EXPECT_EQ(r.stats().limited_requests(), 2u);
 }
 
 // Names travel as bytes; invalid UTF-8 is one counted error with a reply.

@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -38,6 +39,18 @@ struct ServiceLimits {
   double impulse_horizon_s = 600;               // --impulse-horizon: how far ahead at_frame may lie
   double max_request_rate = 1000;               // --max-request-rate: requests/s per client (burst 1 s)
   std::uint64_t record_max_bytes = 4ull << 30;  // --record-max-bytes: one recording ends at this size
+  // Reply bytes queued for clients and not yet written to their connections
+  // (slow readers' basis chunks): a basis chunk that would pass either bound
+  // is refused. The per-client one keeps a few stalled clients from using up
+  // the global one, which would refuse every downloader.
+  std::uint64_t max_pending_reply_bytes = 256ull << 20;            // --max-pending-reply-bytes: all clients
+  std::uint64_t max_pending_reply_bytes_per_client = 16ull << 20;  // --max-pending-reply-bytes-per-client
+};
+
+// The transport's count of reply bytes handed to ZeroMQ and not yet written.
+struct PendingReplyBytes {
+  std::uint64_t all = 0;     // every client together
+  std::uint64_t client = 0;  // the asking client
 };
 
 struct PublishedFrame {
@@ -74,6 +87,11 @@ class SynthesisService {
   const ServiceLimits& limits() const { return limits_; }
   // Where record_start requests (plain *.phcrec names) write; created on first use.
   void set_record_dir(std::filesystem::path dir) { record_dir_ = std::move(dir); }
+  // The transport's count of queued reply bytes for a client (as named to
+  // handle()); set before serving, called by basis requests and stats from
+  // any thread.
+  using PendingReplyCount = std::function<PendingReplyBytes(const std::string& client)>;
+  void set_pending_reply_bytes(PendingReplyCount count) { pending_reply_bytes_ = std::move(count); }
 
   // One request payload in, one reply out; never throws. A payload that does
   // not parse gets Reply{id = 0, ok = false}. `client` names the sender (its
@@ -111,7 +129,8 @@ class SynthesisService {
   void list_instances(v1::Reply& reply) const;
   void create_instance(const v1::CreateInstance& request, const std::string& client, v1::InstanceInfo& out);
   void destroy_instance(const v1::DestroyInstance& request, v1::InstanceInfo& out);
-  void basis(const v1::BasisRequest& request, v1::BasisChunk& out) const;
+  void basis(const v1::BasisRequest& request, const std::string& client, v1::BasisChunk& out) const;
+  void check_pending_replies(const std::string& client, std::uint64_t chunk_bytes) const;
   void record_start(const v1::RecordStart& request, v1::RecordStatus& out);
   void record_stop(v1::RecordStatus& out);
   void report_stats(v1::Stats& out) const;
@@ -136,6 +155,7 @@ class SynthesisService {
   ServiceStats stats_;
   std::string pub_endpoint_;
   std::filesystem::path record_dir_ = "recordings";
+  PendingReplyCount pending_reply_bytes_ = [](const std::string&) { return PendingReplyBytes{}; };
   std::unique_ptr<RecordingWriter> recorder_;
   std::unique_ptr<RecordingWriter> closing_;  // stopped by a request, closed after the lock is released
   std::string recording_error_;
