@@ -157,15 +157,10 @@ zmq::message_t queued_reply(std::string bytes, const std::shared_ptr<PendingRepl
 
 struct Server::Impl {
   explicit Impl(const ServerOptions& o)
-      : service(o.rate_hz), router(context, zmq::socket_type::router), pub(context, zmq::socket_type::pub) {
-    if (!(o.rate_hz > 0 && o.rate_hz <= 10000)) {
-      throw std::runtime_error(fmt::format("--rate {} (expected a tick rate in (0, 10000] Hz)", o.rate_hz));
-    }
-    if (o.packages.empty()) throw std::runtime_error("no package given (expected at least one package.h5)");
-    for (const auto& p : o.packages) service.load_package(p, o.blend_lambda);
-    for (const auto& s : service.engine().scenes()) {
-      for (int i = 0; i < o.instances_per_scene; ++i) service.engine().create_instance(s.name);
-    }
+      : service(o.rate_hz),
+        packages_loaded(load_packages(service, o)),
+        router(context, zmq::socket_type::router),
+        pub(context, zmq::socket_type::pub) {
     service.set_record_dir(o.record_dir);
     service.set_limits(o.limits);
     service.set_pending_reply_bytes(
@@ -187,6 +182,20 @@ struct Server::Impl {
     pub_endpoint = bind(pub, o.pub_endpoint, "--pub");
     service.set_pub_endpoint(o.advertised_pub_endpoint.empty() ? pub_endpoint : o.advertised_pub_endpoint);
     if (o.record) service.start_recording(*o.record);
+  }
+
+  // Checks the options the service needs, loads the packages and creates the
+  // instances asked for at start.
+  static bool load_packages(SynthesisService& service, const ServerOptions& o) {
+    if (!(o.rate_hz > 0 && o.rate_hz <= 10000)) {
+      throw std::runtime_error(fmt::format("--rate {} (expected a tick rate in (0, 10000] Hz)", o.rate_hz));
+    }
+    if (o.packages.empty()) throw std::runtime_error("no package given (expected at least one package.h5)");
+    for (const auto& p : o.packages) service.load_package(p, o.blend_lambda);
+    for (const auto& s : service.engine().scenes()) {
+      for (int i = 0; i < o.instances_per_scene; ++i) service.engine().create_instance(s.name);
+    }
+    return true;
   }
 
   void set_up_security(const ServerOptions& o) {
@@ -307,6 +316,10 @@ struct Server::Impl {
   }
 
   SynthesisService service;
+  // Before any socket exists: the package reader forks a probe child, which
+  // is only safe while this process has no other threads (ZeroMQ's start with
+  // the first socket; ASan's allocator deadlocked a child forked beside them).
+  const bool packages_loaded;
   std::shared_ptr<PendingReplies> pending_replies = std::make_shared<PendingReplies>();
   zmq::context_t context{1};
   std::unique_ptr<ZapHandler> zap;  // before the sockets: ZeroMQ asks it during their handshakes

@@ -26,6 +26,12 @@ ChildProcess::ChildProcess(const std::string& tool, const std::vector<std::strin
     : out_path_(log_stem.string() + ".out"), err_path_(log_stem.string() + ".err") {
   std::vector<std::string> argv_s{tool_path(tool).string()};
   argv_s.insert(argv_s.end(), args.begin(), args.end());
+  // Everything the child needs is made before fork: between fork and exec a
+  // child of a threaded process may only make async-signal-safe calls (an
+  // allocation there deadlocked under ASan).
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
   pid_ = ::fork();
   if (pid_ < 0) throw std::runtime_error("fork failed for " + tool);
   if (pid_ == 0) {
@@ -33,9 +39,6 @@ ChildProcess::ChildProcess(const std::string& tool, const std::vector<std::strin
     const int err = ::open(err_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     ::dup2(out, 1);
     ::dup2(err, 2);
-    std::vector<char*> argv;
-    for (auto& a : argv_s) argv.push_back(a.data());
-    argv.push_back(nullptr);
     ::execv(argv[0], argv.data());
     ::_exit(127);
   }

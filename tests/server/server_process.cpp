@@ -59,15 +59,18 @@ ServerProcess::ServerProcess(const std::vector<std::string>& args) {
   argv_s.insert(argv_s.end(), {"--cmd", "tcp://127.0.0.1:*", "--pub", "tcp://127.0.0.1:*"});
   int fds[2];
   if (::pipe(fds) != 0) throw std::runtime_error("pipe failed");
+  // Everything the child needs is made before fork: between fork and exec a
+  // child of a threaded process may only make async-signal-safe calls (an
+  // allocation there deadlocked under ASan).
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
   pid_ = ::fork();
   if (pid_ == 0) {
     ::dup2(fds[1], 1);
     const int err = ::open(err_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     ::dup2(err, 2);
     ::close(fds[0]);
-    std::vector<char*> argv;
-    for (auto& a : argv_s) argv.push_back(a.data());
-    argv.push_back(nullptr);
     ::execv(argv[0], argv.data());
     ::_exit(127);
   }
