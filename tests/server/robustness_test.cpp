@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <fstream>
 #include <thread>
 
 namespace phasecast::testing {
@@ -295,6 +296,40 @@ TEST_F(ServerRobustness, RepliesWaitingForSlowClientsAreBoundedInAll) {
   }
   EXPECT_TRUE(served);
   expect_still_serving(server);
+}
+
+// A recording whose disk stalls: its fsync is held (stalled_disk_shim) until
+// the test lets go. The tick and the replies go on meanwhile; the previous
+// server called fdatasync inside the tick and stood still. Nothing recorded
+// is lost once the disk comes back.
+TEST_F(ServerRobustness, TickGoesOnWhileTheRecordingDiskStalls) {
+  const auto dir = std::filesystem::path(pkg_).parent_path();
+  const auto hold = dir / "hold_sync", entered = dir / "hold_sync.entered", rec = dir / "stalled.phcrec";
+  std::filesystem::remove(entered);
+  std::ofstream(hold).put('1');
+  ServerProcess server({pkg_, "--rate", "200", "--record", rec.string()},
+                       {"LD_PRELOAD=" + tool_path("phasecast_stalled_disk_shim.so").string(),
+                        "PHASECAST_TEST_HOLD_SYNC=" + hold.string(),
+                        // the sanitizer build: the shim comes before ASan's runtime
+                        "ASAN_OPTIONS=verify_asan_link_order=0:detect_leaks=1:abort_on_error=1"});
+  for (int i = 0; i < 600 && !std::filesystem::exists(entered); ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_TRUE(std::filesystem::exists(entered)) << "the recording never synced";
+  CommandClient c(ctx_, server.cmd());
+  const auto before = c.call(stats_request());
+  ASSERT_TRUE(before.ok()) << before.error();
+  std::uint64_t ticks = before.stats().ticks();
+  for (int i = 0; i < 600 && ticks < before.stats().ticks() + 200; ++i) {
+    std::this_thread::sleep_for(50ms);
+    ticks = c.call(stats_request()).stats().ticks();
+  }
+  EXPECT_GE(ticks, before.stats().ticks() + 200) << "the tick stood still while the disk stalled";
+  Subscriber sub(ctx_, server.pub());
+  EXPECT_TRUE(sub.next());
+
+  std::filesystem::remove(hold);
+  EXPECT_EQ(server.stop(SIGTERM), 0) << server.err();
+  const auto check = run_tool("phasecast-server", {pkg_, "--replay-check", rec.string()});
+  EXPECT_EQ(check.exit_code, 0) << check.err;
 }
 
 TEST_F(ServerRobustness, SigtermFlushesTheRecording) {

@@ -9,6 +9,7 @@
 #include <unistd.h>
 #include <zmq_addon.hpp>
 
+#include <algorithm>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -49,7 +50,7 @@ bool parse_listening(const std::string& out, std::string& cmd, std::string& pub)
 
 }  // namespace
 
-ServerProcess::ServerProcess(const std::vector<std::string>& args) {
+ServerProcess::ServerProcess(const std::vector<std::string>& args, const std::vector<std::string>& env) {
   static int counter = 0;
   err_path_ = (std::filesystem::temp_directory_path() /
                ("phasecast_server_err_" + std::to_string(::getpid()) + "_" + std::to_string(counter++)))
@@ -65,13 +66,23 @@ ServerProcess::ServerProcess(const std::vector<std::string>& args) {
   std::vector<char*> argv;
   for (auto& a : argv_s) argv.push_back(a.data());
   argv.push_back(nullptr);
+  std::vector<std::string> env_s = env;
+  for (char** e = environ; *e; ++e) {
+    const std::string_view entry(*e);
+    const auto name = entry.substr(0, entry.find('=') + 1);
+    if (std::none_of(env.begin(), env.end(), [&](const std::string& x) { return x.starts_with(name); }))
+      env_s.emplace_back(entry);
+  }
+  std::vector<char*> envp;
+  for (auto& e : env_s) envp.push_back(e.data());
+  envp.push_back(nullptr);
   pid_ = ::fork();
   if (pid_ == 0) {
     ::dup2(fds[1], 1);
     const int err = ::open(err_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     ::dup2(err, 2);
     ::close(fds[0]);
-    ::execv(argv[0], argv.data());
+    ::execve(argv[0], argv.data(), envp.data());
     ::_exit(127);
   }
   ::close(fds[1]);

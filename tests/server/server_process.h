@@ -16,9 +16,10 @@ namespace phasecast::testing {
 
 // phasecast-server <args> --cmd tcp://127.0.0.1:* --pub tcp://127.0.0.1:*,
 // started with fork/exec; the constructor waits for the "listening" line.
+// `env` entries ("NAME=value") are added to (or replace) the environment.
 class ServerProcess {
  public:
-  explicit ServerProcess(const std::vector<std::string>& args);
+  explicit ServerProcess(const std::vector<std::string>& args, const std::vector<std::string>& env = {});
   ~ServerProcess();
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
