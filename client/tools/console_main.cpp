@@ -1,5 +1,6 @@
 // phasecast-console: send impulses and script sessions in Lua (docs/console.md).
 
+#include "curve_options.h"
 #include "phasecast/client/console.h"
 
 #include <fmt/format.h>
@@ -46,19 +47,14 @@ int main(int argc, char** argv) {
   app.add_option("-e,--execute", code, "Lua code to run (repeatable, runs before the script)")
       ->allow_extra_args(false);
   app.add_option("--stats-out", stats_out, "after the script, write the server's stats as JSON to this file");
-  std::string server_key, client_key;
-  app.add_option("--server-key", server_key,
-                 "CURVE: the server's public key file (NAME.pub); encrypts the connections and checks the "
-                 "server's identity");
-  app.add_option("--client-key", client_key,
-                 "CURVE: this client's secret key file (NAME.key), for servers with an allow-list "
-                 "(--allow-clients); without it a fresh key pair is used");
+  phasecast::client::CurveKeyFiles keys;
+  phasecast::client::add_curve_options(app, keys);
   app.add_option("script", script, "Lua script file")->check(CLI::ExistingFile);
   CLI11_PARSE(app, argc, argv);
   options.timeout = std::chrono::milliseconds(timeout_ms);
 
   try {
-    options.curve = phasecast::client::load_curve_client_keys(server_key, client_key);
+    options.curve = phasecast::client::load_curve_client_keys(keys.server_key, keys.client_key);
     phasecast::client::Console console(options);
     for (const auto& chunk : code) console.run_string(chunk, "=(command line)");
     if (!script.empty()) {

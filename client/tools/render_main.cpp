@@ -1,5 +1,6 @@
 // phasecast-render: the thin render client (§5.3). See docs/client.md.
 
+#include "curve_options.h"
 #include "phasecast/client/camera.h"
 #include "phasecast/client/render_app.h"
 #include "phasecast/client/render_backend.h"
@@ -63,13 +64,8 @@ int main(int argc, char** argv) {
                  "gone, no frames, only rejected frames; default 60)");
   app.add_option("--request-timeout", o.request_timeout_s,
                  "network: seconds to wait for each reply (default 2)");
-  std::string server_key, client_key;
-  app.add_option("--server-key", server_key,
-                 "network: CURVE: the server's public key file (NAME.pub); encrypts both connections and "
-                 "checks the server's identity");
-  app.add_option("--client-key", client_key,
-                 "network: CURVE: this client's secret key file (NAME.key), for servers with an allow-list "
-                 "(--allow-clients); without it a fresh key pair is used");
+  phasecast::client::CurveKeyFiles keys;
+  phasecast::client::add_curve_options(app, keys, "network: ");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -89,8 +85,8 @@ int main(int argc, char** argv) {
     if (!package.empty()) o.package = package;
     if (!out.empty()) o.out_dir = out;
     if (!video.empty()) o.video = video;
-    o.server_key = server_key;
-    o.client_key = client_key;
+    o.server_key = keys.server_key;
+    o.client_key = keys.client_key;
     if (!dump.empty()) {
       std::size_t used = 0;
       try {
