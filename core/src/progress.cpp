@@ -5,8 +5,16 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 
 namespace phasecast::core {
+namespace {
+std::atomic<bool> g_muted{false};
+}  // namespace
+
+void ProgressBar::mute_all() {
+  g_muted = true;
+}
 
 ProgressBar::ProgressBar(std::string stage, std::FILE* out)
     : stage_(std::move(stage)),
@@ -24,7 +32,7 @@ void ProgressBar::restart(std::string stage) {
 }
 
 void ProgressBar::update(long done, long total, const std::string& detail) {
-  if (total <= 0) return;
+  if (total <= 0 || g_muted) return;
   if (first_done_ < 0) first_done_ = std::max(0L, done - 1);  // all but the first unit came before this run
   const double fraction = static_cast<double>(done) / static_cast<double>(total);
   const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

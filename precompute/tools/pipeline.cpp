@@ -2,6 +2,7 @@
 
 #include "phasecast/core/package.h"
 #include "phasecast/core/progress.h"
+#include "phasecast/precompute/distributed/ranks.h"
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 
 #include <fmt/format.h>
@@ -83,25 +84,44 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
 }
 
 void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::filesystem::path& orbits) {
+  const auto& ranks = Ranks::world();
+  a.sampling.ranks = ranks.size();
+  a.sampling.rank = ranks.rank();
   precompute::check_sampling_options(a.sampling);
   a.sampling.work_dir = a.work_dir.empty() ? std::filesystem::path(orbits.string() + ".work")
                                            : std::filesystem::path(a.work_dir);
   const auto rules = precompute::make_palette_rules(scene);
-  fmt::print(stderr, "{}: {} vertices, {} palette entries, {} chains x {} IRFs, seed {}{}\n", scene.name,
-             scene.model.vertices(), scene.palette.size(), a.sampling.chains, a.sampling.irfs_per_chain,
-             a.sampling.seed, a.sampling.resume ? " (resuming)" : "");
+  if (ranks.rank() == 0) {
+    fmt::print(stderr, "{}: {} vertices, {} palette entries, {} chains x {} IRFs, seed {}{}{}\n", scene.name,
+               scene.model.vertices(), scene.palette.size(), a.sampling.chains, a.sampling.irfs_per_chain,
+               a.sampling.seed, ranks.distributed() ? fmt::format(", {} MPI ranks", ranks.size()) : "",
+               a.sampling.resume ? " (resuming)" : "");
+  }
   auto display = std::make_shared<SamplingDisplay>();
   a.sampling.progress = [display](const precompute::SamplingProgress& p) { (*display)(p); };
   precompute::OrbitStore store;
   try {
-    store = precompute::sample_irfs(scene, rules, a.sampling);
+    if (ranks.distributed()) {
+      // Each rank checkpoints its chains into the shared work folder; rank 0
+      // then reads them back in chain order, as one process would hold them.
+      precompute::sample_own_chains(scene, rules, a.sampling);
+      display->finish();
+      ranks.barrier();
+      if (ranks.rank() == 0) store = precompute::read_chain_stores(scene, a.sampling);
+    } else {
+      store = precompute::sample_irfs(scene, rules, a.sampling);
+    }
   } catch (...) {
     display->finish();
     throw;
   }
   display->finish();
-  precompute::write_orbit_store(store, orbits);
-  fmt::print("wrote {} ({} IRFs, {} state nodes)\n", orbits.string(), store.irf_start.size(), store.frames());
+  if (ranks.rank() == 0) {
+    precompute::write_orbit_store(store, orbits);
+    fmt::print("wrote {} ({} IRFs, {} state nodes)\n", orbits.string(), store.irf_start.size(),
+               store.frames());
+  }
+  ranks.barrier();  // the store is complete before any rank reads it
 }
 
 void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const AppearanceArgs& appearance,
@@ -121,24 +141,31 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
   const auto basis = precompute::reduce_displacements(A, options);
   bar.finish();
   auto built = precompute::build_package(scene, rules, index, basis, a.package);
-  for (const auto& line : built.filter.messages) fmt::print(stderr, "dropped {}\n", line);
+  if (Ranks::world().rank() == 0)
+    for (const auto& line : built.filter.messages) fmt::print(stderr, "dropped {}\n", line);
   auto& p = built.package;
   if (!appearance.skip) {
     core::ProgressBar transfer_bar("appearance transfer");
+    auto stage = appearance.stage;
+    const auto& ranks = Ranks::world();
+    stage.split.owns = [&ranks](long j) { return ranks.owns(static_cast<int>(j)); };
+    stage.split.share = [&ranks](MatrixXfR& fields) { ranks.share_rows(fields); };
     const auto report = precompute::run_appearance_stage(
         p, precompute::scene_point_vertices(scene), A,
-        precompute::package_node_frames(index.irfs, built.filter.kept), appearance.stage,
+        precompute::package_node_frames(index.irfs, built.filter.kept), stage,
         [&transfer_bar](const char*, long done, long total) {
           transfer_bar.update(static_cast<int>(done), static_cast<int>(total));
         });
     transfer_bar.finish();
     core::validate_package(p, scene.name);
-    fmt::print(
-        "appearance: N_a = {} clusters, {} scene points, r_a = {} (error {:.4f}), NRBF leave-one-out "
-        "{:.4f}\n",
-        p.appearance->clusters(), p.mesh.points(), p.rank_a(),
-        p.rank_a() > 0 ? p.appearance->rel_error[p.rank_a() - 1] : 0.0f, report.leave_one_out.relative);
+    if (Ranks::world().rank() == 0)
+      fmt::print(
+          "appearance: N_a = {} clusters, {} scene points, r_a = {} (error {:.4f}), NRBF leave-one-out "
+          "{:.4f}\n",
+          p.appearance->clusters(), p.mesh.points(), p.rank_a(),
+          p.rank_a() > 0 ? p.appearance->rel_error[p.rank_a() - 1] : 0.0f, report.leave_one_out.relative);
   }
+  if (Ranks::world().rank() != 0) return;  // every rank computed the package; one writes it
   core::write_package(p, package);
   fmt::print(
       "wrote {}: N = {} state nodes, {} IRFs ({} short and {} dead ends dropped), r_u = {} (error {:.4f}), "

@@ -4,6 +4,7 @@
 #include "phasecast/core/hash.h"
 #include "phasecast/core/package.h"
 #include "run_tool.h"
+#include "same_package.h"
 #include "synthetic_package.h"
 
 #include <gtest/gtest.h>
@@ -13,60 +14,13 @@ namespace {
 
 using core::ScenePackage;
 
-void expect_same(const ScenePackage& a, const ScenePackage& b) {
-  EXPECT_EQ(a.attributes.scene, b.attributes.scene);
-  EXPECT_EQ(a.attributes.dt, b.attributes.dt);
-  EXPECT_EQ(a.attributes.beta, b.attributes.beta);
-  EXPECT_EQ(a.attributes.blend_lambda, b.attributes.blend_lambda);
-  EXPECT_EQ(a.attributes.camera, b.attributes.camera);
-  EXPECT_EQ(a.mesh.rest_positions, b.mesh.rest_positions);
-  EXPECT_EQ(a.mesh.triangles, b.mesh.triangles);
-  EXPECT_EQ(a.mesh.normals, b.mesh.normals);
-  EXPECT_EQ(a.mesh.deformable, b.mesh.deformable);
-  EXPECT_EQ(a.mesh.attached, b.mesh.attached);
-  EXPECT_EQ(a.palette.names, b.palette.names);
-  EXPECT_EQ(a.palette.alpha_impulse, b.palette.alpha_impulse);
-  EXPECT_EQ(a.palette.alpha_forcing, b.palette.alpha_forcing);
-  EXPECT_EQ(a.palette.transitions, b.palette.transitions);
-  EXPECT_EQ(a.palette.on_end, b.palette.on_end);
-  EXPECT_EQ(a.palette.group, b.palette.group);
-  EXPECT_EQ(a.palette.max_in_a_row, b.palette.max_in_a_row);
-  ASSERT_EQ(a.palette.kinematics.size(), b.palette.kinematics.size());
-  for (size_t i = 0; i < a.palette.kinematics.size(); ++i) {
-    const auto &ka = a.palette.kinematics[i], &kb = b.palette.kinematics[i];
-    EXPECT_EQ(ka.axis, kb.axis);
-    EXPECT_EQ(ka.pivot, kb.pivot);
-    EXPECT_EQ(ka.rotational, kb.rotational);
-    EXPECT_EQ(ka.rate, kb.rate);
-    EXPECT_EQ(ka.range_max, kb.range_max);
-  }
-  EXPECT_EQ(a.reduction.mean_shape, b.reduction.mean_shape);
-  EXPECT_EQ(a.reduction.U_u, b.reduction.U_u);
-  EXPECT_EQ(a.reduction.singular_values, b.reduction.singular_values);
-  EXPECT_EQ(a.reduction.rel_error, b.reduction.rel_error);
-  EXPECT_EQ(a.portrait.q_u, b.portrait.q_u);
-  EXPECT_EQ(a.portrait.qdot_u, b.portrait.qdot_u);
-  EXPECT_EQ(a.portrait.q_a, b.portrait.q_a);
-  EXPECT_EQ(a.portrait.irf_start, b.portrait.irf_start);
-  EXPECT_EQ(a.portrait.irf_length, b.portrait.irf_length);
-  EXPECT_EQ(a.portrait.irf_palette, b.portrait.irf_palette);
-  EXPECT_EQ(a.portrait.nearest_irf, b.portrait.nearest_irf);
-  EXPECT_EQ(a.portrait.support, b.portrait.support);
-  ASSERT_EQ(a.appearance.has_value(), b.appearance.has_value());
-  if (a.appearance) {
-    EXPECT_EQ(a.appearance->mean_transfer, b.appearance->mean_transfer);
-    EXPECT_EQ(a.appearance->U_a, b.appearance->U_a);
-    EXPECT_EQ(a.appearance->cluster_nodes, b.appearance->cluster_nodes);
-    EXPECT_EQ(a.appearance->nrbf_weights, b.appearance->nrbf_weights);
-    EXPECT_EQ(a.appearance->nrbf_regularization, b.appearance->nrbf_regularization);
-  }
-}
+using testing::expect_same_package;
 
 TEST(PackageRoundTrip, WithAppearanceIsExact) {
   const auto dir = testing::scratch_dir("roundtrip_appearance");
   const ScenePackage written = testing::make_plate_package();
   core::write_package(written, dir / "plate.h5");
-  expect_same(written, core::read_package(dir / "plate.h5"));
+  expect_same_package(written, core::read_package(dir / "plate.h5"));
 }
 
 TEST(PackageRoundTrip, WithoutAppearanceIsExact) {
@@ -76,7 +30,7 @@ TEST(PackageRoundTrip, WithoutAppearanceIsExact) {
   const ScenePackage written = testing::make_plate_package(o);
   core::write_package(written, dir / "plate.h5");
   const ScenePackage read = core::read_package(dir / "plate.h5");
-  expect_same(written, read);
+  expect_same_package(written, read);
   EXPECT_EQ(read.rank_a(), 0);
   EXPECT_EQ(read.portrait.q_a.cols(), 0);
 }

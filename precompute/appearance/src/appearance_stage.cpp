@@ -87,15 +87,19 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const std::v
   MatrixXfR fields(Na, core::kTransferPerPoint * S);
   TransferOptions transfer = o.transfer;
   transfer.progress = nullptr;  // one tick per representative is the stage's progress
-  if (progress) progress("appearance transfer", 0, Na);
-  for (long j = 0; j < Na; ++j) {
+  long own = 0;                 // this process's share of the Na transfers
+  for (long j = 0; j < Na; ++j) own += o.split.owns(j) ? 1 : 0;
+  if (progress) progress("appearance transfer", 0, own);
+  for (long j = 0, done = 0; j < Na; ++j) {
+    if (!o.split.owns(j)) continue;
     const auto node = static_cast<size_t>(report.clusters.representatives[static_cast<size_t>(j)]);
     MatrixXfR frame;
     orbits.read_frames(node_frames[node], 1, frame);
     const MatrixXfR T = transfer_at_frame(pkg.mesh, point_vertex, frame.row(0), transfer);
     fields.row(j) = Eigen::Map<const Eigen::RowVectorXf>(T.data(), T.size());  // S x 48 row-major = 48S
-    if (progress) progress("appearance transfer", j + 1, Na);
+    if (progress) progress("appearance transfer", ++done, own);
   }
+  o.split.share(fields);
   AppearanceModel model = fit_appearance_model(q_u, report.clusters, fields, o.appearance);  // §4.2, §4.3
   report.leave_one_out = model.leave_one_out;
   pkg.appearance = std::move(model.appearance);

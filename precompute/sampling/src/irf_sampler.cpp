@@ -260,49 +260,96 @@ void check_sampling_options(const SamplingOptions& o) {
   if (o.chains < 1 || o.irfs_per_chain < 1 || o.jobs < 1)
     throw SamplingError(fmt::format("sampling: expected chains, IRFs per chain and jobs >= 1, got {}, {}, {}",
                                     o.chains, o.irfs_per_chain, o.jobs));
+  if (o.ranks < 1 || o.rank < 0 || o.rank >= o.ranks)
+    throw SamplingError(fmt::format("sampling: rank {} of {} (expected 0 <= rank < ranks)", o.rank, o.ranks));
 }
 
-OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
-  check_sampling_options(o);
+namespace {
+
+void make_work_dir(const SamplingOptions& o) {
   std::error_code error;
   std::filesystem::create_directories(o.work_dir, error);
   if (error || !std::filesystem::is_directory(o.work_dir)) {
     throw SamplingError(fmt::format("work folder {}: cannot create it ({})", o.work_dir.string(),
                                     error ? error.message() : "not a folder"));
   }
+}
+
+int own_chains(const SamplingOptions& o) {
+  int n = 0;
+  for (int k = o.rank; k < o.chains; k += o.ranks) ++n;
+  return n;
+}
+
+// This rank's chains (k = rank, rank + ranks, ...) on `jobs` threads; the
+// stores of other ranks' chains stay empty.
+std::vector<OrbitStore> run_own_chains(const Scene& scene, const PaletteRules& rules,
+                                       const SamplingOptions& o) {
+  check_sampling_options(o);
+  make_work_dir(o);
   Shared sh;
-  sh.progress.irfs_total = o.chains * o.irfs_per_chain;
+  sh.progress.irfs_total = own_chains(o) * o.irfs_per_chain;
   std::vector<OrbitStore> chains(static_cast<size_t>(o.chains));
-  std::vector<std::exception_ptr> errors(static_cast<size_t>(o.chains));
+  std::vector<std::string> errors(static_cast<size_t>(o.chains));
   std::atomic<int> next{0};
   const auto worker = [&] {
-    for (int k = next++; k < o.chains; k = next++) {
+    for (int i = next++, k = o.rank + i * o.ranks; k < o.chains; i = next++, k = o.rank + i * o.ranks) {
       try {
         chains[static_cast<size_t>(k)] = run_chain(scene, rules, o, k, sh);
-      } catch (...) {
-        errors[static_cast<size_t>(k)] = std::current_exception();
+      } catch (const std::exception& e) {
+        errors[static_cast<size_t>(k)] = fmt::format("chain {}: {}", k, e.what());
         sh.stop = true;
       }
     }
   };
   std::vector<std::thread> threads;
-  for (int j = 0; j < std::min(o.jobs, o.chains); ++j) threads.emplace_back(worker);
+  for (int j = 0; j < std::min(o.jobs, std::max(1, own_chains(o))); ++j) threads.emplace_back(worker);
   for (auto& t : threads) t.join();
   for (const auto& e : errors) {
-    if (e) std::rethrow_exception(e);
+    if (!e.empty()) throw SamplingError(e);
   }
-  bool complete = true;
-  for (const auto& c : chains)
-    complete = complete && static_cast<int>(c.irf_start.size()) == o.irfs_per_chain;
-  if (!complete) {
-    throw SamplingError(fmt::format(
-        "sampling stopped after {} new IRFs (--stop-after-irfs); rerun with --resume", sh.new_irfs.load()));
+  for (int k = o.rank; k < o.chains; k += o.ranks) {
+    if (static_cast<int>(chains[static_cast<size_t>(k)].irf_start.size()) != o.irfs_per_chain) {
+      throw SamplingError(fmt::format(
+          "sampling stopped after {} new IRFs (--stop-after-irfs); rerun with --resume", sh.new_irfs.load()));
+    }
   }
+  return chains;
+}
+
+}  // namespace
+
+void sample_own_chains(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
+  run_own_chains(scene, rules, o);
+}
+
+OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
+  if (o.ranks != 1) throw SamplingError("sample_irfs runs every chain: use sample_own_chains on each rank");
+  auto chains = run_own_chains(scene, rules, o);
   OrbitStore all = empty_orbit_store(scene);
   // One chain at a time, freed once copied, so the frames are not held twice.
   for (auto& c : chains) {
     append_store(all, c);
     c = OrbitStore{};
+  }
+  return all;
+}
+
+OrbitStore read_chain_stores(const Scene& scene, const SamplingOptions& o) {
+  OrbitStore all = empty_orbit_store(scene);
+  for (int k = 0; k < o.chains; ++k) {
+    const auto path = chain_store(o.work_dir, k);
+    if (!std::filesystem::exists(path)) {
+      throw SamplingError(fmt::format(
+          "{}: chain {} has no store (expected every rank to share the work folder; docs/distributed.md)",
+          path.string(), k));
+    }
+    const OrbitStore c = read_orbit_store(path);
+    if (static_cast<int>(c.irf_start.size()) != o.irfs_per_chain) {
+      throw SamplingError(fmt::format("{}: chain {} holds {} IRFs (expected {}; rerun with --resume)",
+                                      path.string(), k, c.irf_start.size(), o.irfs_per_chain));
+    }
+    append_store(all, c);
   }
   return all;
 }

@@ -19,6 +19,9 @@ class ProgressBar {
   // Starts a new stage on the same output (a multi-pass computation).
   void restart(std::string stage);
   void finish();
+  // No bar prints from now on, in this process: the ranks of an MPI run other
+  // than rank 0, whose bars would interleave with its own.
+  static void mute_all();
 
  private:
   std::string stage_;

@@ -17,11 +17,20 @@
 
 namespace phasecast::precompute {
 
+// How the representatives' transfers are split among the processes of a run
+// (docs/distributed.md): this one computes representative j when owns(j),
+// then share() fills in the others' rows of the S x 48 fields, bit for bit.
+struct TransferSplit {
+  std::function<bool(long representative)> owns = [](long) { return true; };
+  std::function<void(MatrixXfR& fields)> share = [](MatrixXfR&) {};
+};
+
 struct AppearanceStageOptions {
   int clusters = 16;       // N_a: state nodes whose transfer is computed (k-means of q_u, §4.3)
   std::uint64_t seed = 1;  // k-means++ seeding
   TransferOptions transfer = default_stage_transfer();
   AppearanceOptions appearance;  // eps_a or fixed r_a, NRBF regularization
+  TransferSplit split;           // default: this process computes every transfer
 
   // Interreflected, 1024 directions, 2 bounces (the transfer command's defaults):
   // about 0.1 s per cluster node on the 1242 points of cloth_door (docs/performance-transfer.md).

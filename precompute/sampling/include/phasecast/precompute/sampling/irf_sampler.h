@@ -37,6 +37,9 @@ struct SamplingOptions {
   std::filesystem::path work_dir;
   bool resume = false;      // continue from the checkpoints in work_dir
   int stop_after_irfs = 0;  // > 0: stop (SamplingError) once this many new IRFs are checkpointed (tests)
+  // Chain k runs in the process of rank k mod ranks (an MPI run, docs/distributed.md).
+  int ranks = 1;
+  int rank = 0;
   std::function<void(const SamplingProgress&)> progress;
 };
 
@@ -56,7 +59,17 @@ IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int i
 // Throws SamplingError naming the bad option (chains, IRFs per chain, jobs >= 1).
 void check_sampling_options(const SamplingOptions& options);
 
-// Runs (or resumes) every chain and returns their orbits concatenated in chain order.
+// Runs (or resumes) every chain and returns their orbits concatenated in chain
+// order (options.ranks must be 1).
 OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& options);
+
+// Runs (or resumes) this rank's chains, leaving each complete in its store in
+// options.work_dir. A failure names the chain.
+void sample_own_chains(const Scene& scene, const PaletteRules& rules, const SamplingOptions& options);
+
+// Every chain's store from options.work_dir, concatenated in chain order: what
+// sample_irfs returns, once all ranks have run their chains. Throws
+// SamplingError naming a missing or incomplete chain store.
+OrbitStore read_chain_stores(const Scene& scene, const SamplingOptions& options);
 
 }  // namespace phasecast::precompute

@@ -1,0 +1,80 @@
+#include "phasecast/precompute/distributed/ranks.h"
+
+#include <fmt/format.h>
+
+#ifdef PHASECAST_HAVE_MPI
+#include <mpi.h>
+#endif
+
+#include <climits>
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
+
+namespace phasecast::precompute {
+
+bool started_by_mpi_launcher() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"}) {
+    if (std::getenv(name)) return true;
+  }
+  return false;
+}
+
+Ranks& Ranks::world() {
+  static Ranks w;
+  return w;
+}
+
+#ifdef PHASECAST_HAVE_MPI
+
+Ranks::Ranks() {
+  if (!started_by_mpi_launcher()) return;
+  int ready = 0;
+  MPI_Initialized(&ready);
+  if (!ready) MPI_Init(nullptr, nullptr);
+  initialised_ = true;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
+  MPI_Comm_size(MPI_COMM_WORLD, &size_);
+}
+
+Ranks::~Ranks() {
+  if (initialised_) MPI_Finalize();
+}
+
+void Ranks::barrier() const {
+  if (initialised_) MPI_Barrier(MPI_COMM_WORLD);
+}
+
+void Ranks::share_rows(MatrixXfR& rows) const {
+  if (!distributed()) return;
+  if (rows.cols() > INT_MAX) throw std::runtime_error("share_rows: a row of more than 2^31 floats");
+  for (Eigen::Index j = 0; j < rows.rows(); ++j) {
+    MPI_Bcast(rows.row(j).data(), static_cast<int>(rows.cols()), MPI_FLOAT, static_cast<int>(j % size_),
+              MPI_COMM_WORLD);
+  }
+}
+
+void Ranks::abort_all(int code) const {
+  std::fflush(stdout);
+  std::fflush(stderr);
+  if (distributed()) MPI_Abort(MPI_COMM_WORLD, code);
+}
+
+#else
+
+Ranks::Ranks() {
+  if (started_by_mpi_launcher()) {
+    throw std::runtime_error(
+        "started by an MPI launcher, but this phasecast-precompute was built without MPI (install "
+        "libopenmpi-dev, reconfigure and rebuild; docs/distributed.md)");
+  }
+}
+
+Ranks::~Ranks() = default;
+void Ranks::barrier() const {}
+void Ranks::share_rows(MatrixXfR&) const {}
+void Ranks::abort_all(int) const {}
+
+#endif
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,193 @@
+// phasecast-precompute run under a real mpirun (Open MPI, ranks on this
+// machine): the package of any number of ranks is the single process's, bit
+// for bit; a rank killed mid-run loses no finished chain and --resume finishes
+// the same package; a rank that fails ends every rank with one line naming it.
+
+#include "phasecast/core/package.h"
+#include "run_tool.h"
+#include "same_package.h"
+#include "scene_files.h"
+
+#include <gtest/gtest.h>
+
+#include <dirent.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <chrono>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+namespace phasecast {
+namespace {
+
+using testing::expect_same_package;
+using testing::read_file;
+using testing::scratch_dir;
+using testing::tiny_scene_path;
+using testing::ToolResult;
+
+const std::vector<std::string> kSmall = {"--chains", "3",          "--seed", "4",          "-j",
+                                         "1",        "--max-rank", "20",     "--clusters", "5"};
+
+std::string quote(const std::string& word) {
+  std::string q = "'";
+  for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// mpirun (root allowed: CI runs as root) with `launch` before the tool and
+// its arguments, e.g. {"-np", "3"}; at most three minutes.
+std::vector<std::string> mpirun_argv(const std::vector<std::string>& launch) {
+  std::vector<std::string> argv{"timeout", "180", PHASECAST_MPIEXEC, "--oversubscribe",
+                                "--allow-run-as-root"};
+  argv.insert(argv.end(), launch.begin(), launch.end());
+  return argv;
+}
+
+ToolResult run(const std::vector<std::string>& argv, const std::filesystem::path& dir) {
+  std::string cmd;
+  for (const auto& a : argv) cmd += quote(a) + " ";
+  cmd += ">" + quote((dir / "out").string()) + " 2>" + quote((dir / "err").string()) + " </dev/null";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), read_file(dir / "out"),
+          read_file(dir / "err")};
+}
+
+std::vector<std::string> precompute_run(const std::filesystem::path& out, std::vector<std::string> extra = {},
+                                        const std::string& irfs_per_chain = "2") {
+  std::vector<std::string> a{testing::tool_path("phasecast-precompute").string(),
+                             "run",
+                             tiny_scene_path().string(),
+                             "-o",
+                             out.string(),
+                             "--irfs-per-chain",
+                             irfs_per_chain};
+  a.insert(a.end(), kSmall.begin(), kSmall.end());
+  a.insert(a.end(), extra.begin(), extra.end());
+  return a;
+}
+
+std::vector<std::string> concat(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+// The single-process package, the truth every run is compared with.
+core::ScenePackage single_process(const std::filesystem::path& dir) {
+  const auto r = run(precompute_run(dir / "np1.h5"), dir);
+  if (r.exit_code != 0) throw std::runtime_error("single-process run failed: " + r.err);
+  return core::read_package(dir / "np1.h5");
+}
+
+TEST(MpiRun, AnyNumberOfRanksWritesTheSinglePackage) {
+  const auto dir = scratch_dir("mpi_any_n");
+  const auto truth = single_process(dir);
+  for (const char* n : {"2", "3"}) {
+    const auto pkg = dir / (std::string("np") + n + ".h5");
+    const auto r = run(concat(mpirun_argv({"-np", n}), precompute_run(pkg)), dir);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find(std::string(", ") + n + " MPI ranks"), std::string::npos) << r.err;
+    EXPECT_NE(r.out.find("wrote " + pkg.string() + ": N = "), std::string::npos) << r.out;
+    SCOPED_TRACE(std::string("np ") + n);
+    expect_same_package(truth, core::read_package(pkg));
+  }
+}
+
+// The ranks mpirun started (its children running phasecast-precompute).
+std::vector<pid_t> ranks_of(pid_t mpirun) {
+  std::vector<pid_t> found;
+  DIR* proc = ::opendir("/proc");
+  while (const dirent* e = proc ? ::readdir(proc) : nullptr) {
+    const pid_t pid = static_cast<pid_t>(std::atoi(e->d_name));
+    if (pid <= 0) continue;
+    std::ifstream stat(std::string("/proc/") + e->d_name + "/stat");
+    std::string line;
+    std::getline(stat, line);
+    const auto close = line.rfind(')');
+    if (close == std::string::npos || line.find("(phasecast-prec") == std::string::npos) continue;
+    std::istringstream rest(line.substr(close + 2));
+    char state = 0;
+    pid_t parent = 0;
+    rest >> state >> parent;
+    if (parent == mpirun) found.push_back(pid);
+  }
+  if (proc) ::closedir(proc);
+  return found;
+}
+
+TEST(MpiRun, KilledRankLosesNoFinishedChainAndResumeWritesTheSamePackage) {
+  const auto dir = scratch_dir("mpi_killed");
+  const auto truth_run = run(precompute_run(dir / "np1.h5", {}, "8"), dir);
+  ASSERT_EQ(truth_run.exit_code, 0) << truth_run.err;
+  const auto truth = core::read_package(dir / "np1.h5");
+
+  const auto pkg = dir / "killed.h5";
+  auto argv_s = concat({PHASECAST_MPIEXEC, "--oversubscribe", "--allow-run-as-root", "-np", "3"},
+                       precompute_run(pkg, {}, "8"));
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
+  pid_t mpirun = 0;
+  ASSERT_EQ(posix_spawn(&mpirun, argv[0], &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  // Once chain 1 (rank 1) has checkpointed an IRF, kill rank 1's process.
+  const auto checkpoint = dir / "killed.h5.work" / "chain-001.state.h5";
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (!std::filesystem::exists(checkpoint) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  const auto ranks = ranks_of(mpirun);
+  ASSERT_EQ(ranks.size(), 3u);
+  ::kill(ranks[1], SIGKILL);
+  int status = 0;
+  ::waitpid(mpirun, &status, 0);
+  ASSERT_FALSE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the run ended before a rank was killed";
+  EXPECT_FALSE(std::filesystem::exists(pkg));
+  EXPECT_TRUE(std::filesystem::exists(checkpoint)) << "a finished IRF was lost";
+
+  const auto resumed = run(concat(mpirun_argv({"-np", "3"}), precompute_run(pkg, {"--resume"}, "8")), dir);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  EXPECT_NE(resumed.err.find("(resuming)"), std::string::npos) << resumed.err;
+  expect_same_package(truth, core::read_package(pkg));
+}
+
+TEST(MpiRun, ABadOptionOnOneRankEndsEveryRankWithOneLine) {
+  const auto dir = scratch_dir("mpi_bad_option");
+  // Two ranks with good options and one (rank 2) whose option is not a number.
+  const auto r =
+      run(concat(concat(mpirun_argv({"-np", "2"}), precompute_run(dir / "bad.h5")),
+                 concat({":", "-np", "1"}, precompute_run(dir / "bad.h5", {"--cluster-seed", "many"}))),
+          dir);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.exit_code, 124) << "the ranks did not stop within 180 s";
+  EXPECT_NE(r.err.find(
+                "phasecast-precompute: rank 2 of 3: Could not convert: --cluster-seed = many (see --help)\n"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.h5"));
+}
+
+TEST(MpiRun, AFailingRankNamesItselfAndEndsTheRun) {
+  const auto dir = scratch_dir("mpi_failing_rank");
+  // Ranks 1 and 2 are given a scene file that does not exist.
+  const auto missing = dir / "no_such_scene.toml";
+  auto bad = precompute_run(dir / "fail.h5");
+  bad[2] = missing.string();
+  const auto r = run(concat(concat(mpirun_argv({"-np", "1"}), precompute_run(dir / "fail.h5")),
+                            concat({":", "-np", "2"}, bad)),
+                     dir);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.exit_code, 124) << "the ranks did not stop within 180 s";
+  EXPECT_NE(r.err.find("phasecast-precompute: rank 1 of 3: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(missing.string()), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "fail.h5"));
+}
+
+}  // namespace
+}  // namespace phasecast
