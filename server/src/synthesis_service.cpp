@@ -151,11 +151,15 @@ v1::Reply SynthesisService::handle(const v1::Request& request, const std::string
     // Packages never change once serving: a basis chunk needs no lock.
     if (!request.has_basis()) lock.lock();
     answer(request, client, reply);
+    reply.set_ok(true);  // before its size is taken
+    // Any large reply (a basis chunk, the stats or instance list of many
+    // instances) waits in the client's queue until read: bounded like one.
+    if (const auto bytes = reply.ByteSizeLong(); bytes > kRepliesAlwaysSent)
+      check_pending_replies(client, bytes);
     if (auto closing = std::move(closing_)) {
       lock.unlock();
       closing->close();  // record_stop's last write and fsync, while the tick goes on
     }
-    reply.set_ok(true);
   } catch (const std::exception& e) {  // EngineError, RequestError, RecordingError
     if (!lock.owns_lock()) lock.lock();
     ++stats_.bad_requests;
@@ -228,7 +232,7 @@ void SynthesisService::answer(const v1::Request& r, const std::string& client, v
     case v1::Request::kDestroyInstance:
       return destroy_instance(r.destroy_instance(), *reply.mutable_destroyed());
     case v1::Request::kBasis:
-      return basis(r.basis(), client, *reply.mutable_basis());
+      return basis(r.basis(), *reply.mutable_basis());
     case v1::Request::kRecordStart:
       return record_start(r.record_start(), *reply.mutable_record());
     case v1::Request::kRecordStop:
@@ -367,8 +371,7 @@ void SynthesisService::destroy_instance(const v1::DestroyInstance& r, v1::Instan
   record_destroyed(out);
 }
 
-void SynthesisService::basis(const v1::BasisRequest& r, const std::string& client,
-                             v1::BasisChunk& out) const {
+void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) const {
   check_text("scene name", r.scene());
   const auto& s = engine_.scenes()[static_cast<std::size_t>(engine_.scene_index(r.scene()))];
   const auto parts = core::basis_parts(*s.data);
@@ -389,7 +392,6 @@ void SynthesisService::basis(const v1::BasisRequest& r, const std::string& clien
   }
   const std::uint64_t cap = r.max_bytes() == 0 ? kDefaultChunkBytes : std::min(r.max_bytes(), kMaxChunkBytes);
   const std::uint64_t n = std::min(cap, total - r.offset());
-  check_pending_replies(client, n);
   out.set_scene(s.name);
   out.set_part(r.part());
   out.set_offset(r.offset());
@@ -405,23 +407,23 @@ void SynthesisService::basis(const v1::BasisRequest& r, const std::string& clien
 
 // Replies wait in ZeroMQ's per-connection queues until the client reads
 // them; these bound what one client and all of them together can hold.
-void SynthesisService::check_pending_replies(const std::string& client, std::uint64_t chunk_bytes) const {
+void SynthesisService::check_pending_replies(const std::string& client, std::uint64_t reply_bytes) const {
   const PendingReplyBytes pending = pending_reply_bytes_(client);
   const std::uint64_t per_client = limits_.max_pending_reply_bytes_per_client;
-  if (pending.client + chunk_bytes > per_client) {
+  if (pending.client + reply_bytes > per_client) {
     throw LimitError(
-        fmt::format("{} bytes of replies are waiting for this client to read them and this chunk has {} "
+        fmt::format("{} bytes of replies are waiting for this client to read them and this reply has {} "
                     "bytes (expected at "
                     "most {}; see --max-pending-reply-bytes-per-client)",
-                    pending.client, chunk_bytes, per_client));
+                    pending.client, reply_bytes, per_client));
   }
   const std::uint64_t all = limits_.max_pending_reply_bytes;
-  if (pending.all + chunk_bytes > all) {
+  if (pending.all + reply_bytes > all) {
     throw LimitError(
-        fmt::format("{} bytes of replies are waiting for clients to read them and this chunk has {} bytes "
+        fmt::format("{} bytes of replies are waiting for clients to read them and this reply has {} bytes "
                     "(expected at most "
                     "{} in all; see --max-pending-reply-bytes)",
-                    pending.all, chunk_bytes, all));
+                    pending.all, reply_bytes, all));
   }
 }
 

@@ -8,6 +8,7 @@
 #include "run_tool.h"
 #include "synthetic_package.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <map>
@@ -163,44 +164,50 @@ TEST(Service, RequestRateIsBoundedPerClient) {
   EXPECT_TRUE(s.handle(stats, "calm").ok());
 }
 
-// Basis chunks stop when the transport's queued reply bytes would pass the
-// asking client's bound or the global one; other replies go on, and stats
-// report the count.
-TEST(Service, BasisChunksStopAtThePendingReplyBounds) {
+// Large replies stop when the transport's queued reply bytes would pass the
+// asking client's bound or the global one; small ones (errors, a short
+// stats) always go, and stats report the count.
+TEST(Service, LargeRepliesStopAtThePendingReplyBounds) {
   const TwoScenes f("pending");
   SynthesisService s(60);
   s.load_package(f.plate);
+  v1::Request chunk;
+  chunk.mutable_basis()->set_scene("plate");
+  chunk.mutable_basis()->set_part(v1::TRIANGLES);
+  const auto first = s.handle(chunk, "slow");
+  ASSERT_TRUE(first.ok()) << first.error();
+  const std::uint64_t B = first.ByteSizeLong();
+  ASSERT_GT(B, kRepliesAlwaysSent);
   ServiceLimits limits;
-  limits.max_pending_reply_bytes = 1000;
-  limits.max_pending_reply_bytes_per_client = 500;
+  limits.max_pending_reply_bytes = 3 * B;
+  limits.max_pending_reply_bytes_per_client = 2 * B;
   s.set_limits(limits);
   std::map<std::string, std::uint64_t> pending{{"slow", 0}, {"calm", 0}};
   s.set_pending_reply_bytes([&](const std::string& client) {
     return PendingReplyBytes{pending["slow"] + pending["calm"], pending.count(client) ? pending[client] : 0};
   });
-  v1::Request chunk;
-  chunk.mutable_basis()->set_scene("plate");
-  chunk.mutable_basis()->set_part(v1::TRIANGLES);
-  chunk.mutable_basis()->set_max_bytes(400);
-  EXPECT_TRUE(s.handle(chunk, "slow").ok());
-  pending["slow"] = 100;
-  EXPECT_TRUE(s.handle(chunk, "slow").ok());  // 100 + 400 is the client's bound itself
-  pending["slow"] = 101;
+  pending["slow"] = B;
+  EXPECT_TRUE(s.handle(chunk, "slow").ok());  // B + B is the client's bound itself
+  pending["slow"] = B + 1;
   EXPECT_EQ(
       s.handle(chunk, "slow").error(),
-      "basis: 101 bytes of replies are waiting for this client to read them and this chunk has 400 bytes "
-      "(expected at most 500; see --max-pending-reply-bytes-per-client)");
+      fmt::format("basis: {} bytes of replies are waiting for this client to read them and this reply has {} "
+                  "bytes (expected at most {}; see --max-pending-reply-bytes-per-client)",
+                  B + 1, B, 2 * B));
   EXPECT_TRUE(s.handle(chunk, "calm").ok());  // another client is not held back by it
-  pending["slow"] = 501;
-  pending["calm"] = 100;
+  pending["slow"] = 2 * B;
+  pending["calm"] = 1;
   EXPECT_EQ(s.handle(chunk, "calm").error(),
-            "basis: 601 bytes of replies are waiting for clients to read them and this chunk has 400 bytes "
-            "(expected at most 1000 in all; see --max-pending-reply-bytes)");
+            fmt::format(
+                "basis: {} bytes of replies are waiting for clients to read them and this reply has {} bytes "
+                "(expected at most {} in all; see --max-pending-reply-bytes)",
+                2 * B + 1, B, 3 * B));
   v1::Request stats;
   stats.mutable_stats();
-  const auto r = s.handle(stats, "calm");
-  ASSERT_TRUE(r.ok());
-  EXPECT_EQ(r.stats().pending_reply_bytes(), 601u);
+  const auto r = s.handle(stats, "calm");  // small: sent whatever the bounds say
+  ASSERT_TRUE(r.ok()) << r.error();
+  EXPECT_LE(r.ByteSizeLong(), kRepliesAlwaysSent);
+  EXPECT_EQ(r.stats().pending_reply_bytes(), 2 * B + 1);
   EXPECT_EQ(r.stats().limited_requests(), 2u);
 }
 

@@ -30,6 +30,9 @@ namespace phasecast::server {
 
 inline constexpr std::uint32_t kDefaultChunkBytes = 1u << 20;  // basis chunk without max_bytes
 inline constexpr std::uint32_t kMaxChunkBytes = 1u << 20;      // cap on max_bytes (bounds queued reply bytes)
+// Replies up to this size are sent whatever the pending-reply bounds say: an
+// error reply always reaches its client, and small replies cost little.
+inline constexpr std::uint64_t kRepliesAlwaysSent = 1024;
 
 // What one client may cost the server; a request over a limit gets an error
 // reply naming the limit and its option (docs/server.md, "Limits").
@@ -129,8 +132,8 @@ class SynthesisService {
   void list_instances(v1::Reply& reply) const;
   void create_instance(const v1::CreateInstance& request, const std::string& client, v1::InstanceInfo& out);
   void destroy_instance(const v1::DestroyInstance& request, v1::InstanceInfo& out);
-  void basis(const v1::BasisRequest& request, const std::string& client, v1::BasisChunk& out) const;
-  void check_pending_replies(const std::string& client, std::uint64_t chunk_bytes) const;
+  void basis(const v1::BasisRequest& request, v1::BasisChunk& out) const;
+  void check_pending_replies(const std::string& client, std::uint64_t reply_bytes) const;
   void record_start(const v1::RecordStart& request, v1::RecordStatus& out);
   void record_stop(v1::RecordStatus& out);
   void report_stats(v1::Stats& out) const;
