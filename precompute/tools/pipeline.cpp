@@ -105,7 +105,6 @@ void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::f
       // Each rank checkpoints its chains into the shared work folder; rank 0
       // then reads them back in chain order, as one process would hold them.
       precompute::sample_own_chains(scene, rules, a.sampling);
-      display->finish();
       ranks.barrier();
       if (ranks.rank() == 0) store = precompute::read_chain_stores(scene, a.sampling);
     } else {

@@ -60,6 +60,13 @@ class CurveClient : public ::testing::Test {
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     return r.err;
   }
+  // The renderer's line when the server at `endpoint` refuses its key.
+  static std::string key_refused(const std::string& endpoint) {
+    return fmt::format(
+        "phasecast-render: list_scenes: no reply from {} after 3 attempts of 500 ms (the server refused this "
+        "client's CURVE key (ZAP status 400; is its public key in the server's --allow-clients file?))\n",
+        endpoint);
+  }
 
   fs::path dir_;
   core::ScenePackage package_;
@@ -85,12 +92,7 @@ TEST_F(CurveClient, RealServerServesOnlyAllowedKeys) {
   EXPECT_EQ(pngs(dir_ / "allowed"), 10u);
 
   r = render("stranger.key", "stranger");
-  EXPECT_EQ(
-      one_line_error(r),
-      fmt::format("phasecast-render: list_scenes: no reply from {} after 3 attempts of 500 ms (the server "
-                  "refused this client's CURVE key (ZAP status 400; is its public key in the server's "
-                  "--allow-clients file?))\n",
-                  server.cmd()));
+  EXPECT_EQ(one_line_error(r), key_refused(server.cmd()));
   EXPECT_EQ(pngs(dir_ / "stranger"), 0u);
 
   r = testing::run_tool("phasecast-console",
@@ -125,12 +127,7 @@ TEST_F(CurveClient, UnknownKeyGetsNothingAndIsToldWhy) {
   testing::TestPeer peer(package_, curve_peer(true));
   const auto r = testing::run_tool("phasecast-render", render(peer, {"--server-key", path("server.pub"),
                                                                      "--client-key", path("stranger.key")}));
-  EXPECT_EQ(
-      one_line_error(r),
-      fmt::format("phasecast-render: list_scenes: no reply from {} after 3 attempts of 500 ms (the server "
-                  "refused this client's CURVE key (ZAP status 400; is its public key in the server's "
-                  "--allow-clients file?))\n",
-                  peer.cmd_endpoint()));
+  EXPECT_EQ(one_line_error(r), key_refused(peer.cmd_endpoint()));
   EXPECT_EQ(pngs(dir_ / "out"), 0u);
   EXPECT_GT(peer.refused_clients(), 0u);
 }

@@ -37,6 +37,22 @@ class CraftedPackage : public ::testing::Test {
     file_ = fuzz::read_file(path_);
   }
 
+  // Applies `edit` to the first header message that `matches`, repairs that
+  // block's checksum and writes the file; false if no message matched.
+  template <class Match, class Edit>
+  bool craft_first(Match matches, Edit edit) {
+    for (const auto& block : fuzz::metadata_blocks(file_)) {
+      for (const auto& m : block.messages) {
+        if (!matches(m)) continue;
+        edit(m);
+        fuzz::store_checksum(file_, block);
+        fuzz::write_file(path_, file_);
+        return true;
+      }
+    }
+    return false;
+  }
+
   std::filesystem::path dir_, path_;
   fuzz::Bytes file_;
 };
@@ -57,19 +73,11 @@ TEST_F(CraftedPackage, EveryObjectHeaderIsFoundAndVerifies) {
 // H5D__chunk_set_info (SIGFPE) when the dataset is opened; the reader must
 // answer with one PackageError line instead.
 TEST_F(CraftedPackage, ChunkedLayoutOfDimensionalityZeroIsRefusedNotACrash) {
-  bool crafted = false;
-  for (const auto& block : fuzz::metadata_blocks(file_)) {
-    for (const auto& m : block.messages) {
-      if (crafted || m.type != kLayoutMessage || file_[m.begin + 1] != kChunkedClass ||
-          file_[m.begin + 2] != 2)
-        continue;
-      file_[m.begin + 2] = 0;  // dimensionality
-      fuzz::store_checksum(file_, block);
-      crafted = true;
-    }
-  }
-  ASSERT_TRUE(crafted);
-  fuzz::write_file(path_, file_);
+  ASSERT_TRUE(craft_first(
+      [&](const auto& m) {
+        return m.type == kLayoutMessage && file_[m.begin + 1] == kChunkedClass && file_[m.begin + 2] == 2;
+      },
+      [&](const auto& m) { file_[m.begin + 2] = 0; }));  // dimensionality
   try {
     core::read_package(path_);
     FAIL() << "a package with a zero-dimensional chunk layout was accepted";
@@ -89,21 +97,13 @@ TEST_F(CraftedPackage, ChunkedLayoutOfDimensionalityZeroIsRefusedNotACrash) {
 // checking child and again in the caller (10 s and 8 GB here), and then
 // accepts the file. The child's memory limit turns that into a refusal.
 TEST_F(CraftedPackage, AHugeStringLengthIsRefusedWithoutAHugeAllocation) {
-  bool crafted = false;
-  for (const auto& block : fuzz::metadata_blocks(file_)) {
-    for (const auto& m : block.messages) {
-      const bool scene =
-          m.type == kAttributeMessage &&
-          file_.substr(m.begin, m.end - m.begin).find(std::string("scene", 6)) != std::string::npos;
-      if (crafted || !scene) continue;
+  ASSERT_TRUE(craft_first(
+      [&](const auto& m) {
+        return m.type == kAttributeMessage &&
+               file_.substr(m.begin, m.end - m.begin).find(std::string("scene", 6)) != std::string::npos;
+      },
       // The attribute's data closes the message: sequence length (4 bytes), heap address, index.
-      file_.replace(m.end - 16, 4, "\xff\xff\xff\xff");
-      fuzz::store_checksum(file_, block);
-      crafted = true;
-    }
-  }
-  ASSERT_TRUE(crafted);
-  fuzz::write_file(path_, file_);
+      [&](const auto& m) { file_.replace(m.end - 16, 4, "\xff\xff\xff\xff"); }));
   try {
     core::read_package(path_);
     FAIL() << "a package whose scene name claims 4 GB was accepted";

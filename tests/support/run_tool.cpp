@@ -1,5 +1,7 @@
 #include "run_tool.h"
 
+#include <fcntl.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <cstdio>
@@ -26,16 +28,37 @@ std::filesystem::path tool_path(const std::string& name) {
 }
 
 ToolResult run_tool(const std::string& tool, const std::vector<std::string>& args) {
+  std::vector<std::string> argv{tool_path(tool).string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return run_command(argv);
+}
+
+ToolResult run_command(const std::vector<std::string>& argv) {
   const auto dir = scratch_dir("run_tool_" + std::to_string(::getpid()));
-  std::string cmd = quote(tool_path(tool).string());
-  for (const auto& a : args) cmd += " " + quote(a);
-  cmd += " >" + quote((dir / "out").string()) + " 2>" + quote((dir / "err").string()) + " </dev/null";
+  std::string cmd;
+  for (const auto& a : argv) cmd += quote(a) + " ";
+  cmd += ">" + quote((dir / "out").string()) + " 2>" + quote((dir / "err").string()) + " </dev/null";
   const int status = std::system(cmd.c_str());
   ToolResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   r.out = read_file(dir / "out");
   r.err = read_file(dir / "err");
   return r;
+}
+
+pid_t spawn_quietly(std::vector<std::string> argv_s) {
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  const int error = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (error != 0) throw std::runtime_error("cannot start " + argv_s[0]);
+  return pid;
 }
 
 std::string read_file(const std::filesystem::path& path) {

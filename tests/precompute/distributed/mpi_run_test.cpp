@@ -11,9 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <dirent.h>
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <chrono>
 #include <fstream>
@@ -25,18 +23,12 @@ namespace {
 
 using testing::expect_same_package;
 using testing::read_file;
+using testing::run_command;
 using testing::scratch_dir;
 using testing::tiny_scene_path;
-using testing::ToolResult;
 
 const std::vector<std::string> kSmall = {"--chains", "3",          "--seed", "4",          "-j",
                                          "1",        "--max-rank", "20",     "--clusters", "5"};
-
-std::string quote(const std::string& word) {
-  std::string q = "'";
-  for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
 
 // mpirun (root allowed: CI runs as root) with `launch` before the tool and
 // its arguments, e.g. {"-np", "3"}; at most three minutes.
@@ -45,15 +37,6 @@ std::vector<std::string> mpirun_argv(const std::vector<std::string>& launch) {
                                 "--allow-run-as-root"};
   argv.insert(argv.end(), launch.begin(), launch.end());
   return argv;
-}
-
-ToolResult run(const std::vector<std::string>& argv, const std::filesystem::path& dir) {
-  std::string cmd;
-  for (const auto& a : argv) cmd += quote(a) + " ";
-  cmd += ">" + quote((dir / "out").string()) + " 2>" + quote((dir / "err").string()) + " </dev/null";
-  const int status = std::system(cmd.c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), read_file(dir / "out"),
-          read_file(dir / "err")};
 }
 
 std::vector<std::string> precompute_run(const std::filesystem::path& out, std::vector<std::string> extra = {},
@@ -77,7 +60,7 @@ std::vector<std::string> concat(std::vector<std::string> a, const std::vector<st
 
 // The single-process package, the truth every run is compared with.
 core::ScenePackage single_process(const std::filesystem::path& dir) {
-  const auto r = run(precompute_run(dir / "np1.h5"), dir);
+  const auto r = run_command(precompute_run(dir / "np1.h5"));
   if (r.exit_code != 0) throw std::runtime_error("single-process run failed: " + r.err);
   return core::read_package(dir / "np1.h5");
 }
@@ -87,7 +70,7 @@ TEST(MpiRun, AnyNumberOfRanksWritesTheSinglePackage) {
   const auto truth = single_process(dir);
   for (const char* n : {"2", "3"}) {
     const auto pkg = dir / (std::string("np") + n + ".h5");
-    const auto r = run(concat(mpirun_argv({"-np", n}), precompute_run(pkg)), dir);
+    const auto r = run_command(concat(mpirun_argv({"-np", n}), precompute_run(pkg)));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find(std::string(", ") + n + " MPI ranks"), std::string::npos) << r.err;
     EXPECT_NE(r.out.find("wrote " + pkg.string() + ": N = "), std::string::npos) << r.out;
@@ -120,23 +103,14 @@ std::vector<pid_t> ranks_of(pid_t mpirun) {
 
 TEST(MpiRun, KilledRankLosesNoFinishedChainAndResumeWritesTheSamePackage) {
   const auto dir = scratch_dir("mpi_killed");
-  const auto truth_run = run(precompute_run(dir / "np1.h5", {}, "8"), dir);
+  const auto truth_run = run_command(precompute_run(dir / "np1.h5", {}, "8"));
   ASSERT_EQ(truth_run.exit_code, 0) << truth_run.err;
   const auto truth = core::read_package(dir / "np1.h5");
 
   const auto pkg = dir / "killed.h5";
-  auto argv_s = concat({PHASECAST_MPIEXEC, "--oversubscribe", "--allow-run-as-root", "-np", "3"},
-                       precompute_run(pkg, {}, "8"));
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
-  pid_t mpirun = 0;
-  ASSERT_EQ(posix_spawn(&mpirun, argv[0], &actions, nullptr, argv.data(), environ), 0);
-  posix_spawn_file_actions_destroy(&actions);
+  const pid_t mpirun =
+      testing::spawn_quietly(concat({PHASECAST_MPIEXEC, "--oversubscribe", "--allow-run-as-root", "-np", "3"},
+                                    precompute_run(pkg, {}, "8")));
   // Once chain 1 (rank 1) has checkpointed an IRF, kill rank 1's process.
   const auto checkpoint = dir / "killed.h5.work" / "chain-001.state.h5";
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
@@ -151,7 +125,7 @@ TEST(MpiRun, KilledRankLosesNoFinishedChainAndResumeWritesTheSamePackage) {
   EXPECT_FALSE(std::filesystem::exists(pkg));
   EXPECT_TRUE(std::filesystem::exists(checkpoint)) << "a finished IRF was lost";
 
-  const auto resumed = run(concat(mpirun_argv({"-np", "3"}), precompute_run(pkg, {"--resume"}, "8")), dir);
+  const auto resumed = run_command(concat(mpirun_argv({"-np", "3"}), precompute_run(pkg, {"--resume"}, "8")));
   ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
   EXPECT_NE(resumed.err.find("(resuming)"), std::string::npos) << resumed.err;
   expect_same_package(truth, core::read_package(pkg));
@@ -160,10 +134,9 @@ TEST(MpiRun, KilledRankLosesNoFinishedChainAndResumeWritesTheSamePackage) {
 TEST(MpiRun, ABadOptionOnOneRankEndsEveryRankWithOneLine) {
   const auto dir = scratch_dir("mpi_bad_option");
   // Two ranks with good options and one (rank 2) whose option is not a number.
-  const auto r =
-      run(concat(concat(mpirun_argv({"-np", "2"}), precompute_run(dir / "bad.h5")),
-                 concat({":", "-np", "1"}, precompute_run(dir / "bad.h5", {"--cluster-seed", "many"}))),
-          dir);
+  const auto r = run_command(
+      concat(concat(mpirun_argv({"-np", "2"}), precompute_run(dir / "bad.h5")),
+             concat({":", "-np", "1"}, precompute_run(dir / "bad.h5", {"--cluster-seed", "many"}))));
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.exit_code, 124) << "the ranks did not stop within 180 s";
   EXPECT_NE(r.err.find(
@@ -179,9 +152,8 @@ TEST(MpiRun, AFailingRankNamesItselfAndEndsTheRun) {
   const auto missing = dir / "no_such_scene.toml";
   auto bad = precompute_run(dir / "fail.h5");
   bad[2] = missing.string();
-  const auto r = run(concat(concat(mpirun_argv({"-np", "1"}), precompute_run(dir / "fail.h5")),
-                            concat({":", "-np", "2"}, bad)),
-                     dir);
+  const auto r = run_command(concat(concat(mpirun_argv({"-np", "1"}), precompute_run(dir / "fail.h5")),
+                                    concat({":", "-np", "2"}, bad)));
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.exit_code, 124) << "the ranks did not stop within 180 s";
   EXPECT_NE(r.err.find("phasecast-precompute: rank 1 of 3: "), std::string::npos) << r.err;

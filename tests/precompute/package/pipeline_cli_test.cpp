@@ -9,8 +9,6 @@
 
 #include <gtest/gtest.h>
 
-#include <fcntl.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <chrono>
 #include <csignal>
@@ -93,19 +91,9 @@ TEST(PipelineCli, SigkilledRunResumesWithNoLostOrDuplicatedOrbit) {
   const std::string killed = (dir / "killed.h5").string(), straight = (dir / "straight.h5").string();
   const std::vector<std::string> opts = {"--chains", "2", "--irfs-per-chain", "12",
                                          "-j",       "1", "--max-rank",       "20"};
-  std::vector<std::string> argv_s = args(
+  const pid_t pid = testing::spawn_quietly(args(
       {testing::tool_path("phasecast-precompute").string(), "run", tiny_scene_path().string(), "-o", killed},
-      opts);
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, 2, "/dev/null", O_WRONLY, 0);
-  pid_t pid = 0;
-  ASSERT_EQ(posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
-  posix_spawn_file_actions_destroy(&actions);
+      opts));
   const auto first_checkpoint = std::filesystem::path(killed + ".work") / "chain-000.state.h5";
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
   while (!std::filesystem::exists(first_checkpoint) && std::chrono::steady_clock::now() < deadline)

@@ -180,6 +180,27 @@ TEST_F(Sampler, ResumeWithFewerIrfsThanCheckpointedIsRejected) {
   }
 }
 
+// Two ranks sharing a work folder, in turn: rank 0's chains alone cannot be
+// merged (one line names the missing chain); with rank 1's they give the
+// single process's orbits.
+TEST_F(Sampler, RanksSharingAWorkFolderMergeToTheSingleProcessOrbits) {
+  auto o = small_options(scratch_dir("sampler_ranks"));
+  o.ranks = 2;
+  sample_own_chains(scene, rules, o);
+  try {
+    read_chain_stores(scene, o);
+    FAIL() << "expected a SamplingError";
+  } catch (const SamplingError& e) {
+    EXPECT_EQ(std::string(e.what()), (o.work_dir / "chain-001.h5").string() +
+                                         ": chain 1 has no store (expected every rank to share the work "
+                                         "folder; docs/distributed.md)");
+  }
+  o.rank = 1;
+  sample_own_chains(scene, rules, o);
+  expect_identical(read_chain_stores(scene, o),
+                   sample_irfs(scene, rules, small_options(scratch_dir("sampler_one"))));
+}
+
 TEST_F(Sampler, WorkFolderThatIsAFileIsRejected) {
   const auto dir = scratch_dir("sampler_work_file");
   std::ofstream(dir / "file") << "x";
