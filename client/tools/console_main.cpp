@@ -1,6 +1,6 @@
 // phasecast-console: send impulses and script sessions in Lua (docs/console.md).
 
-#include "curve_options.h"
+#include "phasecast/client/curve_options.h"
 #include "phasecast/client/console.h"
 
 #include <fmt/format.h>

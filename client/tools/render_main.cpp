@@ -1,6 +1,6 @@
 // phasecast-render: the thin render client (§5.3). See docs/client.md.
 
-#include "curve_options.h"
+#include "phasecast/client/curve_options.h"
 #include "phasecast/client/camera.h"
 #include "phasecast/client/render_app.h"
 #include "phasecast/client/render_backend.h"

@@ -2,33 +2,15 @@
 
 #include "run_tool.h"
 
-#include <fcntl.h>
-#include <poll.h>
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
 #include <zmq_addon.hpp>
 
 #include <algorithm>
-#include <fstream>
 #include <iterator>
 #include <sstream>
 #include <stdexcept>
-#include <thread>
 
 namespace phasecast::testing {
 namespace {
-
-// Reads what is available on `fd` within `ms`; false at end of file or timeout.
-bool read_some(int fd, std::string& into, int ms) {
-  pollfd p{fd, POLLIN, 0};
-  if (::poll(&p, 1, ms) <= 0) return false;
-  char buf[4096];
-  const ssize_t n = ::read(fd, buf, sizeof buf);
-  if (n <= 0) return false;
-  into.append(buf, static_cast<size_t>(n));
-  return true;
-}
 
 // Finds the complete line "... listening cmd=<cmd> pub=<pub>" in `out`.
 bool parse_listening(const std::string& out, std::string& cmd, std::string& pub) {
@@ -48,84 +30,18 @@ bool parse_listening(const std::string& out, std::string& cmd, std::string& pub)
   return true;
 }
 
+std::vector<std::string> server_argv(const std::vector<std::string>& args) {
+  std::vector<std::string> argv{tool_path("phasecast-server").string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  argv.insert(argv.end(), {"--cmd", "tcp://127.0.0.1:*", "--pub", "tcp://127.0.0.1:*"});
+  return argv;
+}
+
 }  // namespace
 
-ServerProcess::ServerProcess(const std::vector<std::string>& args, const std::vector<std::string>& env) {
-  static int counter = 0;
-  err_path_ = (std::filesystem::temp_directory_path() /
-               ("phasecast_server_err_" + std::to_string(::getpid()) + "_" + std::to_string(counter++)))
-                  .string();
-  std::vector<std::string> argv_s{tool_path("phasecast-server").string()};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  argv_s.insert(argv_s.end(), {"--cmd", "tcp://127.0.0.1:*", "--pub", "tcp://127.0.0.1:*"});
-  int fds[2];
-  if (::pipe(fds) != 0) throw std::runtime_error("pipe failed");
-  // Everything the child needs is made before fork: between fork and exec a
-  // child of a threaded process may only make async-signal-safe calls (an
-  // allocation there deadlocked under ASan).
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  std::vector<std::string> env_s = env;
-  for (char** e = environ; *e; ++e) {
-    const std::string_view entry(*e);
-    const auto name = entry.substr(0, entry.find('=') + 1);
-    if (std::none_of(env.begin(), env.end(), [&](const std::string& x) { return x.starts_with(name); }))
-      env_s.emplace_back(entry);
-  }
-  std::vector<char*> envp;
-  for (auto& e : env_s) envp.push_back(e.data());
-  envp.push_back(nullptr);
-  pid_ = ::fork();
-  if (pid_ == 0) {
-    ::dup2(fds[1], 1);
-    const int err = ::open(err_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    ::dup2(err, 2);
-    ::close(fds[0]);
-    ::execve(argv[0], argv.data(), envp.data());
-    ::_exit(127);
-  }
-  ::close(fds[1]);
-  out_fd_ = fds[0];
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (!parse_listening(out_, cmd_, pub_)) {
-    if (std::chrono::steady_clock::now() > deadline || !read_some(out_fd_, out_, 1000)) {
-      if (std::chrono::steady_clock::now() > deadline || ::waitpid(pid_, nullptr, WNOHANG) != 0) {
-        const int code = stop(SIGKILL);
-        throw std::runtime_error("phasecast-server did not announce its endpoints (exit " +
-                                 std::to_string(code) + "): " + err());
-      }
-    }
-  }
-}
-
-ServerProcess::~ServerProcess() {
-  if (pid_ > 0) stop(SIGKILL);
-  if (out_fd_ >= 0) ::close(out_fd_);
-  std::filesystem::remove(err_path_);
-}
-
-int ServerProcess::stop(int signal) {
-  if (pid_ <= 0) return -1;
-  ::kill(pid_, signal);
-  int status = 0;
-  ::waitpid(pid_, &status, 0);
-  pid_ = -1;
-  while (read_some(out_fd_, out_, 100)) {
-  }
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-}
-
-std::string ServerProcess::out() {
-  while (read_some(out_fd_, out_, 0)) {
-  }
-  return out_;
-}
-
-std::string ServerProcess::err() {
-  std::ifstream in(err_path_);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+ServerProcess::ServerProcess(const std::vector<std::string>& args, const std::vector<std::string>& env)
+    : process_(server_argv(args), env,
+               [this](const std::string& out) { return parse_listening(out, cmd_, pub_); }) {}
 
 namespace {
 

@@ -2,11 +2,11 @@
 // Test helpers for the real phasecast-server: a child process on loopback
 // with its announced endpoints, a DEALER command client and a SUB subscriber.
 
+#include "listening_process.h"
 #include "phasecast/proto/phasecast.pb.h"
 
 #include <zmq.hpp>
 
-#include <sys/types.h>
 #include <chrono>
 #include <optional>
 #include <string>
@@ -20,22 +20,18 @@ namespace phasecast::testing {
 class ServerProcess {
  public:
   explicit ServerProcess(const std::vector<std::string>& args, const std::vector<std::string>& env = {});
-  ~ServerProcess();
-  ServerProcess(const ServerProcess&) = delete;
-  ServerProcess& operator=(const ServerProcess&) = delete;
 
   // Sends `signal`, waits, returns the exit code (128 + signal if killed).
-  int stop(int signal = 15);
+  int stop(int signal = 15) { return process_.stop(signal); }
   const std::string& cmd() const { return cmd_; }
   const std::string& pub() const { return pub_; }
   // Everything the server printed on stdout so far (after stop(): all of it).
-  std::string out();
-  std::string err();
+  std::string out() { return process_.out(); }
+  std::string err() { return process_.err(); }
 
  private:
-  pid_t pid_ = -1;
-  int out_fd_ = -1;
-  std::string out_, err_path_, cmd_, pub_;
+  std::string cmd_, pub_;  // before process_: its constructor fills them
+  ListeningProcess process_;
 };
 
 // A CURVE client's keys (Z85 text): the server's public key and its own pair.

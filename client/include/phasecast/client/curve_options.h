@@ -1,5 +1,5 @@
 #pragma once
-// --server-key and --client-key, the same on every client tool
+// --server-key and --client-key, the same on every client tool and the gateway
 // (docs/security.md); `prefix` groups them in a tool's --help ("network: ").
 
 #include <CLI/CLI.hpp>
