@@ -9,6 +9,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 
@@ -30,7 +31,7 @@ def run(args, timeout=60, **kw):
 # scripts/demo checks its arguments before installing or building anything.
 for args, message in [
     (["--bogus"], "demo: unknown argument '--bogus' (expected --scene, --tiny, --frames, --size, --script, "
-                  "--no-build, --full-sampling, --help)"),
+                  "--no-build, --full-sampling, --web, --web-listen, --help)"),
     (["--frames", "x"], "demo: --frames 'x' is not a positive whole number"),
     (["--size", "big"], "demo: --size 'big' is not WxH (e.g. 320x240)"),
     (["--scene", "nope"], "demo: scene 'nope' has no file " + os.path.join(source, "scenes", "nope.toml")),
@@ -70,6 +71,29 @@ if r.returncode == 0:
     check("swing 1: open at frame" in open(os.path.join(work, "logs", "console.log")).read(),
           "the console did not run door_open_close.lua")
     check("demo: outputs in " + work in r.stderr, "the demo did not say where its outputs are")
+
+# --web: the same cached package served to browsers; the demo prints the URL,
+# the gateway serves the page there, and Ctrl-C stops everything it started.
+if os.path.exists(os.path.join(os.path.dirname(bin_dir), "web", "index.html")):
+    web = subprocess.Popen([demo, "--tiny", "--no-build", "--web", "--web-listen", "127.0.0.1:0"], env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        url = web.stdout.readline().strip()
+        check(url.startswith("http://127.0.0.1:"), f"scripts/demo --web printed no URL: '{url}'")
+        if url:
+            import urllib.request
+            page = urllib.request.urlopen(url, timeout=10).read().decode()
+            check("app.js" in page, f"{url} did not serve the page: {page[:200]}")
+            stats = json.load(urllib.request.urlopen(url + "stats", timeout=10))
+            check(stats.get("pages") == 0, f"{url}stats: {stats}")
+    finally:
+        os.killpg(web.pid, signal.SIGINT)
+        code = web.wait(timeout=30)
+    check(code == 130, f"scripts/demo --web did not stop on Ctrl-C (exit {code})")
+    left = run(["pgrep", "-f", f"--connect .* --listen 127.0.0.1:0 --web-root"]).stdout
+    check(not left.strip(), f"a gateway survived the demo: {left}")
+else:
+    check(False, "the web page is not built (npm missing?): scripts/demo --web cannot be checked")
 
 if failures:
     sys.exit(f"{len(failures)} check(s) failed")

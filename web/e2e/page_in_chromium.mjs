@@ -1,0 +1,231 @@
+// The page in a real browser (headless Chromium, SwiftShader WebGL2) against
+// a real phasecast-server and phasecast-gateway on loopback:
+//   1. it draws the same frame as phasecast-render (a second renderer, OSMesa)
+//      draws from the server's recording of the same stream;
+//   2. a click on a palette button changes the served stream and the picture;
+//   3. a garbage message on its own WebSocket gets an error and the page goes on.
+// It prints one JSON line of figures (page frames/s, bytes per frame, time to
+// first frame). Run by ctest (tests/gateway/CMakeLists.txt):
+//   node e2e/page_in_chromium.mjs BIN_DIR PACKAGE WEB_ROOT WORK_DIR [SECONDS]
+import { spawn, spawnSync } from 'node:child_process';
+import { mkdirSync, readFileSync, readdirSync, rmSync } from 'node:fs';
+import path from 'node:path';
+import { chromium } from 'playwright-core';
+import { PNG } from 'pngjs';
+
+const [binDir, pkg, webRoot, workDir, seconds = '3'] = process.argv.slice(2);
+if (!workDir) {
+  console.error('usage: node e2e/page_in_chromium.mjs BIN_DIR PACKAGE WEB_ROOT WORK_DIR [SECONDS]');
+  process.exit(2);
+}
+const SIZE = { width: 320, height: 240 };
+// Stated tolerance against phasecast-render: SwiftShader and llvmpipe may
+// round differently at triangle edges and by a level in colour.
+const TOLERANCE = { level: 3, maxFraction: 0.005, maxMeanLevels: 0.5 };
+const CHROMIUM_ARGS = ['--no-sandbox', '--disable-gpu', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
+  '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run'];
+
+const children = [];
+const check = (ok, message) => {
+  if (!ok) throw new Error(message);
+};
+
+// Starts a tool and resolves with the first match of `pattern` on its stdout.
+function start(tool, args, pattern) {
+  const child = spawn(path.join(binDir, tool), args, { stdio: ['ignore', 'pipe', 'pipe'] });
+  children.push(child);
+  let out = '', err = '';
+  child.stderr.on('data', (d) => (err += d));
+  return new Promise((resolve, reject) => {
+    const timer = setTimeout(() => reject(new Error(`${tool} did not start within 30 s: ${err}`)), 30000);
+    child.stdout.on('data', (d) => {
+      out += d;
+      const m = out.match(pattern);
+      if (m) {
+        clearTimeout(timer);
+        resolve({ child, match: m });
+      }
+    });
+    child.on('exit', (code) => reject(new Error(`${tool} exited (${code}) before it started: ${err}`)));
+  });
+}
+
+function stop(child) {
+  return new Promise((resolve) => {
+    if (child.exitCode !== null) return resolve(child.exitCode);
+    child.removeAllListeners('exit');
+    child.on('exit', (code, signal) => resolve(code ?? signal));
+    child.kill('SIGINT');
+  });
+}
+
+function readPng(file) {
+  return PNG.sync.read(readFileSync(file));
+}
+
+// Pixels whose largest channel difference exceeds `level`, and the mean
+// absolute difference in levels over all channels.
+function compare(a, b) {
+  check(a.width === b.width && a.height === b.height, `image sizes differ: ${a.width}x${a.height} vs ${b.width}x${b.height}`);
+  let over = 0, sum = 0;
+  for (let i = 0; i < a.data.length; i += 4) {
+    let worst = 0;
+    for (let c = 0; c < 3; ++c) {
+      const d = Math.abs(a.data[i + c] - b.data[i + c]);
+      sum += d;
+      worst = Math.max(worst, d);
+    }
+    if (worst > TOLERANCE.level) ++over;
+  }
+  const pixels = a.width * a.height;
+  return { fractionOver: over / pixels, meanLevels: sum / (3 * pixels) };
+}
+
+// Pixels that are not the clear colour: the scene covers enough of the view
+// for a comparison to mean something.
+function coverage(img) {
+  let lit = 0;
+  for (let i = 0; i < img.data.length; i += 4) {
+    if (img.data[i] > 12 || img.data[i + 1] > 12 || img.data[i + 2] > 12) ++lit;
+  }
+  return lit / (img.width * img.height);
+}
+
+// Largest differences between the page's per-point evaluation (6 floats per
+// point) and phasecast-render's --dump-vertices CSV of the same frame:
+// position in metres, radiance relative to the largest radiance.
+function compareVertices(evaluated, csvFile) {
+  const rows = readFileSync(csvFile, 'utf8').trim().split('\n').slice(1).map((l) => l.split(',').map(Number));
+  check(evaluated.length === 6 * rows.length, `the page evaluated ${evaluated.length / 6} points, phasecast-render ${rows.length}`);
+  let position = 0, radiance = 0, scale = 1e-12;
+  rows.forEach((row) => row.slice(3).forEach((v) => (scale = Math.max(scale, Math.abs(v)))));
+  rows.forEach((row, v) => {
+    for (let c = 0; c < 3; ++c) {
+      position = Math.max(position, Math.abs(evaluated[6 * v + c] - row[c]));
+      radiance = Math.max(radiance, Math.abs(evaluated[6 * v + 3 + c] - row[3 + c]) / scale);
+    }
+  });
+  return { position, radiance };
+}
+
+async function canvasPng(page, file) {
+  await page.locator('#view').screenshot({ path: file });
+  return readPng(file);
+}
+
+async function waitFor(page, fn, arg, what, timeout = 30000) {
+  try {
+    await page.waitForFunction(fn, arg, { timeout });
+  } catch {
+    const hooks = await page.evaluate(() => JSON.stringify(window.phasecast));
+    throw new Error(`${what}: not within ${timeout / 1000} s (page hooks: ${hooks})`);
+  }
+}
+
+async function main() {
+  rmSync(workDir, { recursive: true, force: true });
+  mkdirSync(workDir, { recursive: true });
+  const recording = path.join(workDir, 'stream.phcrec');
+  const server = await start('phasecast-server',
+    [pkg, '--cmd', 'tcp://127.0.0.1:*', '--pub', 'tcp://127.0.0.1:*', '--record', recording], /listening cmd=(\S+)/);
+  const gateway = await start('phasecast-gateway',
+    ['--connect', server.match[1], '--listen', '127.0.0.1:0', '--web-root', webRoot], /serving (http:\/\/\S+)/);
+  const url = gateway.match[1];
+  const browser = await chromium.launch({ executablePath: process.env.CHROMIUM ?? '/usr/bin/chromium', args: CHROMIUM_ARGS });
+  const figures = {};
+  try {
+    const page = await browser.newPage({ viewport: { width: 800, height: 600 } });
+    const consoleErrors = [];
+    page.on('pageerror', (e) => consoleErrors.push(e.message));
+    await page.goto(`${url}?size=${SIZE.width}x${SIZE.height}`);
+    await waitFor(page, () => window.phasecast.ready, null, 'first frame');
+    figures.first_frame_ms = await page.evaluate(() => window.phasecast.firstFrameMs);
+
+    // Figures at rest: frames drawn per second and WebSocket bytes per
+    // frame of the followed instance (its frames, plus the page's polls).
+    const before = await page.evaluate(() => ({ ...window.phasecast, frame: { ...window.phasecast.frame } }));
+    await page.waitForTimeout(1000 * Number(seconds));
+    const after = await page.evaluate(() => ({ ...window.phasecast, frame: { ...window.phasecast.frame } }));
+    figures.seconds = Number(seconds);
+    figures.page_frames_per_second = (after.framesRendered - before.framesRendered) / Number(seconds);
+    figures.bytes_per_frame = (after.bytesReceived - before.bytesReceived) / (after.frame.frame - before.frame.frame);
+
+    // 2. A click on "open" changes the served stream and the picture. A
+    // second page follows the same instance and freezes 30 frames into the
+    // door's swing (1.05 s at 1.5 rad/s), for 1. below.
+    const atRest = await canvasPng(page, path.join(workDir, 'page_before_open.png'));
+    const open = after.palette.find((p) => p.name === 'open');
+    check(open && open.enabled, `no enabled 'open' button: ${JSON.stringify(after.palette)}`);
+    const frozenPage = await browser.newPage({ viewport: { width: 800, height: 600 } });
+    frozenPage.on('pageerror', (e) => consoleErrors.push(e.message));
+    await frozenPage.goto(`${url}?size=${SIZE.width}x${SIZE.height}`);
+    await waitFor(frozenPage, () => window.phasecast.ready, null, 'the second page\'s first frame');
+    await page.click('[data-palette="open"]');
+    await waitFor(page, () => window.phasecast.lastImpulseReply, null, 'the impulse reply');
+    const reply = await page.evaluate(() => window.phasecast.lastImpulseReply);
+    check(reply.ok, `the server refused the page's impulse: ${reply.error}`);
+    await frozenPage.evaluate((f) => window.phasecast.freezeAt(f), reply.at_frame + 30);
+    await waitFor(page, ([index, at]) => window.phasecast.frame.palette_index === index && window.phasecast.frame.frame >= at + 10,
+      [open.index, reply.at_frame], "frames playing 'open'");
+    const opened = await canvasPng(page, path.join(workDir, 'page_after_open.png'));
+    const change = compare(atRest, opened);
+    check(change.fractionOver > 0.01, `the picture did not change after 'open' (${(100 * change.fractionOver).toFixed(2)} % of pixels)`);
+    figures.pixels_changed_by_open = change.fractionOver;
+
+    // 1. Same frame as phasecast-render, which renders it from the server's
+    // recording of the same stream.
+    await waitFor(frozenPage, () => window.phasecast.frozenFrame !== null, null, 'the second page freezing');
+    const frozen = await frozenPage.evaluate(() => ({ frame: window.phasecast.frozenFrame, instance: window.phasecast.instance,
+      palette_index: window.phasecast.frame.palette_index }));
+    const inBrowser = await canvasPng(frozenPage, path.join(workDir, 'page_frame.png'));
+    const evaluated = await frozenPage.evaluate(() => window.phasecast.evaluated());
+
+    // 3. Garbage on the first page's own WebSocket: an error, and it goes on.
+    const drawn = await page.evaluate(() => window.phasecast.framesRendered);
+    await page.evaluate(() => window.phasecast.sendRaw([0xff, 0xff, 0xff, 0xff, 0x0f, 0x01]));
+    await waitFor(page, () => /is not a PageMessage/.test(window.phasecast.lastError ?? ''), null, 'the error about the garbage message');
+    await waitFor(page, (n) => window.phasecast.framesRendered > n + 30, drawn, 'frames after the garbage message');
+    const downloads = await page.evaluate(() => window.phasecast.basisDownloads);
+    check(downloads === 1, `the page reconnected after its garbage message (${downloads} basis downloads)`);
+    check(consoleErrors.length === 0, `page errors: ${consoleErrors.join('; ')}`);
+
+    await stop(gateway.child);
+    check(await stop(server.child) === 0, 'the server did not stop cleanly');
+    const renderDir = path.join(workDir, 'render');
+    const dump = path.join(workDir, 'render_vertices.csv');
+    const render = spawnSync(path.join(binDir, 'phasecast-render'), ['--replay', recording, '--package', pkg,
+      '--instance', String(frozen.instance), '--size', `${SIZE.width}x${SIZE.height}`, '--out', renderDir,
+      '--dump-vertices', String(frozen.frame), dump], { encoding: 'utf8' });
+    check(render.status === 0, `phasecast-render --replay failed: ${render.stderr}`);
+    const name = `frame_${String(frozen.frame).padStart(6, '0')}.png`;
+    check(readdirSync(renderDir).includes(name), `phasecast-render wrote no ${name}`);
+    const native = readPng(path.join(renderDir, name));
+    const same = compare(inBrowser, native);
+    const vertices = compareVertices(evaluated, dump);
+    figures.max_position_error_m = vertices.position;
+    figures.max_radiance_error = vertices.radiance;
+    check(vertices.position <= 1e-5 && vertices.radiance <= 1e-4,
+      `frame ${frozen.frame}: the page's GPU evaluation differs from phasecast-render's by ${vertices.position} m in ` +
+      `position, ${vertices.radiance} in radiance (at most 1e-5 m and 1e-4)`);
+    figures.compared_frame = frozen.frame;
+    figures.compared_frame_palette_index = frozen.palette_index;
+    figures.coverage = coverage(native);
+    figures.fraction_over_tolerance = same.fractionOver;
+    figures.mean_abs_levels = same.meanLevels;
+    check(figures.coverage > 0.05, `the scene covers only ${(100 * figures.coverage).toFixed(1)} % of the view`);
+    check(same.fractionOver <= TOLERANCE.maxFraction && same.meanLevels <= TOLERANCE.maxMeanLevels,
+      `frame ${frozen.frame}: the page differs from phasecast-render: ${(100 * same.fractionOver).toFixed(2)} % of pixels ` +
+      `by more than ${TOLERANCE.level} levels (at most ${100 * TOLERANCE.maxFraction} %), mean ${same.meanLevels.toFixed(2)} ` +
+      `levels (at most ${TOLERANCE.maxMeanLevels}); images in ${workDir}`);
+  } finally {
+    await browser.close();
+    for (const c of children) c.kill('SIGKILL');
+  }
+  console.log(JSON.stringify(figures));
+}
+
+main().catch((e) => {
+  console.error(`page_in_chromium: ${e.message}`);
+  for (const c of children) c.kill('SIGKILL');
+  process.exit(1);
+});
