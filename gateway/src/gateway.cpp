@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <unordered_map>
 #include <unordered_set>
+#include <vector>
 
 namespace phasecast::gateway {
 namespace {
@@ -58,6 +59,36 @@ double seconds_since(Clock::time_point start) {
 
 class PageSession;
 
+// One of the gateway's bounded connection slots, held by an HTTP connection
+// and then by the page it became, given back when its holder goes. The count
+// is shared so that holders destroyed after the Hub (at shutdown) are safe.
+class ConnectionSlot {
+ public:
+  explicit ConnectionSlot(std::shared_ptr<std::uint32_t> count) : count_(std::move(count)) { ++*count_; }
+  ConnectionSlot(ConnectionSlot&&) = default;
+  ConnectionSlot& operator=(ConnectionSlot&&) = default;
+  ConnectionSlot(const ConnectionSlot&) = delete;
+  ConnectionSlot& operator=(const ConnectionSlot&) = delete;
+  ~ConnectionSlot() {
+    if (count_) --*count_;
+  }
+
+ private:
+  std::shared_ptr<std::uint32_t> count_;
+};
+
+// Origin of a browser's upgrade request ("http://host:port") against the
+// Host it was sent to: other sites' pages may not drive this gateway (a
+// WebSocket is not bound by the same-origin rule) unless --allow-origin says.
+bool origin_allowed(std::string_view origin, std::string_view host, const std::vector<std::string>& allowed) {
+  if (origin.empty()) return true;  // not a browser
+  for (const auto& a : allowed) {
+    if (a == "*" || a == origin) return true;
+  }
+  const auto scheme = origin.find("://");
+  return scheme != std::string_view::npos && origin.substr(scheme + 3) == host;
+}
+
 // What every page shares: the server link, the gateway's request ids, the
 // subscriptions, the counters. Lives on the event-loop thread only.
 class Hub {
@@ -69,8 +100,19 @@ class Hub {
   double now() const { return seconds_since(start_); }
   v1::GatewayHello hello() const;
 
-  bool admit() const { return pages_.size() < options_.max_pages; }
-  void add(const std::shared_ptr<PageSession>& page);
+  // Pages counted with those still in their WebSocket handshake.
+  bool admit() const { return pages_.size() + handshakes_ < options_.max_pages; }
+  void opening_handshake() { ++handshakes_; }
+  void opened_handshake() { --handshakes_; }
+  // HTTP connections at once, pages included: beyond the bound a new
+  // connection is closed at once, so file descriptors never run out.
+  std::optional<ConnectionSlot> take_connection() {
+    if (*connections_ >= 2 * options_.max_pages + 64) return std::nullopt;
+    return ConnectionSlot(connections_);
+  }
+  // Registers an open page; returns its id.
+  std::uint64_t add(const std::shared_ptr<PageSession>& page);
+  nlohmann::json page_stats() const;
   void remove(PageSession* page);
   // Forwards a request of `page` under a gateway id; the reply goes back to it.
   void forward(const std::shared_ptr<PageSession>& page, v1::Request request);
@@ -94,6 +136,8 @@ class Hub {
   // pending) has nothing else keeping it alive.
   std::unordered_map<PageSession*, std::shared_ptr<PageSession>> pages_;
   std::unordered_map<std::uint64_t, Pending> pending_;
+  std::uint32_t handshakes_ = 0;
+  std::shared_ptr<std::uint32_t> connections_ = std::make_shared<std::uint32_t>(0);
   std::uint64_t next_id_ = 1;
   asio::steady_timer expiry_{loop_};
   std::unique_ptr<ServerLink> link_;  // last: its thread posts into the loop until it is joined
@@ -103,8 +147,9 @@ class Hub {
 // has max_requests_in_flight unanswered), writes its outbox.
 class PageSession : public std::enable_shared_from_this<PageSession> {
  public:
-  PageSession(tcp::socket socket, Hub& hub)
-      : ws_(std::move(socket)),
+  PageSession(tcp::socket socket, Hub& hub, ConnectionSlot slot)
+      : slot_(std::move(slot)),
+        ws_(std::move(socket)),
         hub_(hub),
         outbox_(hub.options().frame_queue),
         rate_(hub.options().max_request_rate, std::max(1.0, hub.options().max_request_rate)) {}
@@ -116,8 +161,9 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
     ws_.read_message_max(hub_.options().max_message_bytes);
     ws_.binary(true);
     ws_.async_accept(upgrade, [self = shared_from_this()](beast::error_code ec) {
+      self->hub_.opened_handshake();
       if (ec) return;
-      self->hub_.add(self);
+      self->id_ = self->hub_.add(self);
       self->send(PageOutbox::Kind::notice, hello_event(self->hub_.hello()));
       self->read();
     });
@@ -125,8 +171,11 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
 
   bool follows(std::uint32_t instance) const { return subscribed_.contains(instance); }
 
+  // Replies and notices are never dropped, so each counts against the page's
+  // bound until written: a page that never reads stops being read.
   void send(PageOutbox::Kind kind, std::string bytes) {
     if (closed_) return;
+    ++unwritten_;
     outbox_.push(kind, std::make_shared<const std::string>(std::move(bytes)));
     write();
   }
@@ -140,25 +189,26 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
     write();
   }
 
-  // A request the gateway answers itself still counts as in flight until its
-  // reply is written, so a page that never reads cannot queue without bound.
   void answer_locally(std::uint64_t id, const std::string& error) {
     v1::Reply reply;
     reply.set_id(id);
     reply.set_ok(false);
     reply.set_error(error);
-    ++in_flight_;
     send(PageOutbox::Kind::reply, reply_event(reply));
   }
 
   void reply_from_server(v1::Reply reply, std::uint64_t page_id) {
+    --at_server_;
     reply.set_id(page_id);
     send(PageOutbox::Kind::reply, reply_event(reply));
   }
 
+  std::uint64_t id() const { return id_; }
+  std::uint64_t dropped_frames() const { return outbox_.dropped_frames(); }
+
  private:
   void read() {
-    if (reading_ || closed_ || in_flight_ >= hub_.options().max_requests_in_flight) return;
+    if (reading_ || closed_ || at_server_ + unwritten_ >= hub_.options().max_requests_in_flight) return;
     reading_ = true;
     ws_.async_read(buffer_, [self = shared_from_this()](beast::error_code ec, std::size_t bytes) {
       self->reading_ = false;
@@ -215,7 +265,7 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
                             fmt::format("{}: more than {:g} requests/s from this page (--max-request-rate)",
                                         request_kind(r), hub_.options().max_request_rate));
     }
-    ++in_flight_;
+    ++at_server_;
     hub_.forward(shared_from_this(), std::move(r));
   }
 
@@ -227,8 +277,8 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
                     [self = shared_from_this(), bytes](beast::error_code ec, std::size_t n) {
                       if (ec) return self->end(ec);
                       self->hub_.stats().bytes_sent += n;
-                      if (self->outbox_.finish_write() == PageOutbox::Kind::reply) {
-                        --self->in_flight_;
+                      if (self->outbox_.finish_write() != PageOutbox::Kind::frame) {
+                        --self->unwritten_;
                         self->read();  // it may have been waiting for this
                       }
                       self->write();
@@ -242,19 +292,23 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
     hub_.remove(this);
   }
 
+  ConnectionSlot slot_;
   websocket::stream<beast::tcp_stream> ws_;
   Hub& hub_;
   beast::flat_buffer buffer_;
   PageOutbox outbox_;
   RequestRate rate_;
   std::unordered_set<std::uint32_t> subscribed_;
-  std::uint32_t in_flight_ = 0;
+  std::uint64_t id_ = 0;         // 1, 2, ... in the order pages connected (/stats)
+  std::uint32_t at_server_ = 0;  // requests forwarded, not answered yet
+  std::uint32_t unwritten_ = 0;  // replies and notices queued, not written yet
   bool reading_ = false, closed_ = false;
 };
 
 Hub::Hub(asio::io_context& loop, const GatewayOptions& options, std::string pub_endpoint)
     : loop_(loop), options_(options) {
-  ServerLinkOptions link{options.server, std::move(pub_endpoint), options.curve};
+  ServerLinkOptions link{options.server, std::move(pub_endpoint), options.curve,
+                         std::chrono::milliseconds(static_cast<long>(options.connect_timeout_s * 1000))};
   link_ = std::make_unique<ServerLink>(
       std::move(link),
       [this](std::string bytes) { asio::post(loop_, [this, b = std::move(bytes)] { on_reply(b); }); },
@@ -274,10 +328,18 @@ v1::GatewayHello Hub::hello() const {
   return h;
 }
 
-void Hub::add(const std::shared_ptr<PageSession>& page) {
+std::uint64_t Hub::add(const std::shared_ptr<PageSession>& page) {
   pages_[page.get()] = page;
-  ++stats_.pages_total;
   stats_.pages = pages_.size();
+  return ++stats_.pages_total;
+}
+
+// Frames dropped per open page, by page id: which page was slow.
+nlohmann::json Hub::page_stats() const {
+  nlohmann::json pages = nlohmann::json::object();
+  for (const auto& [raw, page] : pages_)
+    pages[std::to_string(page->id())] = {{"frames_dropped", page->dropped_frames()}};
+  return pages;
 }
 
 void Hub::remove(PageSession* page) {
@@ -340,8 +402,9 @@ void Hub::schedule_expiry() {
   });
 }
 
-std::string stats_json(const GatewayStats& s) {
-  return nlohmann::json{{"pages", s.pages},
+std::string stats_json(const GatewayStats& s, nlohmann::json pages) {
+  return nlohmann::json{{"open_pages", std::move(pages)},
+                        {"pages", s.pages},
                         {"pages_total", s.pages_total},
                         {"pages_refused", s.pages_refused},
                         {"frames_forwarded", s.frames_forwarded},
@@ -360,7 +423,8 @@ std::string stats_json(const GatewayStats& s) {
 // /ws into a PageSession.
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(tcp::socket socket, Hub& hub) : stream_(std::move(socket)), hub_(hub) {}
+  HttpSession(tcp::socket socket, Hub& hub, ConnectionSlot slot)
+      : slot_(std::move(slot)), stream_(std::move(socket)), hub_(hub) {}
 
   void read() {
     parser_.emplace();
@@ -380,26 +444,39 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return respond(text(req, http::status::method_not_allowed, "only GET and HEAD are served\n"));
     }
     if (req.target() == "/stats")
-      return respond(text(req, http::status::ok, stats_json(hub_.stats()), "application/json"));
+      return respond(
+          text(req, http::status::ok, stats_json(hub_.stats(), hub_.page_stats()), "application/json"));
     serve_file(req);
   }
 
   void upgrade(http::request<http::string_body> req) {
     if (req.target() != "/ws") return respond(text(req, http::status::not_found, "WebSocket is at /ws\n"));
+    const auto origin = req[http::field::origin];
+    const auto host = req[http::field::host];
+    if (!origin_allowed({origin.data(), origin.size()}, {host.data(), host.size()},
+                        hub_.options().allow_origins)) {
+      ++hub_.stats().pages_refused;
+      return respond(text(req, http::status::forbidden,
+                          fmt::format("pages from {} may not connect here (--allow-origin)\n",
+                                      std::string_view(origin.data(), origin.size()))));
+    }
     if (!hub_.admit()) {
       ++hub_.stats().pages_refused;
       return respond(
           text(req, http::status::service_unavailable,
                fmt::format("too many pages (at most {}, --max-pages)\n", hub_.options().max_pages)));
     }
-    stream_.expires_never();  // the WebSocket keeps its own timeouts
+    stream_.expires_never();                           // the WebSocket keeps its own timeouts
+    stream_.socket().set_option(tcp::no_delay(true));  // frames are small: no Nagle delay
     // A small kernel send buffer keeps a slow page's backlog in the outbox,
     // where old frames are dropped, instead of megabytes of stale frames in
     // the kernel (Linux grows it up to tcp_wmem's maximum otherwise).
     beast::error_code ec;
     stream_.socket().set_option(
         asio::socket_base::send_buffer_size(static_cast<int>(hub_.options().page_send_buffer)), ec);
-    std::make_shared<PageSession>(stream_.release_socket(), hub_)->accept(std::move(req));
+    hub_.opening_handshake();
+    std::make_shared<PageSession>(stream_.release_socket(), hub_, std::move(*slot_))->accept(std::move(req));
+    slot_.reset();
   }
 
   void serve_file(const http::request<http::string_body>& req) {
@@ -408,8 +485,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     if (!path) return respond(text(req, http::status::bad_request, "this path is not served\n"));
     http::file_body::value_type file;
     beast::error_code ec;
-    file.open(path->c_str(), beast::file_mode::scan, ec);
-    if (ec) {
+    std::error_code regular_ec;
+    if (std::filesystem::is_regular_file(*path, regular_ec))
+      file.open(path->c_str(), beast::file_mode::scan, ec);
+    if (!file.is_open()) {
       const bool no_page = !std::filesystem::exists(hub_.options().web_root / "index.html");
       return respond(text(req, http::status::not_found,
                           no_page ? fmt::format("the page is not built in {} (build the project with npm "
@@ -418,14 +497,21 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                                   : std::string("not found\n")));
     }
     const auto size = file.size();
+    const auto headers = [&](auto& res) {
+      res.set(http::field::server, kServerName);
+      res.set(http::field::content_type, content_type(*path));
+      res.set(http::field::cache_control, "no-cache");
+      res.content_length(size);
+      res.keep_alive(req.keep_alive());
+    };
+    if (req.method() == http::verb::head) {  // the headers of a GET, no body
+      http::response<http::empty_body> res{http::status::ok, req.version()};
+      headers(res);
+      return respond(std::move(res));
+    }
     http::response<http::file_body> res{std::piecewise_construct, std::make_tuple(std::move(file)),
                                         std::make_tuple(http::status::ok, req.version())};
-    res.set(http::field::server, kServerName);
-    res.set(http::field::content_type, content_type(*path));
-    res.set(http::field::cache_control, "no-cache");
-    res.content_length(size);
-    res.keep_alive(req.keep_alive());
-    if (req.method() == http::verb::head) res.body().close();
+    headers(res);
     respond(std::move(res));
   }
 
@@ -456,6 +542,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                       });
   }
 
+  std::optional<ConnectionSlot> slot_;  // moves to the page on upgrade
   beast::tcp_stream stream_;
   Hub& hub_;
   beast::flat_buffer buffer_;
@@ -468,12 +555,22 @@ struct Gateway::Impl {
   asio::io_context loop{1};
   tcp::acceptor acceptor{loop};
   asio::signal_set signals{loop, SIGINT, SIGTERM};
+  asio::steady_timer backoff{loop};
   std::unique_ptr<Hub> hub;  // destroyed before the loop (its link thread posts into it)
 
   void accept() {
     acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
       if (!acceptor.is_open()) return;
-      if (!ec) std::make_shared<HttpSession>(std::move(socket), *hub)->read();
+      if (ec) {  // e.g. out of file descriptors: try again shortly, do not spin
+        backoff.expires_after(std::chrono::milliseconds(100));
+        backoff.async_wait([this](beast::error_code e) {
+          if (!e) accept();
+        });
+        return;
+      }
+      if (auto slot = hub->take_connection()) {
+        std::make_shared<HttpSession>(std::move(socket), *hub, std::move(*slot))->read();
+      }  // else: over the bound, the socket closes here
       accept();
     });
   }

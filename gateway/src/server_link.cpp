@@ -2,9 +2,11 @@
 
 #include "phasecast/gateway/page_protocol.h"
 
+#include <fmt/format.h>
 #include <zmq.hpp>
 
 #include <atomic>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -29,6 +31,7 @@ struct ServerLink::Impl {
   zmq::socket_t command{context, zmq::socket_type::dealer};
   zmq::socket_t frames{context, zmq::socket_type::sub};
   std::atomic<bool> stop{false};
+  std::string endpoint;
   OnReply on_reply;
   OnFrame on_frame;
   std::thread thread;
@@ -38,9 +41,22 @@ struct ServerLink::Impl {
     queue_out.bind(kQueueEndpoint);
     queue_in.connect(kQueueEndpoint);
     queue_in.set(zmq::sockopt::sndhwm, 0);  // pages are bounded by the gateway, not here
+    // While the server is away nothing queues for it (a request then fails
+    // by its timeout, and never reaches a restarted server late), and a full
+    // queue never blocks this thread.
+    command.set(zmq::sockopt::immediate, 1);
+    command.set(zmq::sockopt::sndtimeo, 0);
     apply_curve(command, o.curve);
     apply_curve(frames, o.curve);
     command.connect(o.command_endpoint);
+    endpoint = o.command_endpoint;
+    // Under `immediate` the DEALER takes messages only once connected: wait
+    // for that, so the first pages' requests are not refused.
+    zmq::pollitem_t writable{command.handle(), 0, ZMQ_POLLOUT, 0};
+    if (zmq::poll(&writable, 1, o.connect_timeout) == 0) {
+      throw std::runtime_error(
+          fmt::format("no connection to the server at {} within {} ms", endpoint, o.connect_timeout.count()));
+    }
     // Every instance's frames: pages pick theirs in the gateway, so a new
     // subscription never waits for ZeroMQ's subscription round trip.
     frames.set(zmq::sockopt::subscribe, "inst/");
@@ -64,9 +80,23 @@ struct ServerLink::Impl {
     while (queue_out.recv(m, zmq::recv_flags::dontwait)) {
       // A DEALER sends [empty delimiter][request], as the server's ROUTER expects
       // from REQ-style clients (docs/protocol.md).
-      command.send(zmq::message_t(), zmq::send_flags::sndmore);
-      command.send(m, zmq::send_flags::none);
+      if (command.send(zmq::message_t(), zmq::send_flags::sndmore | zmq::send_flags::dontwait)) {
+        (void)command.send(m, zmq::send_flags::dontwait);  // the rest of a message is always taken
+      } else {
+        refuse(m);
+      }
     }
+  }
+
+  // The server is not connected (or its queue is full): the page hears so
+  // now, and the request never reaches a server later.
+  void refuse(const zmq::message_t& request_bytes) {
+    v1::Request request;
+    if (!request.ParseFromArray(request_bytes.data(), static_cast<int>(request_bytes.size()))) return;
+    v1::Reply reply;
+    reply.set_id(request.id());
+    reply.set_error(fmt::format("the server at {} is not connected; the request was not sent", endpoint));
+    on_reply(reply.SerializeAsString());
   }
 
   void take_replies() {

@@ -44,6 +44,9 @@ void add_options(CLI::App& app, GatewayOptions& o, std::string& web_root) {
          "where they can be dropped, not here")
       ->check(CLI::Range(4096u, 64u << 20))
       ->capture_default_str();
+  app.add_option("--allow-origin", o.allow_origins,
+                 "also accept pages served from this origin (e.g. https://example.org; * for any); by default "
+                 "only pages this gateway served may open its WebSocket");
   app.add_option("--max-request-rate", o.max_request_rate, "requests per second one page may send")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();

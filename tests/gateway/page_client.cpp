@@ -112,18 +112,23 @@ GatewayProcess::GatewayProcess(const std::string& server_cmd, const std::vector<
     : process_(gateway_argv(server_cmd, args), {},
                [this](const std::string& out) { return parse_serving(out, port_); }) {}
 
-HttpResult http_get(unsigned short port, const std::string& target) {
+HttpResult http_get(unsigned short port, const std::string& target,
+                    const std::vector<std::pair<std::string, std::string>>& headers, bool head) {
   asio::io_context io;
   tcp::socket socket(io);
   tcp::resolver resolver(io);
   asio::connect(socket, resolver.resolve("127.0.0.1", std::to_string(port)));
-  http::request<http::empty_body> req{http::verb::get, target, 11};
-  req.set(http::field::host, "127.0.0.1");
+  http::request<http::empty_body> req{head ? http::verb::head : http::verb::get, target, 11};
+  req.set(http::field::host, "127.0.0.1:" + std::to_string(port));
+  for (const auto& [name, value] : headers) req.set(name, value);
   http::write(socket, req);
   beast::flat_buffer buffer;
-  http::response<http::string_body> res;
-  http::read(socket, buffer, res);
-  return {static_cast<int>(res.result_int()), res.body(), std::string(res[http::field::content_type])};
+  http::response_parser<http::string_body> parser;
+  parser.skip(head);  // a HEAD response announces a body it does not send
+  http::read(socket, buffer, parser);
+  const auto& res = parser.get();
+  return {static_cast<int>(res.result_int()), res.body(), std::string(res[http::field::content_type]),
+          std::string(res[http::field::content_length])};
 }
 
 }  // namespace phasecast::testing

@@ -64,7 +64,10 @@ class GatewayProcess {
 struct HttpResult {
   int status = 0;
   std::string body, content_type;
+  std::string content_length;
 };
-HttpResult http_get(unsigned short port, const std::string& target);
+// `headers`: extra request headers; `head`: a HEAD request instead of GET.
+HttpResult http_get(unsigned short port, const std::string& target,
+                    const std::vector<std::pair<std::string, std::string>>& headers = {}, bool head = false);
 
 }  // namespace phasecast::testing

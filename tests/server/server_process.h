@@ -28,6 +28,7 @@ class ServerProcess {
   // Everything the server printed on stdout so far (after stop(): all of it).
   std::string out() { return process_.out(); }
   std::string err() { return process_.err(); }
+  pid_t pid() const { return process_.pid(); }
 
  private:
   std::string cmd_, pub_;  // before process_: its constructor fills them

@@ -28,6 +28,7 @@ class ListeningProcess {
   // Everything it printed on stdout so far (after stop(): all of it).
   std::string out();
   std::string err();
+  pid_t pid() const { return pid_; }
 
  private:
   pid_t pid_ = -1;

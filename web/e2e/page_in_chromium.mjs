@@ -18,7 +18,9 @@ if (!workDir) {
   console.error('usage: node e2e/page_in_chromium.mjs BIN_DIR PACKAGE WEB_ROOT WORK_DIR [SECONDS]');
   process.exit(2);
 }
-const SIZE = { width: 320, height: 240 };
+// PHASECAST_PAGE_SIZE=WxH for figures at another size (default 320x240).
+const [width, height] = (process.env.PHASECAST_PAGE_SIZE ?? '320x240').split('x').map(Number);
+const SIZE = { width, height };
 // Stated tolerance against phasecast-render: SwiftShader and llvmpipe may
 // round differently at triangle edges and by a level in colour.
 const TOLERANCE = { level: 3, maxFraction: 0.005, maxMeanLevels: 0.5 };
@@ -50,11 +52,16 @@ function start(tool, args, pattern) {
   });
 }
 
+// SIGINT, then the exit code (or signal name); SIGKILL after 20 s.
 function stop(child) {
   return new Promise((resolve) => {
     if (child.exitCode !== null) return resolve(child.exitCode);
     child.removeAllListeners('exit');
-    child.on('exit', (code, signal) => resolve(code ?? signal));
+    const timer = setTimeout(() => child.kill('SIGKILL'), 20000);
+    child.on('exit', (code, signal) => {
+      clearTimeout(timer);
+      resolve(code ?? signal);
+    });
     child.kill('SIGINT');
   });
 }
@@ -148,6 +155,7 @@ async function main() {
     const after = await page.evaluate(() => ({ ...window.phasecast, frame: { ...window.phasecast.frame } }));
     figures.seconds = Number(seconds);
     figures.page_frames_per_second = (after.framesRendered - before.framesRendered) / Number(seconds);
+    check(after.frame.frame > before.frame.frame, `no frame came in ${seconds} s`);
     figures.bytes_per_frame = (after.bytesReceived - before.bytesReceived) / (after.frame.frame - before.frame.frame);
 
     // 2. A click on "open" changes the served stream and the picture. A
@@ -189,7 +197,7 @@ async function main() {
     check(downloads === 1, `the page reconnected after its garbage message (${downloads} basis downloads)`);
     check(consoleErrors.length === 0, `page errors: ${consoleErrors.join('; ')}`);
 
-    await stop(gateway.child);
+    check(await stop(gateway.child) === 0, 'the gateway did not stop cleanly on SIGINT');
     check(await stop(server.child) === 0, 'the server did not stop cleanly');
     const renderDir = path.join(workDir, 'render');
     const dump = path.join(workDir, 'render_vertices.csv');

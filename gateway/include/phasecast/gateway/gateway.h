@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace phasecast::gateway {
 
@@ -26,6 +27,7 @@ struct GatewayOptions {
   std::uint32_t frame_queue = 8;                // frames queued per page before the oldest is dropped
   std::uint32_t max_subscriptions = 64;         // instances one page may follow
   std::uint32_t page_send_buffer = 128 * 1024;  // SO_SNDBUF of a page's socket, bytes
+  std::vector<std::string> allow_origins;       // pages of these origins may connect too ("*": any)
   double max_request_rate = 200;                // requests/s per page (bursts of one second's worth)
   double request_timeout_s = 5;                 // a request the server has not answered by then fails
   double connect_timeout_s = 5;                 // for the server's first answer at start

@@ -7,6 +7,7 @@
 
 #include "phasecast/client/network.h"
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -18,6 +19,7 @@ struct ServerLinkOptions {
   std::string command_endpoint;  // tcp://host:port of the server's ROUTER
   std::string pub_endpoint;      // as resolved from SceneList.pub_endpoint
   client::CurveClientKeys curve;
+  std::chrono::milliseconds connect_timeout{5000};  // for the command connection at start
 };
 
 class ServerLink {
@@ -25,6 +27,8 @@ class ServerLink {
   using OnReply = std::function<void(std::string reply_bytes)>;
   using OnFrame = std::function<void(std::uint32_t instance, std::string frame_bytes)>;
 
+  // Throws std::runtime_error when the command connection is not up within
+  // the options' connect_timeout.
   ServerLink(ServerLinkOptions options, OnReply on_reply, OnFrame on_frame);
   ~ServerLink();  // stops and joins the ZeroMQ thread
   ServerLink(const ServerLink&) = delete;
