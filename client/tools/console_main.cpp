@@ -1,7 +1,7 @@
 // phasecast-console: send impulses and script sessions in Lua (docs/console.md).
 
-#include "phasecast/client/curve_options.h"
 #include "phasecast/client/console.h"
+#include "phasecast/client/curve_options.h"
 
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>

@@ -1,7 +1,7 @@
 // phasecast-render: the thin render client (§5.3). See docs/client.md.
 
-#include "phasecast/client/curve_options.h"
 #include "phasecast/client/camera.h"
+#include "phasecast/client/curve_options.h"
 #include "phasecast/client/render_app.h"
 #include "phasecast/client/render_backend.h"
 #include "phasecast/client/sh_light.h"

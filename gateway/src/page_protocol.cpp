@@ -1,5 +1,7 @@
 #include "phasecast/gateway/page_protocol.h"
 
+#include "phasecast/core/proto_oneof.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -28,29 +30,8 @@ std::string serialized(const v1::PageEvent& event) {
 }  // namespace
 
 std::string request_kind(const v1::Request& r) {
-  switch (r.body_case()) {
-    case v1::Request::kImpulse:
-      return "impulse";
-    case v1::Request::kListScenes:
-      return "list_scenes";
-    case v1::Request::kListInstances:
-      return "list_instances";
-    case v1::Request::kCreateInstance:
-      return "create_instance";
-    case v1::Request::kDestroyInstance:
-      return "destroy_instance";
-    case v1::Request::kBasis:
-      return "basis";
-    case v1::Request::kRecordStart:
-      return "record_start";
-    case v1::Request::kRecordStop:
-      return "record_stop";
-    case v1::Request::kStats:
-      return "stats";
-    case v1::Request::BODY_NOT_SET:
-      break;
-  }
-  return "empty";
+  const auto kind = core::oneof_case(r, "body");
+  return kind.empty() ? "empty" : kind;
 }
 
 std::string refusal(const v1::Request& r) {

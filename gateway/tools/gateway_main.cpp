@@ -31,8 +31,10 @@ void add_options(CLI::App& app, GatewayOptions& o, std::string& web_root) {
                  "largest page message; a larger one closes that page's connection (code 1009)")
       ->check(CLI::Range(256u, 16u << 20))
       ->capture_default_str();
-  app.add_option("--max-requests-in-flight", o.max_requests_in_flight,
-                 "requests of one page unanswered at once; its further messages wait unread")
+  app.add_option(
+         "--max-requests-in-flight", o.max_requests_in_flight,
+         "requests of one page at once, counted until their replies (and any error events) are written; "
+         "its further messages wait unread")
       ->check(CLI::Range(1u, 1024u))
       ->capture_default_str();
   app.add_option("--frame-queue", o.frame_queue, "frames queued for a slow page before its oldest is dropped")
@@ -44,9 +46,10 @@ void add_options(CLI::App& app, GatewayOptions& o, std::string& web_root) {
          "where they can be dropped, not here")
       ->check(CLI::Range(4096u, 64u << 20))
       ->capture_default_str();
-  app.add_option("--allow-origin", o.allow_origins,
-                 "also accept pages served from this origin (e.g. https://example.org; * for any); by default "
-                 "only pages this gateway served may open its WebSocket");
+  app.add_option(
+      "--allow-origin", o.allow_origins,
+      "also accept pages served from this origin (e.g. https://example.org; * for any); by default "
+      "only pages this gateway served may open its WebSocket");
   app.add_option("--max-request-rate", o.max_request_rate, "requests per second one page may send")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();

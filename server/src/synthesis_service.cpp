@@ -2,6 +2,7 @@
 
 #include "phasecast/core/basis.h"
 #include "phasecast/core/hash.h"
+#include "phasecast/core/proto_oneof.h"
 #include "phasecast/server/wire.h"
 
 #include <fmt/chrono.h>
@@ -20,30 +21,10 @@ class RequestError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-const char* kind_of(const v1::Request& r) {
-  switch (r.body_case()) {
-    case v1::Request::kImpulse:
-      return "impulse";
-    case v1::Request::kListScenes:
-      return "list_scenes";
-    case v1::Request::kListInstances:
-      return "list_instances";
-    case v1::Request::kCreateInstance:
-      return "create_instance";
-    case v1::Request::kDestroyInstance:
-      return "destroy_instance";
-    case v1::Request::kBasis:
-      return "basis";
-    case v1::Request::kRecordStart:
-      return "record_start";
-    case v1::Request::kRecordStop:
-      return "record_stop";
-    case v1::Request::kStats:
-      return "stats";
-    case v1::Request::BODY_NOT_SET:
-      break;
-  }
-  return "request";
+// The request's kind for error lines ("impulse: ..."); "request" when it has none.
+std::string kind_of(const v1::Request& r) {
+  const auto kind = core::oneof_case(r, "body");
+  return kind.empty() ? "request" : kind;
 }
 
 std::string utc_now() {
@@ -409,22 +390,18 @@ void SynthesisService::basis(const v1::BasisRequest& r, v1::BasisChunk& out) con
 // them; these bound what one client and all of them together can hold.
 void SynthesisService::check_pending_replies(const std::string& client, std::uint64_t reply_bytes) const {
   const PendingReplyBytes pending = pending_reply_bytes_(client);
-  const std::uint64_t per_client = limits_.max_pending_reply_bytes_per_client;
-  if (pending.client + reply_bytes > per_client) {
+  const auto check = [&](std::uint64_t waiting, std::uint64_t bound, const char* readers, const char* scope,
+                         const char* option) {
+    if (waiting + reply_bytes <= bound) return;
     throw LimitError(
-        fmt::format("{} bytes of replies are waiting for this client to read them and this reply has {} "
-                    "bytes (expected at "
-                    "most {}; see --max-pending-reply-bytes-per-client)",
-                    pending.client, reply_bytes, per_client));
-  }
-  const std::uint64_t all = limits_.max_pending_reply_bytes;
-  if (pending.all + reply_bytes > all) {
-    throw LimitError(
-        fmt::format("{} bytes of replies are waiting for clients to read them and this reply has {} bytes "
-                    "(expected at most "
-                    "{} in all; see --max-pending-reply-bytes)",
-                    pending.all, reply_bytes, all));
-  }
+        fmt::format("{} bytes of replies are waiting for {} to read them and this reply has {} bytes "
+                    "(expected at most {}{}; "
+                    "see {})",
+                    waiting, readers, reply_bytes, bound, scope, option));
+  };
+  check(pending.client, limits_.max_pending_reply_bytes_per_client, "this client", "",
+        "--max-pending-reply-bytes-per-client");
+  check(pending.all, limits_.max_pending_reply_bytes, "clients", " in all", "--max-pending-reply-bytes");
 }
 
 void SynthesisService::record_start(const v1::RecordStart& r, v1::RecordStatus& out) {

@@ -1,5 +1,7 @@
 #include "request_harness.h"
 
+#include "phasecast/core/proto_oneof.h"
+
 #include <fmt/format.h>
 #include <google/protobuf/descriptor.h>
 
@@ -13,13 +15,6 @@ namespace {
 
 using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
-
-// The name of the field set in oneof `oneof` of `m`, or "" when none is.
-std::string oneof_case(const Message& m, const char* oneof) {
-  const auto* decl = m.GetDescriptor()->FindOneofByName(oneof);
-  const auto* f = decl ? m.GetReflection()->GetOneofFieldDescriptor(m, decl) : nullptr;
-  return f ? f->name() : "";
-}
 
 // The Reply.result each Request.body is answered with (docs/protocol.md).
 // A kind missing here (added after this table) is only checked generically.
@@ -129,7 +124,8 @@ RequestVerdict RequestHarness::run(std::string_view bytes, const std::string& cl
   v.violation = check(parsed ? &request : nullptr, reply, before, after);
   // docs/protocol.md: "error is one line"; names echoed verbatim can break it.
   if (reply.error().find_first_of("\r\n") != std::string::npos) v.note = "error reply spans several lines";
-  v.kind = reply.ok() ? "ok " + oneof_case(reply, "result") : "error " + kind_of_line(reply.error(), 70);
+  v.kind =
+      reply.ok() ? "ok " + core::oneof_case(reply, "result") : "error " + kind_of_line(reply.error(), 70);
   return v;
 }
 
@@ -157,10 +153,10 @@ std::string RequestHarness::check(const v1::Request* request, const v1::Reply& r
     return fmt::format("reply id {} for request id {} (expected the request's id)", reply.id(),
                        request->id());
   }
-  const std::string body = oneof_case(*request, "body");
+  const std::string body = core::oneof_case(*request, "body");
   if (!reply.ok()) return check_error(body, reply);
   const auto expected = result_of_body().find(body);
-  const std::string result = oneof_case(reply, "result");
+  const std::string result = core::oneof_case(reply, "result");
   if (expected != result_of_body().end() && result != expected->second &&
       !(body == "list_instances" && result.empty())) {
     return fmt::format("{} request answered with result '{}' (expected '{}')", body, result,
