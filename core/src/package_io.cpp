@@ -90,6 +90,13 @@ constexpr DatasetSpec kAppearance[] = {
     {"/appearance/nrbf_widths", Dtype::f32, 1},
     {"/appearance/nrbf_regularization", Dtype::f32, 1},
 };
+// Optional inside /appearance: the interpolant's name and parameters, the
+// held-out truth and the paper's r_a (packages before them have none).
+constexpr DatasetSpec kAppearanceOptional[] = {
+    {"/appearance/interpolant", Dtype::string, 1}, {"/appearance/interpolant_parameters", Dtype::f32, 1},
+    {"/appearance/held_out_nodes", Dtype::i32, 1}, {"/appearance/held_out_error", Dtype::f32, 1},
+    {"/appearance/paper_rank", Dtype::i32, 1},
+};
 
 // The extents the file declares, each checked against what the file stores,
 // with the defaults read_from() fills in for absent optional datasets.
@@ -102,6 +109,9 @@ PackageShapes declared_shapes(const Reader& r) {
   }
   if (r.file().exists("/appearance")) {
     for (const auto& d : kAppearance) add(d);
+    for (const auto& d : kAppearanceOptional) {
+      if (r.file().exists(d.name)) add(d);
+    }
   } else {
     s["/portrait/q_a"] = {s["/portrait/q_u"][0], 0};
   }
@@ -142,6 +152,14 @@ Appearance read_appearance(const Reader& r) {
   a.nrbf_weights = r.matrix<float>("/appearance/nrbf_weights");
   a.nrbf_widths = r.column<float>("/appearance/nrbf_widths");
   a.nrbf_regularization = r.column<float>("/appearance/nrbf_regularization", 1)[0];
+  const auto exists = [&r](const char* name) { return r.file().exists(name); };
+  if (exists("/appearance/interpolant")) a.interpolant = r.strings("/appearance/interpolant").at(0);
+  if (exists("/appearance/interpolant_parameters"))
+    a.interpolant_parameters = r.column<float>("/appearance/interpolant_parameters");
+  if (exists("/appearance/held_out_nodes"))
+    a.held_out_nodes = r.vector<std::int32_t>("/appearance/held_out_nodes");
+  if (exists("/appearance/held_out_error")) a.held_out_error = r.column<float>("/appearance/held_out_error");
+  if (exists("/appearance/paper_rank")) a.paper_rank = r.vector<std::int32_t>("/appearance/paper_rank").at(0);
   return a;
 }
 
@@ -237,6 +255,13 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
     f.write("/appearance/nrbf_weights", ap->nrbf_weights);
     f.write("/appearance/nrbf_widths", ap->nrbf_widths);
     f.write("/appearance/nrbf_regularization", VectorXf(VectorXf::Constant(1, ap->nrbf_regularization)));
+    f.write_strings("/appearance/interpolant", {ap->interpolant});
+    f.write("/appearance/interpolant_parameters", ap->interpolant_parameters);
+    if (ap->held_out_error.size() > 0) {
+      f.write("/appearance/held_out_nodes", ap->held_out_nodes);
+      f.write("/appearance/held_out_error", ap->held_out_error);
+    }
+    if (ap->paper_rank > 0) f.write("/appearance/paper_rank", std::vector<std::int32_t>{ap->paper_rank});
   }
 }
 

@@ -23,6 +23,40 @@ nlohmann::json number_or_null(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
 }
 
+void summarize_appearance(const Appearance& a, PackageSummary& s) {
+  for (Eigen::Index i = 0; i < a.rel_error.size(); ++i) s.error_a_curve.push_back(a.rel_error[i]);
+  s.paper_rank_a = a.paper_rank;
+  s.error_a_at_paper_rank = a.paper_rank > 0 && a.paper_rank <= a.rel_error.size()
+                                ? static_cast<double>(a.rel_error[a.paper_rank - 1])
+                                : std::nan("");
+  const auto& v = a.interpolant_parameters;
+  if (a.interpolant == "knn" && v.size() >= 1) {
+    s.interpolant = fmt::format("knn (k = {})", v[0]);
+  } else if (v.size() >= 2) {
+    s.interpolant = fmt::format("nrbf (width scale {}, lambda {:g})", v[0], v[1]);
+  } else {
+    s.interpolant = a.interpolant;
+  }
+  if (a.held_out_error.size() == 4) {
+    s.held_out_nodes = static_cast<int>(a.held_out_nodes.size());
+    s.held_out_total = a.held_out_error[0];
+    s.held_out_truncation = a.held_out_error[1];
+    s.held_out_interpolation = a.held_out_error[2];
+    s.held_out_of_transfer = a.held_out_error[3];
+  }
+}
+
+// The error curve at a few ranks: 1, 2, 4, 8, ... and the paper's r_a.
+std::string curve_text(const PackageSummary& s) {
+  std::vector<std::string> points;
+  const auto n = static_cast<int>(s.error_a_curve.size());
+  for (int r = 1; r <= n; r = r < 4 ? r + 1 : r * 2) {
+    if (r >= n - 1) break;  // N_a - 1 centred fields span the samples: 0 from there on
+    points.push_back(fmt::format("{}: {:.3g}%", r, 100 * s.error_a_curve[static_cast<size_t>(r - 1)]));
+  }
+  return fmt::format("{}", fmt::join(points, ", "));
+}
+
 }  // namespace
 
 PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& file, int rank) {
@@ -51,6 +85,7 @@ PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& fil
   if (p.appearance && s.rank_a > 0 && s.rank_a <= p.appearance->rel_error.size()) {
     s.error_a_at_rank = p.appearance->rel_error[s.rank_a - 1];
   }
+  if (p.appearance) summarize_appearance(*p.appearance, s);
   for (const auto& part : basis_parts(p)) s.client_download_bytes += part.bytes.size();
   s.frame_state_bytes = reduced_state_bytes(p);
   s.full_vertex_frame_bytes = full_vertex_bytes(p);
@@ -76,8 +111,20 @@ std::string to_text(const PackageSummary& s) {
   line("displacement r_u = {}, relative error at rank {} = {:.3g}%", s.rank_u, s.chosen_rank,
        100 * s.error_u_at_rank);
   if (s.rank_a > 0) {
-    line("appearance   r_a = {}, N_a = {} clusters, relative error at r_a = {:.3g}%", s.rank_a, s.clusters,
-         100 * s.error_a_at_rank);
+    line("appearance   r_a = {}, N_a = {} clusters, truncation error at r_a = {:.3g}% (on the clusters)",
+         s.rank_a, s.clusters, 100 * s.error_a_at_rank);
+    line("             error curve (Fig. 12, red) at rank {}", curve_text(s));
+    if (std::isfinite(s.error_a_at_paper_rank))
+      line("             at the paper's r_a = {}: {:.3g}%", s.paper_rank_a, 100 * s.error_a_at_paper_rank);
+    line("             interpolant {}", s.interpolant);
+    if (s.held_out_nodes > 0) {
+      line(
+          "             held-out truth ({} other nodes): error {:.3g}% = truncation {:.3g}% + interpolation "
+          "{:.3g}% "
+          "(in quadrature, of |M - M-bar|); {:.3g}% of |M|",
+          s.held_out_nodes, 100 * s.held_out_total, 100 * s.held_out_truncation,
+          100 * s.held_out_interpolation, 100 * s.held_out_of_transfer);
+    }
   } else {
     line("appearance   none");
   }
@@ -109,6 +156,16 @@ nlohmann::json to_json(const PackageSummary& s) {
       {"rank", s.chosen_rank},
       {"rel_error_u", number_or_null(s.error_u_at_rank)},
       {"rel_error_a", number_or_null(s.error_a_at_rank)},
+      {"rel_error_a_curve", s.error_a_curve},
+      {"paper_rank_a", s.paper_rank_a},
+      {"rel_error_a_at_paper_rank", number_or_null(s.error_a_at_paper_rank)},
+      {"interpolant", s.interpolant},
+      {"held_out", s.held_out_nodes > 0 ? nlohmann::json{{"nodes", s.held_out_nodes},
+                                                         {"total", s.held_out_total},
+                                                         {"truncation", s.held_out_truncation},
+                                                         {"interpolation", s.held_out_interpolation},
+                                                         {"of_transfer", s.held_out_of_transfer}}
+                                        : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},
       {"full_vertex_frame_bytes", s.full_vertex_frame_bytes},

@@ -189,6 +189,15 @@ void check_appearance_shapes(const ShapeChecker& s) {
   s.shape("/appearance/nrbf_weights", Na, r_a, "N_a x r_a");
   s.length("/appearance/nrbf_widths", Na, "N_a");
   s.length("/appearance/nrbf_regularization", 1, "1 (mu)");
+  if (s.has("/appearance/interpolant")) s.length("/appearance/interpolant", 1, "1 (the interpolant's name)");
+  if (s.has("/appearance/interpolant_parameters") && s.dim("/appearance/interpolant_parameters", 0) > 2)
+    s.checker().fail("/appearance/interpolant_parameters", "expected at most 2 values");
+  if (s.has("/appearance/held_out_error")) {
+    s.length("/appearance/held_out_error", 4, "4 (total, truncation, interpolation, of |M|)");
+    if (!s.has("/appearance/held_out_nodes"))
+      s.checker().fail("/appearance/held_out_nodes", "expected the nodes of /appearance/held_out_error");
+  }
+  if (s.has("/appearance/paper_rank")) s.length("/appearance/paper_rank", 1, "1 (the paper's r_a)");
 }
 
 Extent extent(Eigen::Index rows, Eigen::Index cols) {
@@ -210,6 +219,13 @@ void add_appearance_shapes(const Appearance& a, PackageShapes& s) {
   s["/appearance/nrbf_weights"] = extent(a.nrbf_weights.rows(), a.nrbf_weights.cols());
   s["/appearance/nrbf_widths"] = extent(a.nrbf_widths);
   s["/appearance/nrbf_regularization"] = {1};
+  s["/appearance/interpolant"] = {1};
+  s["/appearance/interpolant_parameters"] = extent(a.interpolant_parameters);
+  if (a.held_out_error.size() > 0) {
+    s["/appearance/held_out_nodes"] = extent(a.held_out_nodes);
+    s["/appearance/held_out_error"] = extent(a.held_out_error);
+  }
+  if (a.paper_rank > 0) s["/appearance/paper_rank"] = {1};
 }
 
 // ---- values: finiteness, indices, flags, the rules between values ----------------
@@ -339,6 +355,18 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
     c.fail("/appearance/nrbf_regularization",
            fmt::format("expected a finite value >= 0, got {}", a.nrbf_regularization));
   }
+  if (a.interpolant != "nrbf" && a.interpolant != "knn")
+    c.fail("/appearance/interpolant", fmt::format("expected \"nrbf\" or \"knn\", got \"{}\"", a.interpolant));
+  c.finite("/appearance/interpolant_parameters", a.interpolant_parameters);
+  c.index_range("/appearance/held_out_nodes", a.held_out_nodes.data(), a.held_out_nodes.size(), 0, N,
+                "state nodes");
+  for (Eigen::Index i = 0; i < a.held_out_error.size(); ++i) {
+    if (!(a.held_out_error[i] >= 0 && std::isfinite(a.held_out_error[i])))
+      c.fail("/appearance/held_out_error",
+             fmt::format("expected finite errors >= 0, got {} at {}", a.held_out_error[i], i));
+  }
+  if (a.paper_rank < 0)
+    c.fail("/appearance/paper_rank", fmt::format("expected r_a >= 0, got {}", a.paper_rank));
 }
 
 }  // namespace

@@ -30,9 +30,9 @@ void add_run_command(CLI::App& app) {
   add_reduce_options(cmd, o->reduce);
   add_appearance_options(cmd, o->appearance);
   cmd->callback([o] {
-    // Bad appearance options fail before the sampling hours, not after.
-    if (!o->appearance.skip) phasecast::precompute::check_appearance_stage_options(o->appearance.stage);
     const auto scene = phasecast::precompute::load_scene_file(o->scene);
+    // Bad appearance options fail before the sampling hours, not after.
+    if (!o->appearance.skip) appearance_stage_options(scene, o->appearance);
     auto sample = o->sample;
     if (sample.work_dir.empty()) sample.work_dir = o->output + ".work";
     const std::filesystem::path orbits = std::filesystem::path(sample.work_dir) / "orbits.h5";

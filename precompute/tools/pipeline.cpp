@@ -12,6 +12,10 @@
 namespace phasecast::precompute::tools {
 namespace {
 
+constexpr int kDefaultClusters = 16;
+constexpr int kDefaultHeldOut = 40;
+constexpr double kDefaultEpsA = 1e-3;
+
 // Sampling progress: IRFs done/total, state nodes and ETA (resumed IRFs do
 // not count towards the rate).
 class SamplingDisplay {
@@ -24,6 +28,33 @@ class SamplingDisplay {
  private:
   core::ProgressBar bar_{"sample IRFs"};
 };
+
+void print_appearance_report(const core::ScenePackage& p, const precompute::AppearanceStageReport& report) {
+  const auto& a = *p.appearance;
+  fmt::print(
+      "appearance: N_a = {} clusters, {} scene points, r_a = {} (truncation error {:.4f} on the clusters)\n",
+      a.clusters(), p.mesh.points(), p.rank_a(), p.rank_a() > 0 ? a.rel_error[p.rank_a() - 1] : 0.0f);
+  for (const auto& c : report.candidates) {
+    const auto& f = c.interpolant;
+    const std::string params =
+        f.kind == precompute::InterpolantKind::knn
+            ? fmt::format("k = {}", f.neighbours)
+            : fmt::format("width scale {}, lambda {:g}", f.width_scale, f.nrbf.regularization);
+    fmt::print("  interpolant {} ({}): leave-one-out {:.4f}", precompute::interpolant_name(f.kind), params,
+               f.leave_one_out);
+    if (!a.held_out_nodes.empty())
+      fmt::print(", held-out error {:.4f} (picking half) / {:.4f} (reported half)", c.selection.total,
+                 c.test.total);
+    fmt::print("{}\n", &c == &report.candidates.front() ? "  <- kept" : "");
+  }
+  if (a.held_out_error.size() == 4) {
+    fmt::print(
+        "appearance: held-out error over {} nodes {:.4f} = truncation {:.4f} + interpolation {:.4f} (in "
+        "quadrature, relative to |M - M-bar|); {:.4f} of |M|\n",
+        a.held_out_nodes.size(), a.held_out_error[0], a.held_out_error[1], a.held_out_error[2],
+        a.held_out_error[3]);
+  }
+}
 
 }  // namespace
 
@@ -65,22 +96,56 @@ void add_reduce_options(CLI::App* cmd, ReduceArgs& a) {
 
 void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
   auto& s = a.stage;
-  cmd->add_option("--clusters", s.clusters, "N_a: state nodes (k-means of q_u) whose transfer is computed")
+  cmd->add_option("--clusters", a.clusters,
+                  fmt::format("N_a: state nodes (k-means of q_u) whose transfer is computed (default: the "
+                              "scene's [appearance] clusters, else {})",
+                              kDefaultClusters));
+  cmd->add_option(
+      "--held-out", a.held_out,
+      fmt::format("other state nodes whose true transfer measures the served appearance; half pick "
+                  "the interpolant, half are reported (default: the scene's, else {}; 0: none)",
+                  kDefaultHeldOut));
+  cmd->add_option("--interpolant", a.interpolant,
+                  "q_a over q_u: best (lower held-out error), nrbf (§4.3) or knn (docs/transfer.md)")
       ->capture_default_str();
   cmd->add_option("--cluster-seed", s.seed, "seed of the k-means++ clustering")->capture_default_str();
   cmd->add_option("--rays", s.transfer.rays, "transfer directions of the fixed sphere set")
       ->capture_default_str();
   cmd->add_option("--bounces", s.transfer.bounces, "interreflection bounces (0: shadowed only)")
       ->capture_default_str();
-  cmd->add_option("--eps-a", s.appearance.reduction.eps_a,
-                  "transfer rank tolerance: r_a = number of sigma_i >= eps_a sigma_1")
-      ->capture_default_str();
+  cmd->add_option(
+      "--eps-a", a.eps_a,
+      fmt::format("transfer rank tolerance: r_a = number of sigma_i >= eps_a sigma_1 (default: the "
+                  "scene's [appearance] eps_a, else {})",
+                  kDefaultEpsA));
   cmd->add_option("--rank-a", s.appearance.reduction.rank,
                   "fixed rank r_a instead of --eps-a (0: use --eps-a)")
       ->capture_default_str();
   cmd->add_option("--transfer-threads", s.transfer.threads, "threads of the ray caster (0: all cores)")
       ->capture_default_str();
   cmd->add_flag("--no-appearance", a.skip, "skip the appearance stage (no /appearance, r_a = 0)");
+}
+
+precompute::AppearanceStageOptions appearance_stage_options(const precompute::Scene& scene,
+                                                            const AppearanceArgs& a) {
+  auto s = a.stage;
+  const auto& d = scene.appearance;
+  s.clusters = a.clusters.value_or(d.clusters > 0 ? d.clusters : kDefaultClusters);
+  s.held_out = a.held_out.value_or(d.held_out > 0 ? d.held_out : kDefaultHeldOut);
+  s.appearance.reduction.eps_a = a.eps_a.value_or(d.eps_a > 0 ? d.eps_a : kDefaultEpsA);
+  if (a.interpolant == "best") {
+    s.appearance.interpolant = precompute::InterpolantChoice::best;
+  } else if (a.interpolant == "nrbf") {
+    s.appearance.interpolant = precompute::InterpolantChoice::nrbf;
+  } else if (a.interpolant == "knn") {
+    s.appearance.interpolant = precompute::InterpolantChoice::knn;
+  } else {
+    throw std::invalid_argument(fmt::format("--interpolant '{}': expected best, nrbf or knn", a.interpolant));
+  }
+  s.paper_rank = d.paper_rank_a;
+  s.transfer.point_albedo = precompute::scene_point_albedo(scene);
+  precompute::check_appearance_stage_options(s);
+  return s;
 }
 
 void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::filesystem::path& orbits) {
@@ -127,7 +192,8 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
                       const std::filesystem::path& orbits, const std::filesystem::path& package) {
   precompute::check_reduction_options(a.reduction);
   precompute::check_package_options(a.package);
-  if (!appearance.skip) precompute::check_appearance_stage_options(appearance.stage);
+  const auto stage_options =
+      appearance.skip ? precompute::AppearanceStageOptions{} : appearance_stage_options(scene, appearance);
   const auto rules = precompute::make_palette_rules(scene);
   const auto index = precompute::read_orbit_index(orbits);
   core::ProgressBar mean_bar("mean shape");
@@ -145,7 +211,7 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
   auto& p = built.package;
   if (!appearance.skip) {
     core::ProgressBar transfer_bar("appearance transfer");
-    auto stage = appearance.stage;
+    auto stage = stage_options;
     const auto& ranks = Ranks::world();
     stage.split.owns = [&ranks](long j) { return ranks.owns(static_cast<int>(j)); };
     stage.split.share = [&ranks](MatrixXfR& fields) { ranks.share_rows(fields); };
@@ -157,12 +223,7 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
         });
     transfer_bar.finish();
     core::validate_package(p, scene.name);
-    if (Ranks::world().rank() == 0)
-      fmt::print(
-          "appearance: N_a = {} clusters, {} scene points, r_a = {} (error {:.4f}), NRBF leave-one-out "
-          "{:.4f}\n",
-          p.appearance->clusters(), p.mesh.points(), p.rank_a(),
-          p.rank_a() > 0 ? p.appearance->rel_error[p.rank_a() - 1] : 0.0f, report.leave_one_out.relative);
+    if (Ranks::world().rank() == 0) print_appearance_report(p, report);
   }
   if (Ranks::world().rank() != 0) return;  // every rank computed the package; one writes it
   core::write_package(p, package);

@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 namespace phasecast::precompute::tools {
@@ -24,8 +25,18 @@ struct ReduceArgs {
 
 struct AppearanceArgs {
   precompute::AppearanceStageOptions stage;
+  // Not given: the scene's [appearance] value, else the built-in default.
+  std::optional<int> clusters, held_out;
+  std::optional<double> eps_a;
+  std::string interpolant = "best";
   bool skip = false;  // --no-appearance: the package has no /appearance (r_a = 0)
 };
+
+// The stage's options for this scene: what the command line gave, else the
+// scene's [appearance] defaults, else the built-in ones; the scene's albedo
+// per point. Throws std::invalid_argument for a bad value.
+precompute::AppearanceStageOptions appearance_stage_options(const precompute::Scene& scene,
+                                                            const AppearanceArgs& args);
 
 void add_sample_options(CLI::App* cmd, SampleArgs& args);
 void add_reduce_options(CLI::App* cmd, ReduceArgs& args);

@@ -3,7 +3,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <stdexcept>
 
 namespace phasecast::precompute {
@@ -11,6 +13,8 @@ namespace phasecast::precompute {
 void check_appearance_stage_options(const AppearanceStageOptions& o) {
   if (o.clusters < 1)
     throw std::invalid_argument(fmt::format("appearance: expected --clusters >= 1, got {}", o.clusters));
+  if (o.held_out < 0)
+    throw std::invalid_argument(fmt::format("appearance: expected --held-out >= 0, got {}", o.held_out));
   if (o.transfer.rays < 1 || o.transfer.rays > (1 << 20))
     throw std::invalid_argument(
         fmt::format("appearance: expected --rays in 1..1048576, got {}", o.transfer.rays));
@@ -64,6 +68,23 @@ MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>&
   return compute_transfer(x, mesh.triangles, n, options);  // §4.1, on the unreduced mesh
 }
 
+std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<std::int32_t>& exclude,
+                                              int count, std::uint64_t seed) {
+  std::vector<std::int32_t> pool;
+  std::vector<std::uint8_t> excluded(static_cast<size_t>(N), 0);
+  for (auto n : exclude)
+    if (n >= 0 && n < N) excluded[static_cast<size_t>(n)] = 1;
+  for (std::int32_t n = 0; n < N; ++n)
+    if (!excluded[static_cast<size_t>(n)]) pool.push_back(n);
+  // Partial Fisher-Yates; mt19937_64's output is fixed by the standard, and
+  // the modulo (bias < 2^-40 here) is ours, so every machine draws the same.
+  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
+  const size_t n = std::min(pool.size(), static_cast<size_t>(std::max(count, 0)));
+  for (size_t i = 0; i < n; ++i) std::swap(pool[i], pool[i + rng() % (pool.size() - i)]);
+  pool.resize(n);
+  return pool;
+}
+
 AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const std::vector<int>& point_vertex,
                                            const OrbitDisplacementSource& orbits,
                                            const std::vector<std::int64_t>& node_frames,
@@ -82,26 +103,34 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const std::v
   }
   AppearanceStageReport report;
   report.clusters = kmeans(q_u, {o.clusters, o.seed, 100});  // §4.3: N_a clusters of the nodes
-  const auto Na = static_cast<long>(report.clusters.representatives.size());
-  const Eigen::Index S = pkg.mesh.points();
-  MatrixXfR fields(Na, core::kTransferPerPoint * S);
+  const auto& representatives = report.clusters.representatives;
+  HeldOutTruth held_out;
+  held_out.nodes = draw_held_out_nodes(N, representatives, o.held_out, o.seed);
+  // One list of transfers: the N_a representatives, then the held-out nodes.
+  std::vector<std::int32_t> nodes = representatives;
+  nodes.insert(nodes.end(), held_out.nodes.begin(), held_out.nodes.end());
+  const auto count = static_cast<long>(nodes.size());
+  MatrixXfR fields(count, core::kTransferPerPoint * pkg.mesh.points());
   TransferOptions transfer = o.transfer;
-  transfer.progress = nullptr;  // one tick per representative is the stage's progress
-  long own = 0;                 // this process's share of the Na transfers
-  for (long j = 0; j < Na; ++j) own += o.split.owns(j) ? 1 : 0;
+  transfer.progress = nullptr;  // one tick per node is the stage's progress
+  long own = 0;                 // this process's share of the transfers
+  for (long j = 0; j < count; ++j) own += o.split.owns(j) ? 1 : 0;
   if (progress) progress("appearance transfer", 0, own);
-  for (long j = 0, done = 0; j < Na; ++j) {
+  for (long j = 0, done = 0; j < count; ++j) {
     if (!o.split.owns(j)) continue;
-    const auto node = static_cast<size_t>(report.clusters.representatives[static_cast<size_t>(j)]);
     MatrixXfR frame;
-    orbits.read_frames(node_frames[node], 1, frame);
+    orbits.read_frames(node_frames[static_cast<size_t>(nodes[static_cast<size_t>(j)])], 1, frame);
     const MatrixXfR T = transfer_at_frame(pkg.mesh, point_vertex, frame.row(0), transfer);
     fields.row(j) = Eigen::Map<const Eigen::RowVectorXf>(T.data(), T.size());  // S x 48 row-major = 48S
     if (progress) progress("appearance transfer", ++done, own);
   }
   o.split.share(fields);
-  AppearanceModel model = fit_appearance_model(q_u, report.clusters, fields, o.appearance);  // §4.2, §4.3
-  report.leave_one_out = model.leave_one_out;
+  const auto Na = static_cast<Eigen::Index>(representatives.size());
+  held_out.fields = fields.bottomRows(count - Na);
+  AppearanceModel model =
+      fit_appearance_model(q_u, report.clusters, fields.topRows(Na), o.appearance, held_out);  // §4.2, §4.3
+  report.candidates = std::move(model.candidates);
+  model.appearance.paper_rank = o.paper_rank;
   pkg.appearance = std::move(model.appearance);
   pkg.portrait.q_a = std::move(model.q_a);
   pkg.attributes.eps_a = o.appearance.reduction.rank > 0 ? 0.0 : o.appearance.reduction.eps_a;

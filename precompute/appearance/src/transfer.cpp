@@ -137,6 +137,19 @@ void validate_transfer_options(const TransferOptions& o) {
       throw std::invalid_argument(fmt::format("transfer: albedo channel {} must be in [0, 1], got {}", c, a));
     }
   }
+  if (o.point_albedo.size() > 0 && o.point_albedo.cols() != 3) {
+    throw std::invalid_argument(fmt::format("transfer: point_albedo must be S x 3, got {} x {}",
+                                            o.point_albedo.rows(), o.point_albedo.cols()));
+  }
+  for (Eigen::Index p = 0; p < o.point_albedo.rows(); ++p) {
+    for (int c = 0; c < 3; ++c) {
+      const float a = o.point_albedo(p, c);
+      if (!(a >= 0 && a <= 1)) {
+        throw std::invalid_argument(
+            fmt::format("transfer: point_albedo of point {} channel {} must be in [0, 1], got {}", p, c, a));
+      }
+    }
+  }
 }
 
 MatrixXfR sphere_directions(int count) {
@@ -180,7 +193,7 @@ struct TransferRun {
   int threads = 1;
   MatrixXfR dirs{};                   // the fixed direction set, rays x 3
   ShTable Y{};                        // Y_k of each direction
-  std::array<double, 3> weight{};     // (rho_c / pi) (4 pi / rays): the weight of one direction
+  RowMatrix<double> weight{};         // S x 3: (rho_pc / pi) (4 pi / rays), the weight of one direction
   const RayCaster* caster = nullptr;  // null: nothing to cast against (unshadowed, or no triangles)
   bool gather = false;                // interreflected with bounces: cache front-face hits
   float offset = 0;                   // ray origins leave the surface along the normal by this
@@ -208,7 +221,7 @@ Transfer direct_light(const TransferRun& r, std::vector<std::vector<CachedHit>>&
       }
       if (visible) sum += cosine * r.Y.row(i);
     }
-    for (int c = 0; c < 3; ++c) T.block<1, kSh>(p, kSh * c) = r.weight[static_cast<size_t>(c)] * sum;
+    for (int c = 0; c < 3; ++c) T.block<1, kSh>(p, kSh * c) = r.weight(p, c) * sum;
   });
   return T;
 }
@@ -227,7 +240,7 @@ Transfer next_bounce(const TransferRun& r, const std::vector<std::vector<CachedH
       }
     }
     for (int c = 0; c < 3; ++c) {
-      T.block<1, kSh>(p, kSh * c) = r.weight[static_cast<size_t>(c)] * sum.segment<kSh>(kSh * c);
+      T.block<1, kSh>(p, kSh * c) = r.weight(p, c) * sum.segment<kSh>(kSh * c);
     }
   });
   return T;
@@ -239,6 +252,10 @@ MatrixXfR compute_transfer(const MatrixXfR& P, const MatrixXuR& F, const MatrixX
                            const TransferOptions& o) {
   validate_transfer_options(o);
   check_inputs(P, F, N);
+  if (o.point_albedo.size() > 0 && o.point_albedo.rows() != P.rows()) {
+    throw std::invalid_argument(fmt::format("transfer: point_albedo has {} rows, expected one per point ({})",
+                                            o.point_albedo.rows(), P.rows()));
+  }
   std::unique_ptr<RayCaster> caster;
   if (o.mode != TransferMode::unshadowed && F.rows() > 0) caster = std::make_unique<RayCaster>(P, F);
   TransferRun run{P, N, o};
@@ -249,8 +266,13 @@ MatrixXfR compute_transfer(const MatrixXfR& P, const MatrixXuR& F, const MatrixX
   run.gather = o.mode == TransferMode::interreflected && o.bounces > 0 && caster;
   run.offset = ray_offset(P);
   run.Y = sh_table(run.dirs);
-  for (int c = 0; c < 3; ++c)
-    run.weight[static_cast<size_t>(c)] = 4.0 * o.albedo[static_cast<size_t>(c)] / o.rays;
+  run.weight.resize(P.rows(), 3);
+  for (Eigen::Index p = 0; p < P.rows(); ++p) {
+    for (int c = 0; c < 3; ++c) {
+      const double rho = o.point_albedo.size() > 0 ? o.point_albedo(p, c) : o.albedo[static_cast<size_t>(c)];
+      run.weight(p, c) = 4.0 * rho / o.rays;
+    }
+  }
 
   std::vector<std::vector<CachedHit>> hits(run.gather ? static_cast<size_t>(P.rows()) : 0);
   Transfer bounce = direct_light(run, hits);

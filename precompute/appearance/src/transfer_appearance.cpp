@@ -2,21 +2,15 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace phasecast::precompute {
+namespace {
 
-AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
-                                     const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& o) {
+MatrixXfR cluster_centers(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters) {
   const auto Na = static_cast<Eigen::Index>(clusters.representatives.size());
-  if (Na == 0 || fields.rows() != Na) {
-    throw std::invalid_argument(fmt::format(
-        "fit_appearance_model: expected one transfer field per cluster ({}), got {}", Na, fields.rows()));
-  }
-  if (static_cast<Eigen::Index>(clusters.labels.size()) != q_u.rows()) {
-    throw std::invalid_argument(fmt::format("fit_appearance_model: clusters label {} nodes but q_u has {}",
-                                            clusters.labels.size(), q_u.rows()));
-  }
   MatrixXfR centers(Na, q_u.cols());
   for (Eigen::Index j = 0; j < Na; ++j) {
     const auto node = clusters.representatives[static_cast<size_t>(j)];
@@ -26,25 +20,143 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
     }
     centers.row(j) = q_u.row(node);
   }
+  return centers;
+}
 
+void check_held_out(const HeldOutTruth& h, Eigen::Index N, Eigen::Index width) {
+  if (static_cast<Eigen::Index>(h.nodes.size()) != h.fields.rows() ||
+      (h.fields.rows() && h.fields.cols() != width)) {
+    throw std::invalid_argument(
+        fmt::format("fit_appearance_model: held-out truth must be {} x {}, got {} x {}", h.nodes.size(),
+                    width, h.fields.rows(), h.fields.cols()));
+  }
+  for (auto n : h.nodes) {
+    if (n < 0 || n >= N)
+      throw std::invalid_argument(
+          fmt::format("fit_appearance_model: held-out node {} is not in 0..{}", n, N - 1));
+  }
+}
+
+// Rows [begin, begin + count) of the held-out truth.
+HeldOutTruth part(const HeldOutTruth& h, size_t begin, size_t count) {
+  HeldOutTruth out;
+  out.nodes.assign(h.nodes.begin() + static_cast<std::ptrdiff_t>(begin),
+                   h.nodes.begin() + static_cast<std::ptrdiff_t>(begin + count));
+  out.fields = h.fields.middleRows(static_cast<Eigen::Index>(begin), static_cast<Eigen::Index>(count));
+  return out;
+}
+
+MatrixXfR rows_of(const Eigen::Ref<const MatrixXfR>& q, const std::vector<std::int32_t>& nodes) {
+  MatrixXfR out(static_cast<Eigen::Index>(nodes.size()), q.cols());
+  for (size_t i = 0; i < nodes.size(); ++i) out.row(static_cast<Eigen::Index>(i)) = q.row(nodes[i]);
+  return out;
+}
+
+std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
+                                    const MatrixXfR& centers, const MatrixXfR& samples,
+                                    InterpolantChoice choice) {
+  std::vector<Interpolant> out;
+  if (choice != InterpolantChoice::knn) out.push_back(tune_nrbf(q_u, clusters.labels, centers, samples));
+  if (choice != InterpolantChoice::nrbf) out.push_back(tune_knn(centers, samples));
+  return out;
+}
+
+void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTruth& test) {
+  const Interpolant& f = c.interpolant;
+  a.interpolant = interpolant_name(f.kind);
+  a.interpolant_parameters = f.kind == InterpolantKind::knn
+                                 ? VectorXf::Constant(1, static_cast<float>(f.neighbours))
+                                 : VectorXf((VectorXf(2) << f.width_scale, f.nrbf.regularization).finished());
+  a.nrbf_centers = f.nrbf.centers;
+  a.nrbf_weights = f.nrbf.weights;
+  a.nrbf_widths = f.nrbf.widths;
+  a.nrbf_regularization = f.nrbf.regularization;
+  if (test.nodes.empty()) return;
+  a.held_out_nodes = test.nodes;
+  a.held_out_error.resize(4);
+  a.held_out_error << static_cast<float>(c.test.total), static_cast<float>(c.test.truncation),
+      static_cast<float>(c.test.interpolation), static_cast<float>(c.test.of_transfer);
+}
+
+}  // namespace
+
+TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
+                       const Eigen::Ref<const MatrixXfR>& served) {
+  if (served.rows() != truth.fields.rows() || served.cols() != r.rank()) {
+    throw std::invalid_argument(fmt::format("truth_error: expected served q_a of {} x {}, got {} x {}",
+                                            truth.fields.rows(), r.rank(), served.rows(), served.cols()));
+  }
+  const Eigen::MatrixXd U = r.U_a.cast<double>();
+  const Eigen::VectorXd mean = r.mean_transfer.cast<double>();
+  double centred2 = 0, truth2 = 0, total2 = 0, truncation2 = 0, interpolation2 = 0;
+  for (Eigen::Index h = 0; h < truth.fields.rows(); ++h) {
+    const Eigen::VectorXd m = truth.fields.row(h).transpose().cast<double>();
+    const Eigen::VectorXd d = m - mean;
+    const Eigen::VectorXd p = U.transpose() * d;  // the best coordinates rank r_a has
+    const Eigen::VectorXd s = served.row(h).transpose().cast<double>();
+    truth2 += m.squaredNorm();
+    centred2 += d.squaredNorm();
+    truncation2 += (d - U * p).squaredNorm();
+    interpolation2 += (p - s).squaredNorm();
+    total2 += (d - U * s).squaredNorm();
+  }
+  TruthError e;
+  if (centred2 > 0) {
+    e.total = std::sqrt(total2 / centred2);
+    e.truncation = std::sqrt(truncation2 / centred2);
+    e.interpolation = std::sqrt(interpolation2 / centred2);
+  }
+  if (truth2 > 0) e.of_transfer = std::sqrt(total2 / truth2);
+  return e;
+}
+
+AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
+                                     const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& o,
+                                     const HeldOutTruth& held_out) {
+  const auto Na = static_cast<Eigen::Index>(clusters.representatives.size());
+  if (Na == 0 || fields.rows() != Na) {
+    throw std::invalid_argument(fmt::format(
+        "fit_appearance_model: expected one transfer field per cluster ({}), got {}", Na, fields.rows()));
+  }
+  if (static_cast<Eigen::Index>(clusters.labels.size()) != q_u.rows()) {
+    throw std::invalid_argument(fmt::format("fit_appearance_model: clusters label {} nodes but q_u has {}",
+                                            clusters.labels.size(), q_u.rows()));
+  }
+  check_held_out(held_out, q_u.rows(), fields.cols());
+  const MatrixXfR centers = cluster_centers(q_u, clusters);
   const TransferReduction reduction = reduce_transfer(fields, o.reduction);  // §4.2: A_a ~ U_a Q_a
-  const VectorXf widths = nrbf_widths(q_u, clusters.labels, centers, o.width_scale);
-  const MatrixXfR samples = reduction.Q_a.transpose();                                // q_a^j at centre j
-  const NrbfInterpolant nrbf = fit_nrbf(centers, widths, samples, o.regularization);  // §4.3
+  const MatrixXfR samples = reduction.Q_a.transpose();                       // q_a^j at centre j
 
+  // Candidates tuned on the samples; the first half of the held-out nodes
+  // picks one, the second half measures it (the choice never sees it).
+  const size_t H = held_out.nodes.size(), selection_size = (H + 1) / 2;
+  const HeldOutTruth selection = part(held_out, 0, selection_size);
+  const HeldOutTruth test = part(held_out, selection_size, H - selection_size);
   AppearanceModel m;
-  m.q_a = evaluate_nrbf(nrbf, q_u);
-  if (Na >= 2) m.leave_one_out = nrbf_leave_one_out(centers, widths, samples, o.regularization);
+  for (auto& f : candidates(q_u, clusters, centers, samples, o.interpolant)) {
+    CandidateReport c{std::move(f), {}, {}};
+    if (!selection.nodes.empty())
+      c.selection = truth_error(reduction, selection,
+                                evaluate_interpolant(c.interpolant, rows_of(q_u, selection.nodes)));
+    if (!test.nodes.empty())
+      c.test = truth_error(reduction, test, evaluate_interpolant(c.interpolant, rows_of(q_u, test.nodes)));
+    m.candidates.push_back(std::move(c));
+  }
+  const auto score = [&](const CandidateReport& c) {
+    return selection.nodes.empty() ? c.interpolant.leave_one_out : c.selection.total;
+  };
+  std::stable_sort(m.candidates.begin(), m.candidates.end(),
+                   [&](const CandidateReport& a, const CandidateReport& b) { return score(a) < score(b); });
+  const CandidateReport& chosen = m.candidates.front();
+  m.q_a = evaluate_interpolant(chosen.interpolant, q_u);  // §4.3: q_a(q_u) at every state node
+
   core::Appearance& a = m.appearance;
   a.mean_transfer = reduction.mean_transfer;
   a.U_a = reduction.U_a;
   a.singular_values = reduction.singular_values;
   a.rel_error = reduction.rel_error;
   a.cluster_nodes = clusters.representatives;
-  a.nrbf_centers = nrbf.centers;
-  a.nrbf_weights = nrbf.weights;
-  a.nrbf_widths = nrbf.widths;
-  a.nrbf_regularization = nrbf.regularization;
+  store_choice(a, chosen, test);
   return m;
 }
 

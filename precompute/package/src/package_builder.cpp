@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -21,28 +22,38 @@ namespace {
 
 namespace h5 = core::h5;
 
-// Appends one axis-aligned box as 6 quads with outward normals. Plain scalar
-// writes: fixed-size Eigen temporaries here trip GCC 12's -Warray-bounds.
-void add_box(core::SceneMesh& m, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
-  const Eigen::Index base = m.rest_positions.rows();
-  m.rest_positions.conservativeResize(base + 24, 3);
-  m.normals.conservativeResize(base + 24, 3);
-  m.triangles.conservativeResize(m.triangles.rows() + 12, 3);
-  Eigen::Index point = base, tri = m.triangles.rows() - 12;
-  const int corner[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
-  for (int axis = 0; axis < 3; ++axis) {
-    for (int side = 0; side < 2; ++side) {
-      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-      const auto first = static_cast<std::uint32_t>(point);
-      for (const auto& c : corner) {
-        m.rest_positions(point, axis) = static_cast<float>(side ? hi(axis) : lo(axis));
-        m.rest_positions(point, u) = static_cast<float>(c[0] ? hi(u) : lo(u));
-        m.rest_positions(point, v) = static_cast<float>(c[1] ? hi(v) : lo(v));
-        for (int k = 0; k < 3; ++k) m.normals(point, k) = k == axis ? (side ? 1.0f : -1.0f) : 0.0f;
-        ++point;
-      }
+// Cells along one edge of a prop face of length `extent`.
+int face_cells(double extent, double cell) {
+  return cell > 0 ? std::clamp(static_cast<int>(std::ceil(extent / cell - 1e-9)), 1, kMaxPropCells) : 1;
+}
+
+// Appends one face of an axis-aligned box as an nu x nv grid of quads with
+// its own points (hard edges: each face keeps its outward normal). Plain
+// scalar writes: fixed-size Eigen temporaries here trip GCC 12's -Warray-bounds.
+void add_box_face(core::SceneMesh& m, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int axis,
+                  int side, double cell) {
+  const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  const int nu = face_cells(hi(u) - lo(u), cell), nv = face_cells(hi(v) - lo(v), cell);
+  const Eigen::Index base = m.rest_positions.rows(), first_tri = m.triangles.rows();
+  m.rest_positions.conservativeResize(base + (nu + 1) * (nv + 1), 3);
+  m.normals.conservativeResize(m.rest_positions.rows(), 3);
+  m.triangles.conservativeResize(first_tri + 2 * nu * nv, 3);
+  Eigen::Index point = base;
+  for (int j = 0; j <= nv; ++j) {
+    for (int i = 0; i <= nu; ++i, ++point) {
+      m.rest_positions(point, axis) = static_cast<float>(side ? hi(axis) : lo(axis));
+      m.rest_positions(point, u) = static_cast<float>(lo(u) + (hi(u) - lo(u)) * i / nu);
+      m.rest_positions(point, v) = static_cast<float>(lo(v) + (hi(v) - lo(v)) * j / nv);
+      for (int k = 0; k < 3; ++k) m.normals(point, k) = k == axis ? (side ? 1.0f : -1.0f) : 0.0f;
+    }
+  }
+  Eigen::Index tri = first_tri;
+  const auto at = [&](int i, int j) { return static_cast<std::uint32_t>(base + j * (nu + 1) + i); };
+  for (int j = 0; j < nv; ++j) {
+    for (int i = 0; i < nu; ++i) {
       // (u, v, axis) is right-handed: counter-clockwise seen from +axis; reversed on the -axis face.
-      const std::uint32_t quad[2][3] = {{first, first + 1, first + 2}, {first, first + 2, first + 3}};
+      const std::uint32_t quad[2][3] = {{at(i, j), at(i + 1, j), at(i + 1, j + 1)},
+                                        {at(i, j), at(i + 1, j + 1), at(i, j + 1)}};
       for (const auto& t : quad) {
         m.triangles(tri, 0) = t[0];
         m.triangles(tri, 1) = side ? t[1] : t[2];
@@ -51,6 +62,22 @@ void add_box(core::SceneMesh& m, const Eigen::Vector3d& lo, const Eigen::Vector3
       }
     }
   }
+}
+
+// Points add_box appends for this box.
+Eigen::Index box_points(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double cell) {
+  Eigen::Index n = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    n += 2 * (face_cells(hi(u) - lo(u), cell) + 1) * (face_cells(hi(v) - lo(v), cell) + 1);
+  }
+  return n;
+}
+
+// Appends one axis-aligned box, each face tessellated into cells of about `cell` metres.
+void add_box(core::SceneMesh& m, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double cell) {
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side) add_box_face(m, lo, hi, axis, side, cell);
 }
 
 // Vertices that get a back-side copy, ascending: those of sheet triangles
@@ -134,7 +161,9 @@ core::SceneMesh scene_mesh(const Scene& scene) {
   m.normals = core::vertex_normals(m.rest_positions, m.triangles);  // front side
   core::add_back_side(m.rest_positions, m.normals, m.triangles, back_side_vertices(model));
   m.deformable.assign(static_cast<size_t>(m.rest_positions.rows()), 1);
-  for (const auto& box : model.obstacles) add_box(m, box.min, box.max);
+  for (size_t i = 0; i < model.obstacles.size(); ++i)
+    add_box(m, model.obstacles[i].min, model.obstacles[i].max,
+            i < scene.props.size() ? scene.props[i].cell : 0);
   m.deformable.resize(static_cast<size_t>(m.rest_positions.rows()), 0);
   m.attached.assign(static_cast<size_t>(m.rest_positions.rows()), 1);  // everything rides on the support
   return m;
@@ -146,8 +175,29 @@ std::vector<int> scene_point_vertices(const Scene& scene) {
   for (int v = 0; v < V; ++v) out[static_cast<size_t>(v)] = v;
   const auto back = back_side_vertices(scene.model);
   out.insert(out.end(), back.begin(), back.end());
-  out.resize(out.size() + 24 * scene.model.obstacles.size(), -1);
+  out.resize(static_cast<size_t>(scene_mesh(scene).points()), -1);  // the props' points
   return out;
+}
+
+MatrixXfR scene_point_albedo(const Scene& scene) {
+  const auto point_vertex = scene_point_vertices(scene);
+  std::vector<Eigen::Vector3d> vertex_albedo(static_cast<size_t>(scene.model.vertices()), kDefaultAlbedo);
+  for (const auto& body : scene.bodies)
+    for (int v : body.vertices) vertex_albedo[static_cast<size_t>(v)] = body.albedo;
+  const core::SceneMesh mesh = scene_mesh(scene);
+  MatrixXfR rho(mesh.points(), 3);
+  Eigen::Index p = 0;
+  for (; p < mesh.points() && point_vertex[static_cast<size_t>(p)] >= 0; ++p)
+    rho.row(p) = vertex_albedo[static_cast<size_t>(point_vertex[static_cast<size_t>(p)])].cast<float>();
+  // The props' points follow in obstacle order, each box's points in one block.
+  for (size_t i = 0; i < scene.model.obstacles.size(); ++i) {
+    const auto& o = scene.model.obstacles[i];
+    const PropLook look = i < scene.props.size() ? scene.props[i] : PropLook{};
+    const Eigen::Index n = box_points(o.min, o.max, look.cell);
+    rho.middleRows(p, n).rowwise() = look.albedo.cast<float>().transpose();
+    p += n;
+  }
+  return rho;
 }
 
 void check_package_options(const PackageOptions& o) {

@@ -300,6 +300,7 @@ void pin_vertices(DeformableModel& m, Fields& body, const std::vector<int>& vert
 void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
   BodyInfo info;
   info.name = body.string("name");
+  info.albedo = body.albedo("albedo", kDefaultAlbedo);
   std::string mesh_key;
   const BodyGeometry g = body_geometry(body, dir, mesh_key);
   const std::vector<int> global = add_points(scene, body, g);
@@ -370,6 +371,17 @@ SupportSettings read_support(Fields sup) {
   return s;
 }
 
+AppearanceDefaults read_appearance_defaults(Fields a) {
+  AppearanceDefaults d;
+  d.clusters = a.positive_integer("clusters", 0);
+  d.eps_a = a.number("eps_a", 0);
+  if (a.has("eps_a") && !(d.eps_a > 0 && d.eps_a < 1)) a.fail("eps_a", "a number in (0, 1)");
+  d.held_out = a.positive_integer("held_out", 0);
+  d.paper_rank_a = a.positive_integer("paper_rank_a", 0);
+  a.finish();
+  return d;
+}
+
 PaletteEntry read_entry(Fields e, const Scene& scene) {
   PaletteEntry p;
   p.name = e.string("name");
@@ -438,12 +450,18 @@ Scene load_scene_file(const std::filesystem::path& path) {
   for (auto& o : top.tables("obstacle")) {
     BoxObstacle box{o.string("name"), o.vec3("min"), o.vec3("max")};
     if (!(box.min.array() < box.max.array()).all()) o.fail("max", "a corner above min on every axis");
+    PropLook look{o.albedo("albedo", kDefaultAlbedo), o.number("cell", 0)};
+    if (!(look.cell >= 0)) o.fail("cell", "a tessellation edge length >= 0 (m)");
+    if (look.cell > 0 && (box.max - box.min).maxCoeff() / look.cell > kMaxPropCells)
+      o.fail("cell", fmt::format("at most {} cells along an edge of the box", kMaxPropCells));
     o.finish();
     scene.model.obstacles.push_back(box);
+    scene.props.push_back(look);
   }
   auto entries = top.tables("palette");
   if (entries.empty()) top.fail("palette", "at least one [[palette]] entry");
   for (auto& e : entries) scene.palette.push_back(read_entry(e, scene));
+  if (top.has("appearance")) scene.appearance = read_appearance_defaults(top.table("appearance"));
   if (top.has("validation")) {
     Fields v = top.table("validation");
     scene.standard_schedule = v.string("schedule");

@@ -127,6 +127,20 @@ Eigen::Vector3d Fields::vec3(const std::string& key, const Eigen::Vector3d& fall
   return has(key) ? vec3(key) : fallback;
 }
 
+Eigen::Vector3d Fields::albedo(const std::string& key, const Eigen::Vector3d& fallback) {
+  if (!has(key)) return fallback;
+  const std::string expected = "[r, g, b] with each in [0, 1]";
+  const toml::node* n = node(key);
+  if (!n->is_array() || n->as_array()->size() != 3) fail(key, expected);
+  Eigen::Vector3d rgb;
+  for (int c = 0; c < 3; ++c) {
+    const auto v = as_number(*n->as_array()->get(static_cast<size_t>(c)));
+    if (!v || !(*v >= 0 && *v <= 1)) fail(key, expected);
+    rgb[c] = *v;
+  }
+  return rgb;
+}
+
 std::vector<std::string> Fields::strings(const std::string& key) {
   const toml::node* n = node(key);
   if (!n || !n->is_array()) fail(key, "an array of strings");

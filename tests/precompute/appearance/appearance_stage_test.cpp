@@ -31,7 +31,11 @@ using testing::tiny_scene_path;
 // 4 clusters, a coarse direction set: seconds on 2 cores.
 const std::vector<std::string> kSample = {"--chains", "2", "--irfs-per-chain", "3", "--seed", "4"};
 const std::vector<std::string> kReduce = {"--max-rank", "20", "--dead-end-fraction", "0", "--clusters", "4",
-                                          "--rays",     "64", "--bounces",           "1"};
+                                          "--rays",     "64", "--bounces",           "1", "--held-out", "6"};
+
+// The tiny door (0.8 x 2 x 0.04 m) in 0.2 m cells: faces of 4 x 10, 4 x 1 and 10 x 1 cells.
+constexpr int kDoorPoints = 2 * (5 * 11) + 2 * (5 * 2) + 2 * (11 * 2);
+constexpr int kDoorTriangles = 2 * 2 * (4 * 10 + 4 * 1 + 10 * 1);
 
 // `head`, then the sampling options (run only) and the reduce/appearance
 // options, where `overrides` (flag, value pairs) replace or extend them.
@@ -80,7 +84,7 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   const auto pkg = (dir / "tiny.h5").string();
   const auto r = run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}));
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.err.find("appearance transfer: 4/4"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("appearance transfer: 10/10"), std::string::npos) << r.err;  // 4 clusters, 6 held out
   EXPECT_NE(r.out.find("appearance: N_a = 4 clusters"), std::string::npos) << r.out;
   const auto p = core::read_package(pkg);  // validates
   ASSERT_TRUE(p.appearance.has_value());
@@ -94,10 +98,14 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   EXPECT_GT(p.attributes.eps_a, 0.0);
   const auto inspect = run_tool("phasecast-inspect", {pkg});
   ASSERT_EQ(inspect.exit_code, 0) << inspect.err;
-  EXPECT_NE(inspect.out.find(
-                fmt::format("appearance   r_a = {}, N_a = 4 clusters, relative error at r_a = ", p.rank_a())),
+  EXPECT_NE(inspect.out.find(fmt::format(
+                "appearance   r_a = {}, N_a = 4 clusters, truncation error at r_a = ", p.rank_a())),
             std::string::npos)
       << inspect.out;
+  EXPECT_NE(inspect.out.find("held-out truth (3 other nodes): error "), std::string::npos) << inspect.out;
+  EXPECT_EQ(p.appearance->paper_rank, 12);  // stored; printed only when r_a = 12 is within N_a
+  ASSERT_EQ(p.appearance->held_out_error.size(), 4);
+  EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
 }
 
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
@@ -109,12 +117,13 @@ TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
   ASSERT_EQ(p.portrait.nodes(), store.frames());  // nothing dropped: node n is frame n
   const auto scene = precompute::load_scene_file(tiny_scene_path());
   const int V = scene.model.vertices();
-  ASSERT_EQ(p.mesh.points(), 2 * V + 24);
+  ASSERT_EQ(p.mesh.points(), 2 * V + kDoorPoints);
 
   precompute::TransferOptions options;
   options.mode = precompute::TransferMode::interreflected;
   options.rays = 64;
   options.bounces = 1;
+  options.point_albedo = precompute::scene_point_albedo(scene);  // blue cloth, wooden door
   const auto& a = *p.appearance;
   Eigen::VectorXd mean = Eigen::VectorXd::Zero(a.mean_transfer.size());
   for (int node : a.cluster_nodes) {
@@ -148,13 +157,25 @@ TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
   EXPECT_GT((reduced.head(3 * V) - stored).norm(), 0.0f);
 }
 
+TEST(AppearanceStage, DefaultScenesAreColouredWithTessellatedProps) {
+  const auto cloth =
+      precompute::load_scene_file(std::filesystem::path(PHASECAST_SCENES_DIR) / "cloth_door.toml");
+  EXPECT_EQ(cloth.bodies.at(0).albedo, Eigen::Vector3d(0.12, 0.3, 0.75));
+  EXPECT_EQ(cloth.props.at(0).albedo, Eigen::Vector3d(0.62, 0.42, 0.24));
+  EXPECT_EQ(cloth.appearance.clusters, 64);
+  EXPECT_EQ(cloth.appearance.paper_rank_a, 12);
+  const auto map = precompute::scene_point_vertices(cloth);
+  const auto door = std::count(map.begin(), map.end(), -1);
+  EXPECT_GE(door, 2000);  // dense enough to receive the cloth's shadow
+}
+
 TEST(AppearanceStage, ClothHasTwoSidesSharingTheirVertexRows) {
   const auto scene = precompute::load_scene_file(tiny_scene_path());
   const int V = scene.model.vertices();
   const auto F = scene.model.surface.rows();
   const auto m = precompute::scene_mesh(scene);
-  ASSERT_EQ(m.points(), 2 * V + 24);
-  ASSERT_EQ(m.triangles.rows(), 2 * F + 12);
+  ASSERT_EQ(m.points(), 2 * V + kDoorPoints);
+  ASSERT_EQ(m.triangles.rows(), 2 * F + kDoorTriangles);
   for (int v = 0; v < V; ++v) {
     EXPECT_TRUE(m.rest_positions.row(V + v) == m.rest_positions.row(v));
     EXPECT_TRUE(m.normals.row(V + v) == -m.normals.row(v));
@@ -169,6 +190,25 @@ TEST(AppearanceStage, ClothHasTwoSidesSharingTheirVertexRows) {
   ASSERT_EQ(static_cast<int>(map.size()), m.points());
   EXPECT_EQ(map[static_cast<size_t>(V + 3)], 3);
   EXPECT_EQ(map.back(), -1);
+
+  // Every door point lies on the board's surface, at a 0.2 m grid step or a face edge.
+  const auto& door = scene.model.obstacles.at(0);
+  for (Eigen::Index q = 2 * V; q < m.points(); ++q) {
+    const Eigen::Vector3d x = m.rest_positions.row(q).cast<double>().transpose();
+    int on_face = 0;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_GE(x[k], door.min[k] - 1e-6);
+      EXPECT_LE(x[k], door.max[k] + 1e-6);
+      on_face += std::abs(x[k] - door.min[k]) < 1e-6 || std::abs(x[k] - door.max[k]) < 1e-6;
+    }
+    EXPECT_GE(on_face, 1) << "point " << q;
+  }
+  // Albedo: the blue cloth on both sides, the wooden door.
+  const MatrixXfR rho = precompute::scene_point_albedo(scene);
+  ASSERT_EQ(rho.rows(), m.points());
+  EXPECT_TRUE(rho.row(0).isApprox(Eigen::RowVector3f(0.12f, 0.3f, 0.75f)));
+  EXPECT_TRUE(rho.row(V + 3).isApprox(Eigen::RowVector3f(0.12f, 0.3f, 0.75f)));
+  EXPECT_TRUE(rho.row(m.points() - 1).isApprox(Eigen::RowVector3f(0.62f, 0.42f, 0.24f)));
 
   const auto p = core::read_package(run_tiny("appearance_two_sides"));
   const auto& U = p.reduction.U_u;

@@ -3,6 +3,7 @@
 // SVD and NRBF, written into a package that validates and reads back.
 
 #include "phasecast/core/mesh_geometry.h"
+#include "phasecast/precompute/appearance/appearance_stage.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_appearance.h"
 #include "run_tool.h"
@@ -10,26 +11,33 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+
 namespace phasecast {
 namespace {
 
 using namespace precompute;
 
-MatrixXfR transfer_fields(const core::ScenePackage& p, const KMeansResult& clusters) {
+MatrixXfR transfer_fields(const core::ScenePackage& p, const std::vector<std::int32_t>& nodes) {
   const int S = p.mesh.points();
-  MatrixXfR fields(static_cast<Eigen::Index>(clusters.representatives.size()), 48 * S);
+  MatrixXfR fields(static_cast<Eigen::Index>(nodes.size()), 48 * S);
   TransferOptions o;
   o.mode = TransferMode::shadowed;
   o.rays = 128;
-  for (size_t j = 0; j < clusters.representatives.size(); ++j) {
-    const Eigen::VectorXf x = p.reduction.mean_shape +
-                              p.reduction.U_u * p.portrait.q_u.row(clusters.representatives[j]).transpose();
+  for (size_t j = 0; j < nodes.size(); ++j) {
+    const Eigen::VectorXf x =
+        p.reduction.mean_shape + p.reduction.U_u * p.portrait.q_u.row(nodes[j]).transpose();
     const MatrixXfR positions = Eigen::Map<const MatrixXfR>(x.data(), S, 3);
     const MatrixXfR T =
         compute_transfer(positions, p.mesh.triangles, core::vertex_normals(positions, p.mesh.triangles), o);
     fields.row(static_cast<Eigen::Index>(j)) = Eigen::Map<const Eigen::RowVectorXf>(T.data(), 48 * S);
   }
   return fields;
+}
+
+MatrixXfR transfer_fields(const core::ScenePackage& p, const KMeansResult& clusters) {
+  return transfer_fields(p, clusters.representatives);
 }
 
 TEST(Appearance, FillsAValidPackage) {
@@ -43,12 +51,18 @@ TEST(Appearance, FillsAValidPackage) {
   EXPECT_EQ(a.cluster_nodes, clusters.representatives);
   EXPECT_EQ(model.q_a.rows(), p.portrait.nodes());
   EXPECT_EQ(model.q_a.cols(), a.rank());
-  EXPECT_EQ(model.leave_one_out.errors.size(), 8);
-  // At a cluster node the interpolant returns (nearly) that node's own q_a^j.
+  ASSERT_EQ(model.candidates.size(), 2u);  // nrbf and knn, tuned by leave-one-out
+  for (const auto& c : model.candidates) EXPECT_TRUE(std::isfinite(c.interpolant.leave_one_out));
+  EXPECT_EQ(a.held_out_error.size(), 0);  // no held-out truth given
+  // At a cluster node the k-nearest-neighbour interpolant returns that node's own q_a^j.
   const auto r = reduce_transfer(fields, {.eps_a = 1e-3});
+  const auto knn =
+      fit_appearance_model(p.portrait.q_u, clusters, fields,
+                           {.reduction = {.eps_a = 1e-3}, .interpolant = InterpolantChoice::knn});
+  EXPECT_EQ(knn.appearance.interpolant, "knn");
   for (int j = 0; j < 8; ++j) {
-    const Eigen::VectorXf got = model.q_a.row(a.cluster_nodes[static_cast<size_t>(j)]).transpose();
-    EXPECT_LT((got - r.Q_a.col(j)).norm(), 0.05f * r.Q_a.norm()) << "cluster " << j;
+    const Eigen::VectorXf got = knn.q_a.row(a.cluster_nodes[static_cast<size_t>(j)]).transpose();
+    EXPECT_LT((got - r.Q_a.col(j)).norm(), 1e-5f * r.Q_a.norm()) << "cluster " << j;
   }
   p.appearance = a;
   p.portrait.q_a = model.q_a;
@@ -69,10 +83,66 @@ TEST(Appearance, OneClusterHasRankZero) {
   EXPECT_EQ(model.appearance.rank(), 0);
   EXPECT_EQ(model.q_a.rows(), p.portrait.nodes());
   EXPECT_EQ(model.q_a.cols(), 0);
-  EXPECT_EQ(model.leave_one_out.errors.size(), 0);
+  EXPECT_EQ(model.appearance.held_out_error.size(), 0);
   p.appearance = model.appearance;
   p.portrait.q_a = model.q_a;
   EXPECT_NO_THROW(core::validate_package(p, "one cluster"));
+}
+
+// The held-out figure is what a client would show: M-bar + U_a q_a at the
+// node, read back from the package, against the true transfer there.
+TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
+  core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
+  const auto clusters = kmeans(p.portrait.q_u, {.clusters = 6, .seed = 3});
+  HeldOutTruth truth;
+  truth.nodes = draw_held_out_nodes(p.portrait.nodes(), clusters.representatives, 12, 5);
+  ASSERT_EQ(truth.nodes.size(), 12u);
+  for (auto n : truth.nodes)
+    EXPECT_EQ(std::count(clusters.representatives.begin(), clusters.representatives.end(), n), 0);
+  truth.fields = transfer_fields(p, truth.nodes);
+  const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
+                                          {.reduction = {.rank = 3}}, truth);
+  const auto& a = model.appearance;
+  ASSERT_EQ(a.held_out_error.size(), 4);
+  ASSERT_EQ(a.held_out_nodes.size(), 6u);  // the second half: the first picked the interpolant
+  EXPECT_TRUE(std::equal(a.held_out_nodes.begin(), a.held_out_nodes.end(), truth.nodes.begin() + 6));
+  // A second reader: plain sums over the served fields.
+  double err2 = 0, centred2 = 0, truth2 = 0;
+  for (size_t i = 0; i < 6; ++i) {
+    const auto node = a.held_out_nodes[i];
+    const Eigen::VectorXd served = (a.mean_transfer + a.U_a * model.q_a.row(node).transpose()).cast<double>();
+    const Eigen::VectorXd m = truth.fields.row(static_cast<Eigen::Index>(6 + i)).transpose().cast<double>();
+    err2 += (m - served).squaredNorm();
+    centred2 += (m - a.mean_transfer.cast<double>()).squaredNorm();
+    truth2 += m.squaredNorm();
+  }
+  EXPECT_NEAR(a.held_out_error[0], std::sqrt(err2 / centred2), 1e-4);
+  EXPECT_NEAR(a.held_out_error[3], std::sqrt(err2 / truth2), 1e-5);
+  EXPECT_GT(a.held_out_error[0], 1e-3);  // not vacuous: these nodes are not samples
+  EXPECT_NEAR(a.held_out_error[0] * a.held_out_error[0],
+              a.held_out_error[1] * a.held_out_error[1] + a.held_out_error[2] * a.held_out_error[2], 1e-5);
+  // The kept interpolant is the one the picking half preferred.
+  ASSERT_EQ(model.candidates.size(), 2u);
+  EXPECT_LE(model.candidates[0].selection.total, model.candidates[1].selection.total);
+  EXPECT_EQ(a.interpolant, interpolant_name(model.candidates[0].interpolant.kind));
+  // Written and read back, the figures survive.
+  core::ScenePackage out = p;
+  out.appearance = a;
+  out.portrait.q_a = model.q_a;
+  const auto path = testing::scratch_dir("appearance_held_out") / "plate.h5";
+  core::write_package(out, path);
+  const auto back = core::read_package(path);
+  EXPECT_EQ(back.appearance->held_out_error, a.held_out_error);
+  EXPECT_EQ(back.appearance->held_out_nodes, a.held_out_nodes);
+  EXPECT_EQ(back.appearance->interpolant, a.interpolant);
+}
+
+TEST(Appearance, HeldOutNodesAreDrawnDeterministicallyAndCapped) {
+  const auto a = draw_held_out_nodes(10, {1, 2, 3}, 4, 9);
+  EXPECT_EQ(a, draw_held_out_nodes(10, {1, 2, 3}, 4, 9));
+  EXPECT_NE(a, draw_held_out_nodes(10, {1, 2, 3}, 4, 10));
+  EXPECT_EQ(draw_held_out_nodes(5, {0, 1}, 40, 1).size(), 3u);  // only 3 nodes are not clusters
+  EXPECT_TRUE(draw_held_out_nodes(5, {}, 0, 1).empty());
 }
 
 TEST(Appearance, RejectsMismatchedFields) {

@@ -134,6 +134,38 @@ TEST(Transfer, ConcaveBoxGetsMoreLightWithEachBounce) {
   EXPECT_LT(exit[2] - exit[1], 0.8 * (exit[1] - exit[0]) + 1e-9);
 }
 
+// Colour bleeding: a white floor beside one red wall reflects red light once
+// light bounces, and only then (the shadowed floor stays white).
+TEST(Transfer, RedWallBleedsOntoWhiteFloorOnlyThroughBounces) {
+  const TransferMesh box = testing::open_box(4);
+  const Eigen::Index floor_point = point_at(box, 0, 0, -0.5f);
+  ASSERT_GE(floor_point, 0);
+  TransferOptions o;
+  o.rays = 2048;
+  o.point_albedo = MatrixXfR::Constant(box.positions.rows(), 3, 0.8f);
+  for (Eigen::Index p = 0; p < box.positions.rows(); ++p)
+    if (box.normals(p, 0) < -0.9f) o.point_albedo.row(p) << 0.9f, 0.1f, 0.1f;  // the +x wall, facing in
+  o.mode = TransferMode::shadowed;
+  const Eigen::MatrixXd direct =
+      testing::furnace(compute_transfer(box.positions, box.triangles, box.normals, o));
+  EXPECT_DOUBLE_EQ(direct(floor_point, 0), direct(floor_point, 1));
+  o.mode = TransferMode::interreflected;
+  o.bounces = 2;
+  const Eigen::MatrixXd lit =
+      testing::furnace(compute_transfer(box.positions, box.triangles, box.normals, o));
+  // Bounced light: 0.8 x (what the walls send); the red wall sends 9x more red than green.
+  const double red = lit(floor_point, 0) - direct(floor_point, 0),
+               green = lit(floor_point, 1) - direct(floor_point, 1);
+  EXPECT_GT(green, 0);
+  EXPECT_GT(red, 1.2 * green);
+  // The uniform-albedo run with the same grey everywhere gives equal channels.
+  o.point_albedo = MatrixXfR();
+  o.albedo = {0.8f, 0.8f, 0.8f};
+  const Eigen::MatrixXd grey =
+      testing::furnace(compute_transfer(box.positions, box.triangles, box.normals, o));
+  EXPECT_NEAR(grey(floor_point, 0), grey(floor_point, 1), 1e-12);
+}
+
 TEST(Transfer, DoubleSidedBackFacesGetTheirOwnTransfer) {
   const TransferMesh sheet = precompute::make_double_sided(testing::square(1.0f, 0.0f, 2, true));
   const TransferMesh scene = testing::merge(sheet, testing::square(0.5f, 0.5f, 1, false));
@@ -266,6 +298,12 @@ TEST(TransferRejects, BadOptions) {
   o = {};
   o.threads = -2;
   EXPECT_EQ(failure_of(cube, o), "transfer: threads must be >= 0, got -2");
+  o = {};
+  o.point_albedo = MatrixXfR::Constant(cube.positions.rows(), 3, 0.5f);
+  o.point_albedo(3, 1) = 2.0f;
+  EXPECT_EQ(failure_of(cube, o), "transfer: point_albedo of point 3 channel 1 must be in [0, 1], got 2");
+  o.point_albedo = MatrixXfR::Constant(cube.positions.rows() + 1, 3, 0.5f);
+  EXPECT_THAT(failure_of(cube, o), HasSubstr("point_albedo has"));
 }
 
 TEST(TransferRejects, BadMesh) {

@@ -130,6 +130,23 @@ TEST(SceneErrors, NaNValue) {
             ": field 'palette[0].alpha_forcing': expected an array of 3 finite numbers, got array of 3");
 }
 
+TEST(SceneErrors, BadAlbedoAndProps) {
+  EXPECT_EQ(rejection("albedo", edited(kValid, "density = 0.2", "density = 0.2\nalbedo = [0.5, 1.5, 0.5]")),
+            ": field 'body[0].albedo': expected [r, g, b] with each in [0, 1], got array of 3");
+  EXPECT_EQ(rejection("albedo2", edited(kValid, "density = 0.2", "density = 0.2\nalbedo = 0.5")),
+            ": field 'body[0].albedo': expected [r, g, b] with each in [0, 1], got number 0.5");
+  const std::string box = "[[obstacle]]\nname = \"b\"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\n";
+  EXPECT_EQ(rejection("cell", kValid + box + "cell = -0.1\n"),
+            ": field 'obstacle[0].cell': expected a tessellation edge length >= 0 (m), got number -0.1");
+  EXPECT_EQ(
+      rejection("cells", kValid + box + "cell = 0.001\n"),
+      ": field 'obstacle[0].cell': expected at most 256 cells along an edge of the box, got number 0.001");
+  EXPECT_EQ(rejection("eps", kValid + "[appearance]\neps_a = 2\n"),
+            ": field 'appearance.eps_a': expected a number in (0, 1), got integer 2");
+  EXPECT_EQ(rejection("clusters", kValid + "[appearance]\nclusters = 0\n"),
+            ": field 'appearance.clusters': expected a positive integer, got integer 0");
+}
+
 TEST(SceneErrors, UnknownEnergyName) {
   EXPECT_EQ(rejection("energy", edited(kValid, "\"bending\"]", "\"stretchy\"]")),
             ": field 'body[0].energies': expected energy names among membrane, bending, rod, tet_fem "

@@ -153,6 +153,15 @@ struct Appearance {
   MatrixXfR nrbf_weights;                   // N_a x r_a
   VectorXf nrbf_widths;                     // N_a
   float nrbf_regularization = 0;
+  // Which interpolant made q_a (docs/transfer.md). Packages written before
+  // the choice existed read as the NRBF with no parameters.
+  std::string interpolant = "nrbf";  // "nrbf" (§4.3) or "knn"
+  VectorXf interpolant_parameters;   // nrbf: width scale, lambda; knn: k
+  // Held-out truth (empty when not measured): the served transfer against
+  // the true transfer at state nodes that are not cluster nodes.
+  std::vector<std::int32_t> held_out_nodes;  // the nodes the error is measured at
+  VectorXf held_out_error;                   // 4: total, truncation, interpolation, total relative to |M|
+  std::int32_t paper_rank = 0;               // the paper's r_a for this scene (Table 1; 0: none)
 
   int rank() const { return static_cast<int>(U_a.cols()); }
   int clusters() const { return static_cast<int>(cluster_nodes.size()); }

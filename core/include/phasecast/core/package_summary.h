@@ -20,12 +20,18 @@ struct PackageSummary {
   int points = 0, deformable_points = 0, triangles = 0;  // S, deformable part of S, F
   int state_nodes = 0, irfs = 0, palette_entries = 0;    // N, n_irf, D
   std::vector<std::string> palette;
-  std::vector<int> irfs_per_entry;            // D
-  double dt = 0, duration_s = 0;              // N * dt
-  int rank_u = 0, rank_a = 0, clusters = 0;   // r_u, r_a, N_a
-  int chosen_rank = 0;                        // rank the error is reported at
-  double error_u_at_rank = 0;                 // relative l2 (Fig. 12, blue)
-  double error_a_at_rank = 0;                 // at r_a (Fig. 12, red); NaN without appearance
+  std::vector<int> irfs_per_entry;           // D
+  double dt = 0, duration_s = 0;             // N * dt
+  int rank_u = 0, rank_a = 0, clusters = 0;  // r_u, r_a, N_a
+  int chosen_rank = 0;                       // rank the error is reported at
+  double error_u_at_rank = 0;                // relative l2 (Fig. 12, blue)
+  double error_a_at_rank = 0;                // at r_a (Fig. 12, red); NaN without appearance
+  std::vector<double> error_a_curve;         // Fig. 12, red: relative error at rank 1..N_a
+  int paper_rank_a = 0;                      // the paper's r_a for this scene (0: unknown)
+  double error_a_at_paper_rank = 0;          // NaN when unknown or above N_a
+  std::string interpolant;                   // "nrbf" or "knn", with its parameters
+  int held_out_nodes = 0;                    // 0: no held-out truth in the package
+  double held_out_total = 0, held_out_truncation = 0, held_out_interpolation = 0, held_out_of_transfer = 0;
   std::uint64_t client_download_bytes = 0;    // sum of basis parts
   std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
   std::uint64_t full_vertex_frame_bytes = 0;  // streaming vertices instead

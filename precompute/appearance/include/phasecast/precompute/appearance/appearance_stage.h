@@ -27,7 +27,9 @@ struct TransferSplit {
 
 struct AppearanceStageOptions {
   int clusters = 16;       // N_a: state nodes whose transfer is computed (k-means of q_u, §4.3)
-  std::uint64_t seed = 1;  // k-means++ seeding
+  std::uint64_t seed = 1;  // k-means++ seeding and the draw of the held-out nodes
+  int held_out = 40;       // other nodes whose true transfer measures the model (0: none)
+  int paper_rank = 0;      // the paper's r_a for this scene, stored for phasecast-inspect (0: none)
   TransferOptions transfer = default_stage_transfer();
   AppearanceOptions appearance;  // eps_a or fixed r_a, NRBF regularization
   TransferSplit split;           // default: this process computes every transfer
@@ -66,13 +68,19 @@ MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>&
 
 struct AppearanceStageReport {
   KMeansResult clusters;
-  LeaveOneOut leave_one_out;  // NRBF on the N_a samples (empty when N_a == 1)
+  std::vector<CandidateReport> candidates;  // the interpolants tried, the chosen one first
 };
+
+// `count` distinct state nodes of 0..N-1 that are not in `exclude`, drawn
+// with std::mt19937_64(seed) (fewer when fewer remain), in draw order.
+std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<std::int32_t>& exclude,
+                                              int count, std::uint64_t seed);
 
 // Runs the stage on `package` (its portrait q_u and mesh must be final) and
 // stores the model in package.appearance, package.portrait.q_a and
-// package.attributes.eps_a. `progress(stage, done, total)` is called as the
-// representatives' transfers complete.
+// package.attributes.eps_a. The true transfer of `held_out` other nodes
+// measures it (fit_appearance_model). `progress(stage, done, total)` is
+// called as the transfers (representatives, then held-out nodes) complete.
 //   @param[in] orbits       the store the package was reduced from
 //   @param[in] node_frames  package_node_frames(...) of that reduction
 // Throws std::invalid_argument for bad options (N_a above the node count

@@ -32,13 +32,14 @@ struct TransferOptions {
   int rays = 1024;                                // directions of the fixed sphere set
   int bounces = 2;                                // interreflected only
   std::array<float, 3> albedo{0.8f, 0.8f, 0.8f};  // rho per RGB channel, in [0, 1]
+  MatrixXfR point_albedo;                         // S x 3: rho of each point (empty: `albedo` everywhere)
   int threads = 0;                                // 0: std::thread::hardware_concurrency()
   // Called from the calling thread with (stage, done, total) while work runs.
   std::function<void(const char* stage, long done, long total)> progress;
 };
 
-// Checks the options (rays >= 1, bounces >= 0, finite albedo in [0, 1],
-// threads >= 0); throws std::invalid_argument naming the bad field.
+// Checks the options (rays >= 1, bounces >= 0, albedo and point_albedo in
+// [0, 1], threads >= 0); throws std::invalid_argument naming the bad field.
 void validate_transfer_options(const TransferOptions& options);
 
 // Fixed direction set: `count` unit vectors, a spherical Fibonacci lattice
@@ -55,6 +56,8 @@ MatrixXfR sphere_directions(int count);
 //   @param[in] normals    #S by 3 unit normals (the hemisphere each point sees)
 //   @param[in] options    mode, rays, bounces, albedo, threads, progress
 //   @return               #S by 48 transfer (row p, column 16 c + k)
+// Interreflected light takes the colour of every surface it left: bounce b
+// at p gathers rho_p times bounce b-1 at the hit points (colour bleeding).
 // Throws std::invalid_argument for bad shapes, indices, NaN or non-unit normals.
 MatrixXfR compute_transfer(const MatrixXfR& positions, const MatrixXuR& triangles, const MatrixXfR& normals,
                            const TransferOptions& options);

@@ -1,7 +1,8 @@
 #pragma once
 // The appearance model of a package (§4): from the transfer fields computed
 // at the k-means representatives of the state nodes, the reduced transfer
-// basis (§4.2) and the NRBF interpolant of q_a over all state nodes (§4.3).
+// basis (§4.2) and the interpolant of q_a over all state nodes (§4.3), with
+// its error against held-out true transfer.
 // It fills core::Appearance (/appearance/*) and /portrait/q_a.
 //
 // The stage runs in three steps; the middle one (transfer on each
@@ -12,32 +13,63 @@
 //   3. model = fit_appearance_model(q_u, clusters, fields, options)
 
 #include "phasecast/core/package.h"
+#include "phasecast/precompute/appearance/interpolant.h"
 #include "phasecast/precompute/appearance/kmeans.h"
-#include "phasecast/precompute/appearance/nrbf.h"
 #include "phasecast/precompute/appearance/transfer_reduction.h"
 
 namespace phasecast::precompute {
 
+enum class InterpolantChoice { best, nrbf, knn };  // best: lower held-out error (else leave-one-out)
+
 struct AppearanceOptions {
-  TransferReductionOptions reduction;                 // eps_a or fixed r_a
-  float regularization = kDefaultNrbfRegularization;  // NRBF lambda
-  float width_scale = 1.0f;                           // NRBF widths = scale x cluster spread
+  TransferReductionOptions reduction;  // eps_a or fixed r_a
+  InterpolantChoice interpolant = InterpolantChoice::best;
+};
+
+// True transfer at state nodes that are not cluster representatives: the
+// independent truth the served appearance M-bar + U_a q_a(q_u) is measured
+// against (§4.2 truncation plus §4.3 interpolation).
+struct HeldOutTruth {
+  std::vector<std::int32_t> nodes;  // H state nodes
+  MatrixXfR fields;                 // H x 48S: their transfer, computed like the clusters'
+};
+
+// Relative errors of the served transfer over a set of held-out nodes, each
+// sqrt(sum over nodes of |error|^2 / sum of |M - M-bar|^2), so that
+// total^2 = truncation^2 + interpolation^2; of_transfer divides by sum |M|^2.
+struct TruthError {
+  double total = 0;          // |M - (M-bar + U_a q_a(q_u))|
+  double truncation = 0;     // |M - M-bar - U_a U_a^T (M - M-bar)|: the best rank r_a can do
+  double interpolation = 0;  // |U_a^T (M - M-bar) - q_a(q_u)|: what the interpolant adds
+  double of_transfer = 0;    // total relative to |M| instead of |M - M-bar|
+};
+
+// Errors of the reduction's basis with q_a = served (H x r_a) at truth's nodes.
+TruthError truth_error(const TransferReduction& reduction, const HeldOutTruth& truth,
+                       const Eigen::Ref<const MatrixXfR>& served);
+
+struct CandidateReport {
+  Interpolant interpolant;  // tuned by leave-one-out on the N_a samples
+  TruthError selection;     // on the first half of the held-out nodes: picks the candidate
+  TruthError test;          // on the second half: reported, never used to choose
 };
 
 struct AppearanceModel {
-  core::Appearance appearance;  // /appearance/*
-  MatrixXfR q_a;                // N x r_a: /portrait/q_a, the NRBF at every state node
-  LeaveOneOut leave_one_out;    // on the N_a cluster samples (empty when N_a == 1)
+  core::Appearance appearance;              // /appearance/*
+  MatrixXfR q_a;                            // N x r_a: /portrait/q_a, the interpolant at every state node
+  std::vector<CandidateReport> candidates;  // every interpolant tried; the chosen one first
 };
 
 //   @param[in] q_u       #N by r_u all state nodes
 //   @param[in] clusters  kmeans(q_u) result: labels and representatives
 //   @param[in] fields    #N_a by 48S: transfer of representative j in row j
 //                        (layout of compute_transfer's rows, flattened)
-//   @param[in] options   reduction rank rule and NRBF parameters
+//   @param[in] options   reduction rank rule and interpolant choice
+//   @param[in] held_out  truth at other nodes (may be empty: the choice then
+//                        falls to leave-one-out and no held-out error is stored)
 // Throws std::invalid_argument when the shapes disagree.
 AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
                                      const Eigen::Ref<const MatrixXfR>& fields,
-                                     const AppearanceOptions& options);
+                                     const AppearanceOptions& options, const HeldOutTruth& held_out = {});
 
 }  // namespace phasecast::precompute

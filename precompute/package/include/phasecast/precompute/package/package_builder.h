@@ -45,8 +45,9 @@ struct PackageBuild {
 // Scene points: the simulated (deformable) vertices first (front side), then
 // the back side of the thin sheets (a copy of every vertex of a sheet
 // triangle, flipped normal, reversed triangles, moved by the same U_u rows),
-// then every box obstacle as 24 static points (4 per face, single-sided,
-// outward normals). Sheet triangles are the surface triangles none of whose
+// then every box obstacle as static points: each face a grid of quads of
+// about the prop's `cell` edge (one quad when 0), single-sided, outward
+// normals, its own points per face. Sheet triangles are the surface triangles none of whose
 // vertices belongs to a tetrahedron (cloth, leaves); a solid's boundary stays
 // single-sided. Both sides get their own transfer (§4.1).
 core::SceneMesh scene_mesh(const Scene& scene);
@@ -55,6 +56,10 @@ core::SceneMesh scene_mesh(const Scene& scene);
 // for static points. Front points map to themselves, back points to the
 // vertex they copy.
 std::vector<int> scene_point_vertices(const Scene& scene);
+
+// Diffuse albedo (RGB) of each scene point of scene_mesh(scene): its body's
+// or prop's `albedo` in the scene file (docs/scenes.md). S x 3.
+MatrixXfR scene_point_albedo(const Scene& scene);
 
 // Throws std::invalid_argument naming --beta, --blend-lambda, --dead-end-fraction, --min-irf-frames.
 void check_package_options(const PackageOptions& options);

@@ -39,11 +39,31 @@ struct PaletteEntry {
 };
 
 // The vertices a body owns in the assembled model (welded vertices included).
+inline const Eigen::Vector3d kDefaultAlbedo{0.8, 0.8, 0.8};
+
 struct BodyInfo {
   std::string name;
   std::vector<int> vertices;
   int first_surface_triangle = 0;
   int surface_triangles = 0;
+  Eigen::Vector3d albedo = kDefaultAlbedo;  // diffuse rho per RGB channel (§4.1), for the transfer
+};
+
+inline constexpr int kMaxPropCells = 256;  // cells along one edge of a tessellated prop
+
+// How a rigid obstacle looks to the appearance stage; the simulator sees only its box.
+struct PropLook {
+  Eigen::Vector3d albedo = kDefaultAlbedo;
+  double cell = 0;  // m: the faces are tessellated into squares of about this edge (0: one quad a face)
+};
+
+// [appearance]: the scene's defaults for the appearance stage (§4); the
+// command line overrides each. 0 means "the tool's default".
+struct AppearanceDefaults {
+  int clusters = 0;      // N_a
+  double eps_a = 0;      // r_a = number of sigma_i >= eps_a sigma_1
+  int held_out = 0;      // state nodes whose true transfer measures the served appearance
+  int paper_rank_a = 0;  // the paper's r_a for this scene (Table 1): inspect prints the error there
 };
 
 struct Scene {
@@ -53,6 +73,8 @@ struct Scene {
   SupportSettings support;
   DeformableModel model;
   std::vector<BodyInfo> bodies;
+  std::vector<PropLook> props;  // one per model.obstacles entry
+  AppearanceDefaults appearance;
   std::vector<PaletteEntry> palette;
   // [validation] schedule: the interaction `phasecast-precompute validate`
   // plays by default ("open 0.8; stop 1.5; ..."); parsed where it is used.

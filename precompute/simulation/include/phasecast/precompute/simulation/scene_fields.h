@@ -34,6 +34,7 @@ class Fields {
   int positive_integer(const std::string& key, int fallback);
   Eigen::Vector3d vec3(const std::string& key);
   Eigen::Vector3d vec3(const std::string& key, const Eigen::Vector3d& fallback);
+  Eigen::Vector3d albedo(const std::string& key, const Eigen::Vector3d& fallback);  // [r, g, b] in [0, 1]
   std::vector<double> numbers(const std::string& key, size_t count);
   std::vector<std::string> strings(const std::string& key);
   std::vector<Eigen::Vector3d> points(const std::string& key);

@@ -1,0 +1,52 @@
+#pragma once
+// The interpolant of the reduced transfer coordinates q_a over q_u (§4.3),
+// chosen by measurement (docs/transfer.md, "Choosing the interpolant"):
+//
+//   nrbf  the paper's regularized normalized RBFs (nrbf.h), with the width
+//         scale and the regularization lambda picked by leave-one-out on the
+//         N_a cluster samples;
+//   knn   inverse-square-distance weighting of the k nearest cluster samples
+//         in q_u, k picked the same way.
+//
+// Both reproduce every sample at its own centre. The appearance stage keeps
+// the one whose error against held-out true transfer is lower.
+
+#include "phasecast/precompute/appearance/nrbf.h"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace phasecast::precompute {
+
+enum class InterpolantKind { nrbf, knn };
+const char* interpolant_name(InterpolantKind kind);
+
+struct Interpolant {
+  InterpolantKind kind = InterpolantKind::nrbf;
+  NrbfInterpolant nrbf;      // nrbf: the fit; knn: centres, samples as weights, widths 1
+  float width_scale = 1.0f;  // nrbf: widths = scale x cluster spread (nrbf_widths)
+  int neighbours = 0;        // knn: k
+  double leave_one_out = 0;  // relative leave-one-out error of this choice on the samples
+};
+
+// Tunes the NRBF: every width scale and regularization of the grids below,
+// keeping the lowest relative leave-one-out error (ties: the earlier entry).
+//   @param[in] q_u      #N by r_u all state nodes
+//   @param[in] labels   #N cluster of each node
+//   @param[in] centers  #N_a by r_u cluster nodes
+//   @param[in] samples  #N_a by r_a q_a at each centre
+Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<std::int32_t>& labels,
+                      const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples);
+
+// Tunes k of the k-nearest-neighbour interpolant by leave-one-out.
+Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples);
+
+// q_a at every row of q (#M by r_u); returns #M by r_a.
+MatrixXfR evaluate_interpolant(const Interpolant& f, const Eigen::Ref<const MatrixXfR>& q);
+
+inline constexpr float kNrbfWidthScales[] = {0.25f, 0.5f, 1.0f, 2.0f, 4.0f};
+inline constexpr float kNrbfRegularizations[] = {1e-6f, 1e-4f, 1e-3f, 1e-2f, 1e-1f};
+inline constexpr int kKnnNeighbours[] = {1, 2, 3, 4, 6, 8, 12, 16};
+
+}  // namespace phasecast::precompute
