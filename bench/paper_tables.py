@@ -50,7 +50,8 @@ def render_fps(bin_dir, package, size, irfs):
     frames = seconds = 0.0
     for irf in range(irfs):
         out = subprocess.run([os.path.join(bin_dir, "phasecast-render"), "--package", package, "--play-irf", str(irf),
-                              "--size", size, "--light", "grace"], check=True, capture_output=True, text=True)
+                              "--size", size, "--light", "grace", "--backdrop", "off"], check=True,
+                             capture_output=True, text=True)
         m = re.search(r"(\d+) frames at \S+: ([\d.]+) frames/s render-only", out.stdout + out.stderr)
         if not m:
             raise RuntimeError(f"phasecast-render printed no frame rate for {package}")

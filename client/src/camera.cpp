@@ -45,6 +45,15 @@ Camera scene_camera(const ClientBasis& b) {
 }
 
 Eigen::Matrix4f view_projection(const Camera& c, int width, int height, float radius) {
+  // Depth range from the distance to the target and the scene size, so any
+  // scale of scene keeps depth precision.
+  const float distance = (c.target - c.eye).norm();
+  const float far_plane = distance + 4 * radius;
+  const float near_plane = std::max(distance - 4 * radius, far_plane * 1e-3f);
+  return view_projection(c, width, height, near_plane, far_plane);
+}
+
+Eigen::Matrix4f view_projection(const Camera& c, int width, int height, float near_plane, float far_plane) {
   const Eigen::Vector3f f = (c.target - c.eye).normalized();
   const Eigen::Vector3f s = f.cross(c.up).normalized();
   const Eigen::Vector3f u = s.cross(f);
@@ -56,11 +65,6 @@ Eigen::Matrix4f view_projection(const Camera& c, int width, int height, float ra
   view(1, 3) = -u.dot(c.eye);
   view(2, 3) = f.dot(c.eye);
 
-  // Depth range from the distance to the target and the scene size, so any
-  // scale of scene keeps depth precision.
-  const float distance = (c.target - c.eye).norm();
-  const float far_plane = distance + 4 * radius;
-  const float near_plane = std::max(distance - 4 * radius, far_plane * 1e-3f);
   const float t = std::tan(0.5f * c.fov_y_deg * std::numbers::pi_v<float> / 180);
   const float aspect = static_cast<float>(width) / static_cast<float>(height);
   Eigen::Matrix4f proj = Eigen::Matrix4f::Zero();

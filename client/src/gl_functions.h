@@ -39,6 +39,8 @@ namespace phasecast::client::detail {
   X(PFNGLGETUNIFORMLOCATIONPROC, glGetUniformLocation)               \
   X(PFNGLUNIFORM1IPROC, glUniform1i)                                 \
   X(PFNGLUNIFORM1FPROC, glUniform1f)                                 \
+  X(PFNGLUNIFORM2FPROC, glUniform2f)                                 \
+  X(PFNGLUNIFORM3FPROC, glUniform3f)                                 \
   X(PFNGLUNIFORM4FVPROC, glUniform4fv)                               \
   X(PFNGLUNIFORMMATRIX4FVPROC, glUniformMatrix4fv)                   \
   X(PFNGLGENBUFFERSPROC, glGenBuffers)                               \

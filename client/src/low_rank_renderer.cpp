@@ -8,8 +8,11 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <optional>
+#include <utility>
 
 namespace phasecast::client {
 
@@ -22,6 +25,16 @@ using detail::Shader;
 using detail::VertexArray;
 
 namespace {
+
+// Half the side of the backdrop's ground square, in scene radii: its fade
+// (shaders/backdrop.frag) is below 1/255 there.
+constexpr float kGroundExtent = 6.5f;
+
+// Linear radiance -> display value, clamped: what radiance.frag does per pixel.
+float srgb_encode(double linear) {
+  const double l = std::clamp(linear, 0.0, 1.0);
+  return static_cast<float>(l <= 0.0031308 ? 12.92 * l : 1.055 * std::pow(l, 1 / 2.4) - 0.055);
+}
 
 // Shader storage bindings of shaders/low_rank.vert.
 enum Binding : GLuint {
@@ -84,6 +97,18 @@ Program link(const GlFunctions& gl, std::string_view vertex, const char* vertex_
   }
   gl.glLinkProgram(program.get());
   check_link(gl, program, vertex_name);
+  return program;
+}
+
+// The backdrop's program: the ground square (backdrop.vert) and its shading (backdrop.frag).
+Program link_backdrop(const GlFunctions& gl) {
+  const Shader vs = compile(gl, GL_VERTEX_SHADER, shaders::backdrop_vert, "backdrop.vert");
+  const Shader fs = compile(gl, GL_FRAGMENT_SHADER, shaders::backdrop_frag, "backdrop.frag");
+  Program program(gl);
+  gl.glAttachShader(program.get(), vs.get());
+  gl.glAttachShader(program.get(), fs.get());
+  gl.glLinkProgram(program.get());
+  check_link(gl, program, "backdrop.vert");
   return program;
 }
 
@@ -186,12 +211,19 @@ struct LowRankRenderer::Impl {
   bool has_static = false;
   bool has_transfer = false;
   int r_u4 = 0, r_a4 = 0;  // ranks in vec4 blocks (shaders/low_rank.vert)
+  Backdrop backdrop = Backdrop::none;
+  Program backdrop_program;  // made on the first set_backdrop(ground)
+  VertexArray backdrop_vao;  // empty: the square's vertices come from gl_VertexID
+  // The ground: the rest mesh's lowest y, under its bounding-box centre.
+  float ground_height = 0;
+  Eigen::Vector2f ground_centre = Eigen::Vector2f::Zero();
 
   Impl(RenderBackend& b, const ClientBasis& bases, int w, int h)
       : backend(b), gl(detail::load_gl_functions(b)), basis(bases), width(w), height(h) {
     basis.validate("renderer");
     radius = scene_radius(basis);
     camera = scene_camera(basis);
+    place_ground();
     light = light_probe("grace");
     program = link(gl, shaders::low_rank_vert, "low_rank.vert", true);
     static_program = link(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
@@ -199,6 +231,29 @@ struct LowRankRenderer::Impl {
     upload_bases();
     create_framebuffer();
     check("setting up the renderer");
+  }
+
+  // The ground under the rest mesh (x_bar; what scene_camera frames too).
+  void place_ground() {
+    Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+    Eigen::Vector3f hi = -lo;
+    for (std::size_t v = 0; v < static_cast<std::size_t>(basis.points); ++v) {
+      const Eigen::Vector3f x(basis.mean_shape[3 * v], basis.mean_shape[3 * v + 1],
+                              basis.mean_shape[3 * v + 2]);
+      lo = lo.cwiseMin(x);
+      hi = hi.cwiseMax(x);
+    }
+    ground_height = lo.y();
+    ground_centre = {0.5f * (lo.x() + hi.x()), 0.5f * (lo.z() + hi.z())};
+  }
+
+  void set_backdrop(Backdrop b) {
+    if (b == Backdrop::ground && !backdrop_program) {
+      backdrop_program = link_backdrop(gl);
+      backdrop_vao = VertexArray(gl);
+      check("setting up the backdrop");
+    }
+    backdrop = b;
   }
 
   void check(const char* what) const {
@@ -371,8 +426,10 @@ struct LowRankRenderer::Impl {
   void begin_frame() {
     gl.glBindFramebuffer(GL_FRAMEBUFFER, framebuffer.get());
     gl.glViewport(0, 0, width, height);
-    gl.glClearColor(0.02f, 0.02f, 0.025f, 1.0f);
+    const auto& clear = backdrop == Backdrop::ground ? kBackdropBackground : kPlainBackground;
+    gl.glClearColor(clear[0], clear[1], clear[2], 1.0f);
     gl.glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    if (backdrop == Backdrop::ground) draw_backdrop();
     gl.glEnable(GL_DEPTH_TEST);
     gl.glDepthFunc(GL_LESS);
     // Thin surfaces (cloth, leaves) are two coincident layers of scene points
@@ -380,6 +437,47 @@ struct LowRankRenderer::Impl {
     // facing the camera may be drawn (package triangles are counter-clockwise
     // seen from their normal's side, docs/package-format.md).
     gl.glEnable(GL_CULL_FACE);
+  }
+
+  // The ground behind everything: no depth test, no depth written, so the
+  // scene drawn next always covers it. Seen from above only.
+  void draw_backdrop() {
+    if (!(camera.eye.y() > ground_height)) return;
+    // The square's corners bound its view depths: near and far planes around them.
+    const float extent = kGroundExtent * radius;
+    const Eigen::Vector3f forward = (camera.target - camera.eye).normalized();
+    float nearest = std::numeric_limits<float>::max(), farthest = 0;
+    for (const float dx : {-extent, extent}) {
+      for (const float dz : {-extent, extent}) {
+        const Eigen::Vector3f corner(ground_centre.x() + dx, ground_height, ground_centre.y() + dz);
+        const float depth = (corner - camera.eye).dot(forward);
+        nearest = std::min(nearest, depth);
+        farthest = std::max(farthest, depth);
+      }
+    }
+    if (!(farthest > 0)) return;  // all of it behind the camera
+    const float far_plane = 1.01f * farthest;
+    const float near_plane = std::max(0.99f * nearest, 1e-4f * far_plane);
+    const GLuint p = backdrop_program.get();
+    gl.glDisable(GL_DEPTH_TEST);
+    gl.glDisable(GL_CULL_FACE);
+    gl.glUseProgram(p);
+    const Eigen::Matrix4f vp = view_projection(camera, width, height, near_plane, far_plane);
+    gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "view_projection"), 1, GL_FALSE, vp.data());
+    gl.glUniform1f(gl.glGetUniformLocation(p, "ground_height"), ground_height);
+    gl.glUniform2f(gl.glGetUniformLocation(p, "ground_centre"), ground_centre.x(), ground_centre.y());
+    gl.glUniform1f(gl.glGetUniformLocation(p, "ground_extent"), extent);
+    gl.glUniform1f(gl.glGetUniformLocation(p, "scene_radius"), radius);
+    const auto floor = diffuse_radiance(light, Eigen::Vector3d::UnitY(), kGroundAlbedo);
+    for (const auto& [name, scale] : {std::pair{"floor_colour", 1.0}, std::pair{"floor_dark", 0.88}}) {
+      gl.glUniform3f(gl.glGetUniformLocation(p, name), srgb_encode(scale * exposure * floor[0]),
+                     srgb_encode(scale * exposure * floor[1]), srgb_encode(scale * exposure * floor[2]));
+    }
+    gl.glUniform3f(gl.glGetUniformLocation(p, "background"), kBackdropBackground[0], kBackdropBackground[1],
+                   kBackdropBackground[2]);
+    gl.glBindVertexArray(backdrop_vao.get());
+    gl.glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+    gl.glBindVertexArray(0);
   }
 
   void show() {
@@ -493,6 +591,9 @@ std::uint64_t LowRankRenderer::light_dot_passes() const {
 }
 void LowRankRenderer::set_evaluation(Evaluation evaluation) {
   impl_->evaluation = evaluation;
+}
+void LowRankRenderer::set_backdrop(Backdrop backdrop) {
+  impl_->set_backdrop(backdrop);
 }
 void LowRankRenderer::draw(const FrameState& frame) {
   impl_->draw(frame);

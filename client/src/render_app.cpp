@@ -123,6 +123,7 @@ struct RenderTarget {
     renderer->set_light(light);
     renderer->set_camera(camera_for(basis, o));
     renderer->set_exposure(o.exposure);
+    renderer->set_backdrop(o.backdrop ? Backdrop::ground : Backdrop::none);
   }
 };
 
@@ -512,6 +513,12 @@ void run_network(const RenderOptions& o, const ShLight& light, std::ostream& log
 }
 
 }  // namespace
+
+bool parse_on_off(const std::string& value, const std::string& option) {
+  if (value == "on") return true;
+  if (value == "off") return false;
+  throw std::invalid_argument(fmt::format("{} '{}' is invalid (expected on or off)", option, value));
+}
 
 void run_render(const RenderOptions& o, std::ostream& log) {
   check_source(o);

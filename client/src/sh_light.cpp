@@ -190,4 +190,19 @@ std::array<double, 3> shade(const float* transfer48, const ShLight& light) {
   return rgb;
 }
 
+std::array<double, 3> diffuse_radiance(const ShLight& light, const Eigen::Vector3d& normal,
+                                       const std::array<double, 3>& albedo) {
+  const auto y = core::sh_basis(normal.x(), normal.y(), normal.z());
+  std::array<double, 3> rgb{};
+  for (std::size_t c = 0; c < 3; ++c) {
+    double irradiance = 0;
+    for (std::size_t k = 0; k < 16; ++k) {
+      irradiance +=
+          core::clamped_cosine_band(core::sh_band(static_cast<int>(k))) * y[k] * light.coefficients[c][k];
+    }
+    rgb[c] = albedo[c] / kPi * irradiance;
+  }
+  return rgb;
+}
+
 }  // namespace phasecast::client

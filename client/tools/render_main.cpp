@@ -48,6 +48,11 @@ int main(int argc, char** argv) {
   app.add_option("--light", o.light,
                  fmt::format("SH light probe: {} (default grace)",
                              fmt::join(phasecast::client::light_probe_names(), ", ")));
+  std::string backdrop = "on";
+  app.add_option("--backdrop", backdrop,
+                 "on|off: a ground plane at the scene's lowest point, fading into a dark grey background "
+                 "(default on); off: the scene alone on a near-black background. The scene's own "
+                 "evaluation (--dump-vertices) is the same either way");
   app.add_option("--exposure", o.exposure, "multiplies the exit radiance before display (default 1)");
   app.add_option("--dump-vertices", dump,
                  "FRAME PATH: write the GPU-computed positions and radiance of that frame "
@@ -78,6 +83,7 @@ int main(int argc, char** argv) {
     const auto wh = phasecast::client::parse_size(size);
     o.width = wh[0];
     o.height = wh[1];
+    o.backdrop = phasecast::client::parse_on_off(backdrop, "--backdrop");
     if (*instance_opt) o.instance = instance;
     if (*irf_opt) o.play_irf = play_irf;
     if (*fov_opt) o.fov_y_deg = fov;

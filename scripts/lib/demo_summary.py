@@ -6,11 +6,14 @@
 Reads OUT/inspect.json (phasecast-inspect --json), OUT/validation.json
 (phasecast-precompute validate --json: playback against the full simulation),
 OUT/stats.json (the server's Stats after the impulses), OUT/logs/render-{a,b}.log (the renderers' summary
-lines) and compares the two renderers' frames file by file.
+lines) and compares the two renderers' frames file by file. Links OUT/contact_sheet.png
+(scripts/lib/contact_sheet.py, its line in OUT/logs/contact_sheet.log) and OUT/demo.mp4 when the demo
+made them, or says why not.
 """
 import json
 import os
 import re
+import shutil
 import sys
 
 
@@ -46,6 +49,33 @@ def validation_rows(path):
                      f"{s['motion_ratio']:.2f} (per segment: {segments}), "
                      f"self-intersecting served frames {s['frames_with_intersections']}"))
     return rows
+
+
+def last_line(path):
+    lines = open(path).read().strip().splitlines() if os.path.exists(path) else []
+    return lines[-1] if lines else ""
+
+
+def pictures(out):
+    """Markdown lines for the contact sheet and the video, or why they are missing."""
+    sheet, video = os.path.join(out, "contact_sheet.png"), os.path.join(out, "demo.mp4")
+    if not shutil.which("ffmpeg") and not os.path.exists(sheet) and not os.path.exists(video):
+        return ["No `demo.mp4` and no `contact_sheet.png`: ffmpeg is not installed (`scripts/install-deps` "
+                "installs it)."]
+    lines = []
+    if os.path.exists(sheet):
+        made = last_line(os.path.join(out, "logs", "contact_sheet.log")).split(": ", 1)[-1]
+        lines += ["![Contact sheet: frames of renderer a from the first to the last](contact_sheet.png)", "",
+                  f"[`contact_sheet.png`](contact_sheet.png): {made or '4 x 3 frames of renderer a'}"]
+    else:
+        why = last_line(os.path.join(out, "logs", "contact_sheet.log")) or "not made"
+        lines += [f"No contact sheet: {why}"]
+    lines.append("")
+    if os.path.exists(video):
+        lines.append(f"Video: [`demo.mp4`](demo.mp4) (renderer a, {os.path.getsize(video)} bytes)")
+    else:
+        lines.append("No video: renderer a wrote no `demo.mp4` (see `logs/render-a.log`)")
+    return lines
 
 
 def main():
@@ -88,6 +118,7 @@ def main():
                  f"{na} / {nb}, {len(common)}, {same}"))
 
     print(f"# Phasecast demo: scene '{s['scene']}'\n")
+    print("\n".join(pictures(out)) + "\n")
     print("| figure | value |\n|---|---|")
     for k, v in rows:
         print(f"| {k} | {v} |")

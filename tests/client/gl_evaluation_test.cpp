@@ -235,6 +235,104 @@ TEST(GlEvaluation, SphereImageCentreShowsTheIrradianceFacingTheCamera) {
   EXPECT_EQ(image.rgba[0], std::lround(255 * 0.02));
 }
 
+// The backdrop's floor is lit like an unshadowed diffuse surface facing up:
+// (rho / pi) E(up), E from the closed form of Ramamoorthi & Hanrahan.
+TEST(GlEvaluation, DiffuseRadianceEqualsClosedFormIrradiance) {
+  const std::array<double, 3> albedo{0.3, 0.5, 0.7};
+  for (const Eigen::Vector3d& n : {Eigen::Vector3d(0, 1, 0), Eigen::Vector3d(0.6, 0, 0.8)}) {
+    const auto got = diffuse_radiance(light_probe("grace"), n, albedo);
+    const auto E = grace_irradiance(n);
+    for (std::size_t c = 0; c < 3; ++c) EXPECT_NEAR(got[c], albedo[c] / kPi * E[c], 1e-5) << c;
+  }
+  // Under the white furnace (radiance 1 everywhere) a diffuse surface reflects its albedo.
+  const auto white = diffuse_radiance(light_probe("white"), Eigen::Vector3d(0, 0, 1), albedo);
+  for (std::size_t c = 0; c < 3; ++c) EXPECT_NEAR(white[c], albedo[c], 1e-6) << c;
+}
+
+// The backdrop (phasecast-render --backdrop on): a floor at the lowest rest
+// point, lit by the light's irradiance for an up-facing normal, drawn behind
+// the scene; the scene's pixels and its evaluation stay exactly as they are.
+TEST(GlEvaluation, BackdropDrawsAGroundBelowTheSceneAndLeavesTheSceneAlone) {
+  const std::array<double, 3> albedo{0.8, 0.6, 0.4};
+  const ClientBasis sphere = transfer_sphere(24, 48, albedo);  // rest bounds [-1, 1]^3: ground y = -1
+  auto backend = make_render_backend("osmesa", 65, 65);
+  LowRankRenderer renderer(*backend, sphere, 65, 65);
+  renderer.set_light(light_probe("grace"));
+  Camera camera;
+  camera.eye = {0, 0, 4};
+  camera.target = {0, 0, 0};
+  camera.fov_y_deg = 35;
+  renderer.set_camera(camera);
+  FrameState f;
+  f.q_u = {0};
+  f.q_a = {1};
+  const Image plain = renderer.render(f);
+  const VertexDump plain_dump = renderer.evaluate(f);
+  renderer.set_backdrop(Backdrop::ground);
+  const Image framed = renderer.render(f);
+  const VertexDump framed_dump = renderer.evaluate(f);
+  EXPECT_EQ(framed_dump.positions, plain_dump.positions);
+  EXPECT_EQ(framed_dump.radiance, plain_dump.radiance);
+
+  auto pixel = [](const Image& image, int x, int y) {
+    const auto i = static_cast<std::size_t>(4 * (y * image.width + x));
+    return std::array<int, 3>{image.rgba[i], image.rgba[i + 1], image.rgba[i + 2]};
+  };
+  auto display = [](const std::array<float, 3>& colour) {
+    return std::array<int, 3>{static_cast<int>(std::lround(255 * colour[0])),
+                              static_cast<int>(std::lround(255 * colour[1])),
+                              static_cast<int>(std::lround(255 * colour[2]))};
+  };
+  const auto plain_background = display(kPlainBackground), background = display(kBackdropBackground);
+  int scene = 0, ground = 0;
+  for (int y = 0; y < 65; ++y) {
+    for (int x = 0; x < 65; ++x) {
+      if (pixel(plain, x, y) != plain_background) {
+        ++scene;  // the sphere: the same pixel with the backdrop
+        ASSERT_EQ(pixel(framed, x, y), pixel(plain, x, y)) << x << ", " << y;
+      } else if (y < 32) {
+        ASSERT_EQ(pixel(framed, x, y), background) << x << ", " << y << ": above the horizon";
+      } else if (pixel(framed, x, y) != background) {
+        ++ground;
+      }
+    }
+  }
+  EXPECT_GT(scene, 65 * 65 / 5);
+  EXPECT_GT(ground, 65 * 8) << "the floor should fill the lower part of the picture around the sphere";
+
+  // The bottom row's middle sees the floor 0.83 in front of the sphere's
+  // centre (fade exp(-0.16 (0.83 / sqrt 3)^2) = 0.96): the floor's radiance
+  // (rho / pi) E(up) darkened by the checker by at most 12 %, encoded, mixed
+  // with the background.
+  const auto E = grace_irradiance(Eigen::Vector3d(0, 1, 0));
+  auto srgb = [](double l) {
+    l = std::clamp(l, 0.0, 1.0);
+    return l <= 0.0031308 ? 12.92 * l : 1.055 * std::pow(l, 1 / 2.4) - 0.055;
+  };
+  const auto bottom = pixel(framed, 32, 64);
+  for (std::size_t c = 0; c < 3; ++c) {
+    const double floor = kGroundAlbedo[c] / kPi * E[c], bg = kBackdropBackground[c];
+    const double lo = 255 * (0.94 * srgb(0.88 * floor) + 0.06 * bg),
+                 hi = 255 * (0.98 * srgb(floor) + 0.02 * bg);
+    EXPECT_GE(bottom[c], lo - 1) << "channel " << c;
+    EXPECT_LE(bottom[c], hi + 1) << "channel " << c;
+  }
+
+  // Seen from below the ground there is no floor: only the background around the sphere.
+  camera.eye = {0, -3, 4};
+  renderer.set_camera(camera);
+  const Image below = renderer.render(f);
+  renderer.set_backdrop(Backdrop::none);
+  const Image below_plain = renderer.render(f);
+  for (int y = 0; y < 65; ++y) {
+    for (int x = 0; x < 65; ++x) {
+      if (pixel(below_plain, x, y) == plain_background) {
+        ASSERT_EQ(pixel(below, x, y), background) << x << ", " << y;
+      }
+    }
+  }
+}
+
 TEST(GlEvaluation, TransferIsDottedWithTheLightOnlyWhenTheLightItSeesChanges) {
   const auto package = testing::make_plate_package();
   auto backend = make_render_backend("osmesa", 32, 32);

@@ -5,6 +5,7 @@
 #include "phasecast/client/frame_output.h"
 #include "phasecast/client/frame_sources.h"
 #include "phasecast/client/image_io.h"
+#include "phasecast/client/low_rank_renderer.h"
 #include "phasecast/core/hash.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
@@ -14,6 +15,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -48,14 +50,15 @@ class RenderCli : public ::testing::Test {
   std::uint64_t hash_ = 0;
 };
 
-// Golden image: frame 45 of a recording of IRF 4, under the "sun" light.
+// Golden image: frame 45 of a recording of IRF 4, under the "sun" light,
+// without the backdrop (the golden image checks the scene's evaluation).
 // Tolerance: PSNR >= 40 dB or max channel difference <= 2/255 (llvmpipe
 // versions differ by rounding). PHASECAST_UPDATE_GOLDEN=1 rewrites it.
 TEST_F(RenderCli, ReplayedRecordingMatchesGoldenImage) {
   testing::write_recording(dir_ / "s.rec", "plate", "plate.h5", hash_, testing::irf_stream(package_, 4));
-  const auto r =
-      testing::run_tool("phasecast-render", {"--replay", path("s.rec"), "--package", path("plate.h5"),
-                                             "--light", "sun", "--size", "160x120", "--out", path("out")});
+  const auto r = testing::run_tool(
+      "phasecast-render", {"--replay", path("s.rec"), "--package", path("plate.h5"), "--light", "sun",
+                           "--size", "160x120", "--backdrop", "off", "--out", path("out")});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("90 frames at 160x120"));
   const auto rendered = dir_ / "out" / "frame_000045.png";
@@ -111,12 +114,57 @@ TEST_F(RenderCli, VertexDumpsEqualCpuPositions) {
   }
 }
 
+// --backdrop on (the default) adds a floor behind the scene and changes
+// nothing else: the scene's pixels are those of --backdrop off, which draws
+// the plain picture of the golden image, and the vertex dumps are the same bytes.
+TEST_F(RenderCli, BackdropFramesTheSceneAndLeavesItAlone) {
+  auto render = [&](const std::string& out, std::vector<std::string> extra) {
+    std::vector<std::string> args = {"--package", path("plate.h5"), "--play-irf", "4", "--light", "sun"};
+    args.insert(args.end(), {"--size", "160x120", "--frames", "46", "--out", path(out)});
+    args.insert(args.end(), {"--dump-vertices", "45", path(out + ".npy")});
+    args.insert(args.end(), extra.begin(), extra.end());
+    const auto r = testing::run_tool("phasecast-render", args);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return read_png(dir_ / out / "frame_000045.png");
+  };
+  const Image framed = render("on", {}), explicit_on = render("explicit_on", {"--backdrop", "on"}),
+              plain = render("off", {"--backdrop", "off"});
+  EXPECT_EQ(max_channel_difference(framed, explicit_on), 0);
+  EXPECT_EQ(testing::read_file(dir_ / "on.npy"), testing::read_file(dir_ / "off.npy"));
+  const Image golden = read_png(kGoldenDir / "plate_irf4_sun_frame_000045.png");
+  EXPECT_TRUE(psnr(plain, golden) >= 40 || max_channel_difference(plain, golden) <= 2);
+
+  auto at = [](const Image& image, std::size_t i) {
+    return std::array<int, 3>{image.rgba[4 * i], image.rgba[4 * i + 1], image.rgba[4 * i + 2]};
+  };
+  auto display = [](const std::array<float, 3>& colour) {  // clear colours are written as they are
+    return std::array<int, 3>{static_cast<int>(std::lround(255 * colour[0])),
+                              static_cast<int>(std::lround(255 * colour[1])),
+                              static_cast<int>(std::lround(255 * colour[2]))};
+  };
+  const auto plain_background = display(kPlainBackground), background = display(kBackdropBackground);
+  std::size_t scene = 0, floor_below = 0;
+  const std::size_t pixels = 160 * 120;
+  for (std::size_t i = 0; i < pixels; ++i) {
+    if (at(plain, i) != plain_background) {
+      ++scene;
+      EXPECT_EQ(at(framed, i), at(plain, i)) << "scene pixel " << i % 160 << ", " << i / 160;
+    } else if (i / 160 >= 100 && at(framed, i) != background) {
+      ++floor_below;  // the bottom rows: neither background nor scene
+    }
+  }
+  EXPECT_GT(scene, pixels / 20);
+  EXPECT_GT(floor_below, 160 * 20 / 2) << "the bottom rows should show the floor around the plate";
+  EXPECT_EQ(at(framed, 0), background) << "top left: the flat background";
+}
+
 TEST_F(RenderCli, HelpDescribesTheModes) {
   const auto r = testing::run_tool("phasecast-render", {"--help"});
   EXPECT_EQ(r.exit_code, 0);
   EXPECT_THAT(r.out, HasSubstr("--connect"));
   EXPECT_THAT(r.out, HasSubstr("--dump-vertices"));
   EXPECT_THAT(r.out, HasSubstr("osmesa, egl, window"));
+  EXPECT_THAT(r.out, HasSubstr("--backdrop"));
 }
 
 TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
@@ -124,6 +172,8 @@ TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
             "phasecast-render: render backend 'vulkan' is unknown (expected one of osmesa, egl, window)\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--light", "moon"}),
             "phasecast-render: light probe 'moon' is unknown (expected one of grace, sky, sun, white)\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--backdrop", "maybe"}),
+            "phasecast-render: --backdrop 'maybe' is invalid (expected on or off)\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--size", "big"}),
             "phasecast-render: --size 'big' is invalid (expected WIDTHxHEIGHT, e.g. 1280x720)\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--play-irf", "7"}),

@@ -265,9 +265,10 @@ def render_replay(render_bin, recording, package, out_dir):
         scene = f.attrs["scene"]
     scene = scene.decode() if isinstance(scene, bytes) else str(scene)
     os.makedirs(out_dir, exist_ok=True)
+    # Without the backdrop: the golden images check the scene's evaluation, not the floor behind it.
     subprocess.run([render_bin, "--replay", recording, "--package", package, "--size", GOLDEN_SIZE,
-                    "--light", GOLDEN_LIGHT, *GOLDEN_VIEWS.get(scene, []), "--out", out_dir], check=True,
-                   stdout=subprocess.DEVNULL)
+                    "--light", GOLDEN_LIGHT, "--backdrop", "off", *GOLDEN_VIEWS.get(scene, []), "--out", out_dir],
+                   check=True, stdout=subprocess.DEVNULL)
 
 
 def golden(render_bin, recording, package, golden_dir, work):

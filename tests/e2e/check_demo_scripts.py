@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """scripts/demo as a user runs it: its argument errors, then a whole tiny run
 (--tiny --no-build: the tools of this build, the real precompute, server, two
-renderers and the console script) and the outputs it promises.
+renderers and the console script) and the outputs it promises: with ffmpeg the
+MP4 and the contact sheet the summary links; then a short run with ffmpeg
+hidden from PATH, which says so in one line and finishes without them.
 
   check_demo_scripts.py SOURCE_DIR BIN_DIR WORK_DIR
 """
@@ -10,6 +12,7 @@ import os
 import re
 import shutil
 import signal
+import struct
 import subprocess
 import sys
 
@@ -33,7 +36,7 @@ for args, message in [
     (["--bogus"], "demo: unknown argument '--bogus' (expected --scene, --tiny, --frames, --size, --script, "
                   "--no-build, --full-sampling, --web, --web-listen, --help)"),
     (["--frames", "x"], "demo: --frames 'x' is not a positive whole number"),
-    (["--size", "big"], "demo: --size 'big' is not WxH (e.g. 320x240)"),
+    (["--size", "big"], "demo: --size 'big' is not WxH (e.g. 640x480)"),
     (["--scene", "nope"], "demo: scene 'nope' has no file " + os.path.join(source, "scenes", "nope.toml")),
     (["--script", "/no/such.lua"], "demo: --script '/no/such.lua' is not a file"),
 ]:
@@ -71,6 +74,50 @@ if r.returncode == 0:
     check("swing 1: open at frame" in open(os.path.join(work, "logs", "console.log")).read(),
           "the console did not run door_open_close.lua")
     check("demo: outputs in " + work in r.stderr, "the demo did not say where its outputs are")
+    # The MP4 and the contact sheet: 4 x 3 tiles of half the frame size (48x36) with a 2-pixel border.
+    sheet = os.path.join(work, "contact_sheet.png")
+    if shutil.which("ffmpeg"):
+        check("ffmpeg is not installed" not in r.stderr, f"the demo said ffmpeg is missing: {r.stderr[-500:]}")
+        video = os.path.join(work, "demo.mp4")
+        check(os.path.exists(video) and os.path.getsize(video) > 1000 and open(video, "rb").read(8)[4:8] == b"ftyp",
+              "demo.mp4 is missing or not an MP4 file")
+        head = open(sheet, "rb").read(24) if os.path.exists(sheet) else b""
+        check(head[:8] == b"\x89PNG\r\n\x1a\n", "contact_sheet.png is missing or not a PNG file")
+        if head[:8] == b"\x89PNG\r\n\x1a\n":
+            size = struct.unpack(">II", head[16:24])
+            check(size == (4 * (48 + 4), 3 * (36 + 4)), f"contact_sheet.png is {size[0]}x{size[1]}, expected 208x120")
+        check("](contact_sheet.png)" in summary, "the summary does not link contact_sheet.png")
+        check("](demo.mp4)" in summary, "the summary does not link demo.mp4")
+        # From renderer a's first frame to its last (it joins the stream where the server is).
+        numbers = sorted(int(n[6:12]) for n in os.listdir(os.path.join(work, "frames", "a")) if n.startswith("frame_"))
+        span = f"frame {numbers[0]} to frame {numbers[-1]} of its {len(numbers)}" if numbers else "no frames"
+        log = open(os.path.join(work, "logs", "contact_sheet.log")).read()
+        check(span in log, f"the contact sheet does not span renderer a's session ({span}): {log}")
+    else:
+        print("demo: ffmpeg is not installed: the MP4 and the contact sheet are not checked")
+
+# Without ffmpeg (hidden from PATH) the demo says so in one line and still finishes.
+hidden = os.path.join(work + "_without_video", "bin")
+shutil.rmtree(os.path.dirname(hidden), ignore_errors=True)
+os.makedirs(hidden)
+for d in ("/usr/local/bin", "/usr/bin"):
+    for name in os.listdir(d) if os.path.isdir(d) else []:
+        if name != "ffmpeg" and not os.path.exists(os.path.join(hidden, name)):
+            os.symlink(os.path.join(d, name), os.path.join(hidden, name))
+bare = os.path.join(os.path.dirname(hidden), "out")
+if os.path.isdir(os.path.join(work, "cache")):  # the package of the run above: no second precompute
+    shutil.copytree(os.path.join(work, "cache"), os.path.join(bare, "cache"))
+r = run([demo, "--tiny", "--no-build", "--frames", "10", "--size", "96x72"], timeout=300,
+        env=dict(env, PATH=hidden, PHASECAST_OUT=bare))
+check(r.returncode == 0, f"scripts/demo without ffmpeg: exit {r.returncode}: {r.stderr[-2000:]}")
+said = [line for line in r.stderr.splitlines() if "ffmpeg" in line]
+check(len(said) == 1 and said[0].startswith("demo: ffmpeg is not installed"),
+      f"scripts/demo without ffmpeg should say so in one line: {said}")
+check(not os.path.exists(os.path.join(bare, "demo.mp4")) and not os.path.exists(os.path.join(bare, "contact_sheet.png")),
+      "scripts/demo without ffmpeg left a demo.mp4 or a contact_sheet.png")
+if r.returncode == 0:
+    check("ffmpeg is not installed" in open(os.path.join(bare, "summary.md")).read(),
+          "the summary does not say why there is no video and no contact sheet")
 
 # --web: the same cached package served to browsers; the demo prints the URL,
 # the gateway serves the page there, and Ctrl-C stops everything it started.

@@ -205,7 +205,7 @@ async function main() {
     const renderDir = path.join(workDir, 'render');
     const dump = path.join(workDir, 'render_vertices.csv');
     const render = spawnSync(path.join(binDir, 'phasecast-render'), ['--replay', recording, '--package', pkg,
-      '--instance', String(frozen.instance), '--size', `${SIZE.width}x${SIZE.height}`, '--out', renderDir,
+      '--instance', String(frozen.instance), '--size', `${SIZE.width}x${SIZE.height}`, '--backdrop', 'off', '--out', renderDir,
       '--dump-vertices', String(frozen.frame), dump], { encoding: 'utf8' });
     check(render.status === 0, `phasecast-render --replay failed: ${render.stderr}`);
     const name = `frame_${String(frozen.frame).padStart(6, '0')}.png`;

@@ -22,8 +22,12 @@ struct Camera {
 // The scene's camera, or one looking down -z at the bounding box of x_bar.
 Camera scene_camera(const ClientBasis& basis);
 
-// Perspective projection times look-at view, column-major for GL.
+// Perspective projection times look-at view, column-major for GL; near and
+// far planes from the distance to the target and the scene radius.
 Eigen::Matrix4f view_projection(const Camera& camera, int width, int height, float scene_radius);
+// The same view with the given near and far plane distances (0 < near < far).
+Eigen::Matrix4f view_projection(const Camera& camera, int width, int height, float near_plane,
+                                float far_plane);
 
 // Radius of the bounding sphere of x_bar about its bounding-box centre.
 float scene_radius(const ClientBasis& basis);

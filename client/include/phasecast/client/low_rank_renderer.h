@@ -12,6 +12,7 @@
 #include "phasecast/client/render_backend.h"
 #include "phasecast/client/sh_light.h"
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -38,6 +39,19 @@ struct VertexDump {
 // again for each batch of triangles that uses it (kept for the benchmark).
 enum class Evaluation { per_point_pass, in_draw };
 
+// What is drawn behind the scene. none (the renderer's default): the plain
+// clear colour kPlainBackground. ground: a floor at the rest mesh's lowest
+// point (y up) that fades into the flat kBackdropBackground a few scene radii
+// away (shaders/backdrop.frag): diffuse grey kGroundAlbedo lit by the light's
+// irradiance for an up-facing normal, with a faint checker. It receives no
+// transfer and leaves the scene's evaluation (evaluate(), --dump-vertices)
+// as it is. phasecast-render draws it unless --backdrop off.
+enum class Backdrop { none, ground };
+// Clear colours: display values, written as they are (not sRGB-encoded).
+inline constexpr std::array<float, 3> kPlainBackground{0.02f, 0.02f, 0.025f};
+inline constexpr std::array<float, 3> kBackdropBackground{0.11f, 0.12f, 0.14f};
+inline constexpr std::array<double, 3> kGroundAlbedo{0.3, 0.3, 0.3};
+
 class LowRankRenderer {
  public:
   // The backend's context must stay current and alive while the renderer lives.
@@ -50,6 +64,7 @@ class LowRankRenderer {
   void set_camera(const Camera& camera);
   void set_exposure(float exposure);
   void set_evaluation(Evaluation evaluation);
+  void set_backdrop(Backdrop backdrop);
 
   // Draws the frame into the offscreen framebuffer (and the window, if any).
   void draw(const FrameState& frame);

@@ -26,6 +26,7 @@ struct RenderOptions {
   std::optional<std::filesystem::path> out_dir;
   std::optional<std::filesystem::path> video;
   std::string light = "grace";
+  bool backdrop = true;  // the ground behind the scene (--backdrop on|off)
   float exposure = 1;
   std::optional<std::uint64_t> dump_frame;
   std::filesystem::path dump_path;
@@ -38,6 +39,10 @@ struct RenderOptions {
   std::filesystem::path server_key;  // network: the server's CURVE public key file (NAME.pub)
   std::filesystem::path client_key;  // network: this client's CURVE secret key file (NAME.key)
 };
+
+// "on" -> true, "off" -> false; anything else throws std::invalid_argument
+// naming `option` and the two values expected.
+bool parse_on_off(const std::string& value, const std::string& option);
 
 // Throws std::invalid_argument naming the offending option; every failure
 // is one line in the exception. Progress and the summary go to `log`.

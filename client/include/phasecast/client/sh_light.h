@@ -54,4 +54,11 @@ ShLight light_in_support_frame(const ShLight& world, const Eigen::Matrix3d& R);
 // Exit radiance sum_k T_k L_k of one transfer vector (48 floats) per channel.
 std::array<double, 3> shade(const float* transfer48, const ShLight& light);
 
+// Exit radiance of an unshadowed diffuse surface of reflectance `albedo`
+// with unit normal `normal`: (albedo / pi) sum_k A_l Y_k(normal) L_k
+// (Ramamoorthi & Hanrahan 2001; A_3 = 0), the irradiance formula of
+// shaders/low_rank.vert's fallback. Lights the backdrop's ground.
+std::array<double, 3> diffuse_radiance(const ShLight& light, const Eigen::Vector3d& normal,
+                                       const std::array<double, 3>& albedo);
+
 }  // namespace phasecast::client
