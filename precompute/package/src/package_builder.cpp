@@ -184,10 +184,10 @@ MatrixXfR scene_point_albedo(const Scene& scene) {
   std::vector<Eigen::Vector3d> vertex_albedo(static_cast<size_t>(scene.model.vertices()), kDefaultAlbedo);
   for (const auto& body : scene.bodies)
     for (int v : body.vertices) vertex_albedo[static_cast<size_t>(v)] = body.albedo;
-  const core::SceneMesh mesh = scene_mesh(scene);
-  MatrixXfR rho(mesh.points(), 3);
+  const auto S = static_cast<Eigen::Index>(point_vertex.size());
+  MatrixXfR rho(S, 3);
   Eigen::Index p = 0;
-  for (; p < mesh.points() && point_vertex[static_cast<size_t>(p)] >= 0; ++p)
+  for (; p < S && point_vertex[static_cast<size_t>(p)] >= 0; ++p)
     rho.row(p) = vertex_albedo[static_cast<size_t>(point_vertex[static_cast<size_t>(p)])].cast<float>();
   // The props' points follow in obstacle order, each box's points in one block.
   for (size_t i = 0; i < scene.model.obstacles.size(); ++i) {

@@ -269,6 +269,8 @@ TEST(AppearanceStage, BadOptionsAreOneLineErrorsBeforeSampling) {
       {{"--bounces", "-1"}, "appearance: expected --bounces >= 0, got -1"},
       {{"--eps-a", "1.5"}, "appearance: expected --eps-a in (0, 1), got 1.5"},
       {{"--rank-a", "-2"}, "appearance: expected --rank-a >= 0 (0: use --eps-a), got -2"},
+      {{"--held-out", "-1"}, "appearance: expected --held-out >= 0, got -1"},
+      {{"--interpolant", "spline"}, "--interpolant 'spline': expected best, nrbf or knn"},
   };
   for (const auto& c : cases) {
     const auto r =
