@@ -3,6 +3,9 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 
 namespace phasecast::precompute {
@@ -15,20 +18,30 @@ Vector3d point(const Eigen::VectorXd& x, int i) {
   return x.segment<3>(3 * i);
 }
 
-void add_force(ElasticEvaluation& out, int i, const Vector3d& f) {
-  out.force.segment<3>(3 * i) += f;
+// One element's share of the evaluation, written into slots of its own so that
+// elements can be evaluated in parallel and gathered in a fixed order: the same
+// sums, bit for bit, with any number of threads.
+struct ElementOut {
+  double energy = 0;
+  Vector3d* force = nullptr;                    // one per element vertex, in the element's order
+  Eigen::Triplet<double>* stiffness = nullptr;  // the next free slot; null without stiffness
+};
+
+// Adds f to the element's `local`-th vertex.
+void add_force(ElementOut& out, int local, const Vector3d& f) {
+  out.force[local] += f;
 }
 
-void add_block(ElasticEvaluation& out, int a, int b, const Matrix3d& block) {
+void add_block(ElementOut& out, int a, int b, const Matrix3d& block) {
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) out.stiffness.emplace_back(3 * a + r, 3 * b + c, block(r, c));
+    for (int c = 0; c < 3; ++c) *out.stiffness++ = Eigen::Triplet<double>(3 * a + r, 3 * b + c, block(r, c));
   }
 }
 
 // A degenerate element still emits its (zero) blocks: the implicit solver
 // relies on a constant sparsity pattern from step to step.
 template <size_t N>
-void add_zero_blocks(ElasticEvaluation& out, const std::array<int, N>& v, bool with_stiffness) {
+void add_zero_blocks(ElementOut& out, const std::array<int, N>& v, bool with_stiffness) {
   if (!with_stiffness) return;
   for (int a : v)
     for (int b : v) add_block(out, a, b, Matrix3d::Zero());
@@ -54,7 +67,7 @@ Eigen::Matrix<double, 3, D> polar_rotation(const Eigen::Matrix<double, 3, D>& F)
 // does not resist infinitesimal rotations, so Newton converges on bending-dominated motion.
 template <int D>
 void corotational(const std::array<int, D + 1>& v, const Eigen::Matrix<double, D, D>& Dm_inv, double measure,
-                  const Lame& lame, const Eigen::VectorXd& x, bool with_stiffness, ElasticEvaluation& out) {
+                  const Lame& lame, const Eigen::VectorXd& x, bool with_stiffness, ElementOut& out) {
   Eigen::Matrix<double, D + 1, D> G;
   G.template bottomRows<D>() = Dm_inv;
   G.row(0) = -Dm_inv.colwise().sum();
@@ -66,7 +79,7 @@ void corotational(const std::array<int, D + 1>& v, const Eigen::Matrix<double, D
   out.energy += measure * (lame.mu * (F - R).squaredNorm() + 0.5 * lame.lambda * volumetric * volumetric);
   const Eigen::Matrix<double, 3, D> P = 2 * lame.mu * (F - R) + lame.lambda * volumetric * R;
   const Eigen::Matrix<double, 3, D + 1> forces = -measure * P * G.transpose();
-  for (int a = 0; a <= D; ++a) add_force(out, v[static_cast<size_t>(a)], forces.col(a));
+  for (int a = 0; a <= D; ++a) add_force(out, a, forces.col(a));
   if (!with_stiffness) return;
   const Eigen::Matrix<double, D + 1, D + 1> GG = G * G.transpose();
   const Eigen::Matrix<double, 3, D + 1> W = R * G.transpose();
@@ -93,7 +106,7 @@ std::array<Vector3d, 4> dihedral_gradient(const std::array<Vector3d, 4>& p) {
           (p[2] - p[0]).dot(e_hat) * a + (p[3] - p[0]).dot(e_hat) * b, -len * a, -len * b};
 }
 
-void hinge(const HingeElement& h, const Eigen::VectorXd& x, bool with_stiffness, ElasticEvaluation& out) {
+void hinge(const HingeElement& h, const Eigen::VectorXd& x, bool with_stiffness, ElementOut& out) {
   std::array<Vector3d, 4> p;
   for (int k = 0; k < 4; ++k) p[static_cast<size_t>(k)] = point(x, h.v[static_cast<size_t>(k)]);
   const Vector3d nA = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -106,8 +119,7 @@ void hinge(const HingeElement& h, const Eigen::VectorXd& x, bool with_stiffness,
   const double wrapped = std::remainder(delta, 2 * M_PI);
   out.energy += 0.5 * h.stiffness * wrapped * wrapped;
   const auto grad = dihedral_gradient(p);
-  for (int k = 0; k < 4; ++k)
-    add_force(out, h.v[static_cast<size_t>(k)], -h.stiffness * wrapped * grad[static_cast<size_t>(k)]);
+  for (int k = 0; k < 4; ++k) add_force(out, k, -h.stiffness * wrapped * grad[static_cast<size_t>(k)]);
   if (!with_stiffness) return;
   for (int a = 0; a < 4; ++a) {
     for (int b = 0; b < 4; ++b) {
@@ -117,8 +129,7 @@ void hinge(const HingeElement& h, const Eigen::VectorXd& x, bool with_stiffness,
   }
 }
 
-void rod_stretch(const RodStretchElement& r, const Eigen::VectorXd& x, bool with_stiffness,
-                 ElasticEvaluation& out) {
+void rod_stretch(const RodStretchElement& r, const Eigen::VectorXd& x, bool with_stiffness, ElementOut& out) {
   const Vector3d d = point(x, r.b) - point(x, r.a);
   const double l = d.norm();
   if (l < 1e-12) {
@@ -128,8 +139,8 @@ void rod_stretch(const RodStretchElement& r, const Eigen::VectorXd& x, bool with
   const Vector3d dir = d / l;
   out.energy += 0.5 * r.stiffness * (l - r.rest_length) * (l - r.rest_length);
   const Vector3d f = r.stiffness * (l - r.rest_length) * dir;
-  add_force(out, r.a, f);
-  add_force(out, r.b, -f);
+  add_force(out, 0, f);
+  add_force(out, 1, -f);
   if (!with_stiffness) return;
   // Transverse term only when stretched, which keeps the block positive semi-definite.
   const double transverse = std::max(0.0, 1.0 - r.rest_length / l);
@@ -141,8 +152,7 @@ void rod_stretch(const RodStretchElement& r, const Eigen::VectorXd& x, bool with
   add_block(out, r.b, r.a, -K);
 }
 
-void rod_bend(const RodBendElement& r, const Eigen::VectorXd& x, bool with_stiffness,
-              ElasticEvaluation& out) {
+void rod_bend(const RodBendElement& r, const Eigen::VectorXd& x, bool with_stiffness, ElementOut& out) {
   const Vector3d e1 = point(x, r.b) - point(x, r.a);
   const Vector3d e2 = point(x, r.c) - point(x, r.b);
   const double l1 = e1.norm(), l2 = e2.norm();
@@ -170,8 +180,7 @@ void rod_bend(const RodBendElement& r, const Eigen::VectorXd& x, bool with_stiff
   }
   out.energy += 0.5 * r.stiffness * residual.squaredNorm();
   for (int k = 0; k < 3; ++k)
-    add_force(out, idx[static_cast<size_t>(k)],
-              -r.stiffness * J[static_cast<size_t>(k)].transpose() * residual);
+    add_force(out, k, -r.stiffness * J[static_cast<size_t>(k)].transpose() * residual);
   if (!with_stiffness) return;
   for (int a = 0; a < 3; ++a) {
     for (int b = 0; b < 3; ++b) {
@@ -180,6 +189,55 @@ void rod_bend(const RodBendElement& r, const Eigen::VectorXd& x, bool with_stiff
     }
   }
 }
+
+// Evaluates each kind of element in parallel (TBB), every element into its own
+// slots, then gathers forces and energy serially in element order.
+class ElementEvaluator {
+ public:
+  ElementEvaluator(const Eigen::VectorXd& x, bool with_stiffness) : x_(x), with_stiffness_(with_stiffness) {}
+
+  // `corners(e)` lists element e's vertices; `eval` evaluates it into its slots.
+  template <class Element, class Corners, class Eval>
+  void add(const std::vector<Element>& elements, int n, Corners corners, Eval eval) {
+    if (elements.empty()) return;
+    const size_t first_force = forces_.size(), first_triplet = triplets_.size();
+    const auto count = elements.size(), per_force = static_cast<size_t>(n),
+               per_block = with_stiffness_ ? 9 * per_force * per_force : 0;
+    forces_.resize(first_force + count * per_force, Vector3d::Zero());
+    triplets_.resize(first_triplet + count * per_block);
+    energies_.resize(energies_.size() + count);
+    const size_t first_energy = energies_.size() - count;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 64), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        ElementOut out;
+        out.force = forces_.data() + first_force + i * per_force;
+        out.stiffness = with_stiffness_ ? triplets_.data() + first_triplet + i * per_block : nullptr;
+        eval(elements[i], x_, with_stiffness_, out);
+        energies_[first_energy + i] = out.energy;
+      }
+    });
+    for (const auto& element : elements) {
+      for (int v : corners(element)) corner_vertices_.push_back(v);
+    }
+  }
+
+  ElasticEvaluation gather() {
+    ElasticEvaluation out;
+    out.force = Eigen::VectorXd::Zero(x_.size());
+    for (size_t k = 0; k < forces_.size(); ++k) out.force.segment<3>(3 * corner_vertices_[k]) += forces_[k];
+    for (double e : energies_) out.energy += e;
+    out.stiffness = std::move(triplets_);
+    return out;
+  }
+
+ private:
+  const Eigen::VectorXd& x_;
+  bool with_stiffness_;
+  std::vector<Vector3d> forces_;
+  std::vector<int> corner_vertices_;
+  std::vector<double> energies_;
+  std::vector<Eigen::Triplet<double>> triplets_;
+};
 
 }  // namespace
 
@@ -192,20 +250,32 @@ double dihedral_angle(const Vector3d& x0, const Vector3d& x1, const Vector3d& x2
 
 ElasticEvaluation evaluate_elastic(const DeformableModel& model, const Eigen::VectorXd& x,
                                    bool with_stiffness) {
-  ElasticEvaluation out;
-  out.force = Eigen::VectorXd::Zero(x.size());
-  if (with_stiffness) {
-    out.stiffness.reserve(9 * (9 * model.membranes.size() + 16 * model.hinges.size() +
-                               4 * model.rod_stretch.size() + 9 * model.rod_bend.size() +
-                               16 * model.tets.size()));
-  }
-  for (const auto& m : model.membranes)
-    corotational<2>(m.v, m.Dm_inv, m.area, m.lame, x, with_stiffness, out);
-  for (const auto& h : model.hinges) hinge(h, x, with_stiffness, out);
-  for (const auto& r : model.rod_stretch) rod_stretch(r, x, with_stiffness, out);
-  for (const auto& r : model.rod_bend) rod_bend(r, x, with_stiffness, out);
-  for (const auto& t : model.tets) corotational<3>(t.v, t.Dm_inv, t.volume, t.lame, x, with_stiffness, out);
-  return out;
+  ElementEvaluator e(x, with_stiffness);
+  e.add(
+      model.membranes, 3, [](const MembraneElement& m) { return m.v; },
+      [](const MembraneElement& m, const Eigen::VectorXd& xs, bool k, ElementOut& out) {
+        corotational<2>(m.v, m.Dm_inv, m.area, m.lame, xs, k, out);
+      });
+  e.add(
+      model.hinges, 4, [](const HingeElement& h) { return h.v; }, hinge);
+  e.add(
+      model.rod_stretch, 2,
+      [](const RodStretchElement& r) {
+        return std::array<int, 2>{r.a, r.b};
+      },
+      rod_stretch);
+  e.add(
+      model.rod_bend, 3,
+      [](const RodBendElement& r) {
+        return std::array<int, 3>{r.a, r.b, r.c};
+      },
+      rod_bend);
+  e.add(
+      model.tets, 4, [](const TetElement& t) { return t.v; },
+      [](const TetElement& t, const Eigen::VectorXd& xs, bool k, ElementOut& out) {
+        corotational<3>(t.v, t.Dm_inv, t.volume, t.lame, xs, k, out);
+      });
+  return e.gather();
 }
 
 }  // namespace phasecast::precompute

@@ -1,9 +1,11 @@
+#include "phasecast/precompute/simulation/continuous_collision.h"
 #include "phasecast/precompute/simulation/elastic_forces.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "phasecast/precompute/simulation/simulator.h"
 
 #include <fmt/format.h>
 
+#include <Eigen/CholmodSupport>
 #include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
@@ -19,6 +21,10 @@ namespace {
 using Eigen::Vector3d;
 using Eigen::VectorXd;
 
+// Relative normal speed, times the step, that a collision impulse leaves between
+// a pair, as a fraction of the thickness: enough to part it, too little to bounce.
+constexpr double kSeparation = 0.1;
+
 Vector3d to_vector3(const VectorXd& alpha, int expected, const char* what) {
   if (alpha.size() != expected) {
     throw SimulationError(
@@ -29,13 +35,49 @@ Vector3d to_vector3(const VectorXd& alpha, int expected, const char* what) {
   return alpha.head<3>();
 }
 
+// The implicit step's sparse Cholesky (settings.linear_solver), its symbolic
+// analysis done once: the system's pattern never changes.
+class StepFactorization {
+ public:
+  using Matrix = Eigen::SparseMatrix<double>;
+  explicit StepFactorization(LinearSolver kind) : kind_(kind) {}
+
+  void analyze(const Matrix& A) {
+    if (kind_ == LinearSolver::supernodal) {
+      supernodal_.analyzePattern(A);
+    } else {
+      simplicial_.analyzePattern(A);
+    }
+  }
+  bool factorize(const Matrix& A) {
+    if (kind_ == LinearSolver::supernodal) {
+      supernodal_.factorize(A);
+      return supernodal_.info() == Eigen::Success;
+    }
+    simplicial_.factorize(A);
+    return simplicial_.info() == Eigen::Success;
+  }
+  VectorXd solve(const VectorXd& b) {
+    return kind_ == LinearSolver::supernodal ? VectorXd(supernodal_.solve(b))
+                                             : VectorXd(simplicial_.solve(b));
+  }
+
+ private:
+  LinearSolver kind_;
+  Eigen::SimplicialLDLT<Matrix> simplicial_;
+  Eigen::CholmodSupernodalLLT<Matrix> supernodal_;
+};
+
 class ImplicitSimulator final : public Simulator {
  public:
   ImplicitSimulator(DeformableModel model, const SimulationSettings& settings, const SupportSettings& support)
       : model_(std::move(model)),
         settings_(settings),
         support_(support),
-        self_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3), model_.thickness) {
+        factorization_(settings.linear_solver),
+        self_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3), model_.thickness),
+        continuous_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3),
+                              kSeparation * model_.thickness) {
     if (!(settings_.frame_dt > 0) || settings_.substeps < 1 || settings_.newton_iterations < 1) {
       throw SimulationError(
           fmt::format("simulation settings: expected frame_dt > 0, substeps >= 1, "
@@ -173,9 +215,14 @@ class ImplicitSimulator final : public Simulator {
       if (delta.lpNorm<Eigen::Infinity>() < settings_.newton_tolerance) break;
     }
     self_collision_.filter(x0, v, h, inverse_mass_);
+    clip_obstacles(x0, v, h);
+    if (model_.self_collision) {
+      continuous_collision_.resolve(x0, v, h, inverse_mass_,
+                                    [this](int, const Vector3d& end) { return clear_of_obstacles(end); });
+    }
     state_.v = v;
     state_.x = x0 + h * v;
-    resolve_obstacles();
+    if (!model_.self_collision) resolve_obstacles();  // with CCD every end is already clear
     clamp_speeds();
     apply_support_jump(support_.advance(state_.support, h));
   }
@@ -211,14 +258,13 @@ class ImplicitSimulator final : public Simulator {
       }
     }
     assemble(triplets_);
-    ldlt_.factorize(A_);
-    if (ldlt_.info() != Eigen::Success) {
+    if (!factorization_.factorize(A_)) {
       throw SimulationError(
           fmt::format("implicit step at t={:.4f} s: the system matrix is not positive definite "
                       "(check for negative masses or stiffnesses)",
                       state_.time));
     }
-    const VectorXd solution = ldlt_.solve(rhs);
+    const VectorXd solution = factorization_.solve(rhs);
     VectorXd delta = VectorXd::Zero(residual.size());
     for (size_t d = 0; d < free_index_.size(); ++d) {
       if (free_index_[d] >= 0) delta[static_cast<Eigen::Index>(d)] = solution[free_index_[d]];
@@ -241,7 +287,7 @@ class ImplicitSimulator final : public Simulator {
         const int* end = A_.innerIndexPtr() + A_.outerIndexPtr()[triplets[k].col() + 1];
         slots_[k] = static_cast<int>(std::lower_bound(begin, end, triplets[k].row()) - A_.innerIndexPtr());
       }
-      ldlt_.analyzePattern(A_);
+      factorization_.analyze(A_);
       pattern_analyzed_ = true;
       return;
     }
@@ -253,6 +299,46 @@ class ImplicitSimulator final : public Simulator {
     double* values = A_.valuePtr();
     std::fill(values, values + A_.nonZeros(), 0.0);
     for (size_t k = 0; k < triplets.size(); ++k) values[slots_[k]] += triplets[k].value();
+  }
+
+  // Velocity-level obstacle contact, before continuous collision sees the step:
+  // a free particle whose end of step falls within `thickness` of a box ends on
+  // the padded face it came through instead (inward normal velocity removed),
+  // its tangential velocity damped by friction.
+  void clip_obstacles(const VectorXd& x0, VectorXd& v, double h) const {
+    const double th = model_.thickness;
+    for (const auto& box : model_.obstacles) {
+      const Vector3d lo = box.min.array() - th, hi = box.max.array() + th;
+      for (int i = 0; i < vertices(); ++i) {
+        if (!is_free(i)) continue;
+        const Vector3d p0 = x0.segment<3>(3 * i), end = p0 + h * v.segment<3>(3 * i);
+        if ((end.array() <= lo.array()).any() || (end.array() >= hi.array()).any()) continue;
+        const bool was_inside = (p0.array() > lo.array()).all() && (p0.array() < hi.array()).all();
+        int axis = 0;
+        double depth = 1e300, face = 0;
+        for (int k = 0; k < 3; ++k) {
+          if ((was_inside || p0[k] <= lo[k]) && end[k] - lo[k] < depth)
+            depth = end[k] - lo[k], axis = k, face = lo[k];
+          if ((was_inside || p0[k] >= hi[k]) && hi[k] - end[k] < depth)
+            depth = hi[k] - end[k], axis = k, face = hi[k];
+        }
+        v[3 * i + axis] = (face - p0[axis]) / h;
+        for (int k = 0; k < 3; ++k) {
+          if (k != axis) v[3 * i + k] *= 1 - settings_.friction;
+        }
+      }
+    }
+  }
+
+  // Whether an end of step keeps half the thickness clear of every box (the
+  // clip leaves a full thickness; impulses may take up to half of it).
+  bool clear_of_obstacles(const Vector3d& p) const {
+    const double margin = 0.5 * model_.thickness;
+    for (const auto& box : model_.obstacles) {
+      if ((p.array() > box.min.array() - margin).all() && (p.array() < box.max.array() + margin).all())
+        return false;
+    }
+    return true;
   }
 
   // Keeps free particles `thickness` outside every obstacle box; the inward
@@ -293,7 +379,9 @@ class ImplicitSimulator final : public Simulator {
   DeformableModel model_;
   SimulationSettings settings_;
   SupportMotion support_;
+  StepFactorization factorization_;
   SelfCollision self_collision_;
+  ContinuousCollision continuous_collision_;
   VectorXd inverse_mass_;
   SimState state_;
   std::vector<int> free_index_;
@@ -301,7 +389,6 @@ class ImplicitSimulator final : public Simulator {
   std::vector<Eigen::Triplet<double>> triplets_;
   Eigen::SparseMatrix<double> A_;
   std::vector<int> slots_;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   bool pattern_analyzed_ = false;
 };
 

@@ -344,6 +344,12 @@ SimulationSettings read_simulation(Fields sim) {
   if (s.friction < 0 || s.friction > 1) sim.fail("friction", "a number in [0, 1]");
   s.settle = sim.number("settle", kDefaultSettle);
   if (s.settle < 0) sim.fail("settle", "a number >= 0");
+  if (sim.has("linear_solver")) {
+    const std::string solver = sim.string("linear_solver");
+    if (solver != "simplicial" && solver != "supernodal")
+      sim.fail("linear_solver", "\"simplicial\" or \"supernodal\"");
+    s.linear_solver = solver == "supernodal" ? LinearSolver::supernodal : LinearSolver::simplicial;
+  }
   sim.finish();
   return s;
 }

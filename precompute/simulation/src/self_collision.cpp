@@ -1,5 +1,7 @@
 #include "phasecast/precompute/simulation/self_collision.h"
 
+#include "box_hash.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -16,11 +18,6 @@ using Eigen::Vector3d;
 
 Vector3d point(const Eigen::VectorXd& x, int i) {
   return x.segment<3>(3 * i);
-}
-
-// Spatial hash of integer cells; key from the three cell coordinates.
-std::int64_t cell_key(std::int64_t i, std::int64_t j, std::int64_t k) {
-  return (i * 73856093) ^ (j * 19349663) ^ (k * 83492791);
 }
 
 double orient(const Vector3d& a, const Vector3d& b, const Vector3d& c, const Vector3d& d) {
@@ -71,6 +68,24 @@ Vector3d closest_barycentric(const Vector3d& p, const Vector3d& a, const Vector3
   return {1 - v - w, v, w};
 }
 
+// Ericson, Real-Time Collision Detection, 5.1.9.
+std::pair<double, double> closest_segment_params(const Vector3d& p0, const Vector3d& p1, const Vector3d& q0,
+                                                 const Vector3d& q1) {
+  const Vector3d d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+  const double c = d1.dot(r), b = d1.dot(d2), denom = a * e - b * b;
+  double s = denom > 1e-20 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+  double t = (b * s + f) / e;
+  if (t < 0) {
+    t = 0;
+    s = std::clamp(-c / a, 0.0, 1.0);
+  } else if (t > 1) {
+    t = 1;
+    s = std::clamp((b - c) / a, 0.0, 1.0);
+  }
+  return {s, t};
+}
+
 bool triangles_intersect(const std::array<Vector3d, 3>& t, const std::array<Vector3d, 3>& u) {
   for (int e = 0; e < 3; ++e) {
     if (segment_hits_triangle(t[static_cast<size_t>(e)], t[static_cast<size_t>((e + 1) % 3)], u[0], u[1],
@@ -87,77 +102,89 @@ int count_intersecting_pairs(const Eigen::VectorXd& x, const Eigen::MatrixXi& tr
   const auto corners = [&](Eigen::Index f) {
     return std::array<Vector3d, 3>{point(x, tris(f, 0)), point(x, tris(f, 1)), point(x, tris(f, 2))};
   };
+  std::vector<Eigen::AlignedBox3d> boxes;
+  for (Eigen::Index f = 0; f < tris.rows(); ++f) {
+    const auto t = corners(f);
+    boxes.push_back(Eigen::AlignedBox3d(t[0]).extend(t[1]).extend(t[2]));
+  }
+  const BoxHash hash(boxes);
   int count = 0;
   for (Eigen::Index f = 0; f < tris.rows(); ++f) {
     const auto t = corners(f);
-    const Eigen::AlignedBox3d bt = Eigen::AlignedBox3d(t[0]).extend(t[1]).extend(t[2]);
-    for (Eigen::Index g = f + 1; g < tris.rows(); ++g) {
+    for (int g : hash.overlapping(boxes[static_cast<size_t>(f)])) {
+      if (g <= f) continue;
       bool shared = false;
       for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) shared |= tris(f, a) == tris(g, b);
-      if (shared) continue;
-      const auto u = corners(g);
-      const Eigen::AlignedBox3d bu = Eigen::AlignedBox3d(u[0]).extend(u[1]).extend(u[2]);
-      if (bt.intersects(bu) && triangles_intersect(t, u)) ++count;
+      if (!shared && triangles_intersect(t, corners(g))) ++count;
     }
   }
   return count;
 }
 
-SelfCollision::SelfCollision(Eigen::MatrixXi triangles, double thickness, int sweeps)
-    : triangles_(std::move(triangles)), thickness_(thickness), sweeps_(sweeps) {
-  vertex_count_ = triangles_.size() ? triangles_.maxCoeff() + 1 : 0;
+std::vector<std::array<int, 2>> surface_edges(const Eigen::MatrixXi& triangles) {
   std::set<std::array<int, 2>> unique;
-  for (Eigen::Index f = 0; f < triangles_.rows(); ++f) {
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {
-      const int a = triangles_(f, k), b = triangles_(f, (k + 1) % 3);
+      const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
       unique.insert({std::min(a, b), std::max(a, b)});
     }
   }
-  edges_.assign(unique.begin(), unique.end());
+  return {unique.begin(), unique.end()};
 }
 
 namespace {
 
-// Uniform grid hash over boxes; cell size is the mean box extent so each box touches few cells.
-class BoxHash {
- public:
-  explicit BoxHash(const std::vector<Eigen::AlignedBox3d>& boxes) : boxes_(boxes) {
-    double extent = 1e-9;
-    for (const auto& b : boxes) extent += b.sizes().maxCoeff() / static_cast<double>(boxes.size());
-    cell_ = extent;
-    for (size_t i = 0; i < boxes.size(); ++i) {
-      visit(boxes[i], [&](std::int64_t key) { cells_[key].push_back(static_cast<int>(i)); });
+// Smallest distance between vertices that share no triangle, and whether any
+// pair is nearer than `close` (vertices hashed into cells of that size).
+double closest_non_neighbours(const Eigen::VectorXd& x, const std::set<std::pair<int, int>>& neighbours,
+                              int vertices, double close) {
+  std::vector<Eigen::AlignedBox3d> boxes;
+  for (int v = 0; v < vertices; ++v) {
+    boxes.emplace_back(point(x, v).array() - 0.5 * close, point(x, v).array() + 0.5 * close);
+  }
+  const BoxHash hash(boxes);
+  double closest = 1e300;
+  for (int v = 0; v < vertices; ++v) {
+    for (int u : hash.overlapping(boxes[static_cast<size_t>(v)])) {
+      if (u <= v || neighbours.count({v, u})) continue;
+      closest = std::min(closest, (point(x, v) - point(x, u)).norm());
     }
   }
+  return closest;
+}
 
-  // Indices of boxes overlapping `query`, sorted and unique (deterministic).
-  std::vector<int> overlapping(const Eigen::AlignedBox3d& query) const {
-    std::vector<int> out;
-    visit(query, [&](std::int64_t key) {
-      const auto it = cells_.find(key);
-      if (it == cells_.end()) return;
-      for (int i : it->second) {
-        if (boxes_[static_cast<size_t>(i)].intersects(query)) out.push_back(i);
-      }
-    });
-    std::sort(out.begin(), out.end());
-    out.erase(std::unique(out.begin(), out.end()), out.end());
-    return out;
-  }
+}  // namespace
 
- private:
-  template <class F>
-  void visit(const Eigen::AlignedBox3d& b, F&& f) const {
-    const auto index = [&](double c) { return static_cast<std::int64_t>(std::floor(c / cell_)); };
-    for (auto i = index(b.min().x()); i <= index(b.max().x()); ++i)
-      for (auto j = index(b.min().y()); j <= index(b.max().y()); ++j)
-        for (auto k = index(b.min().z()); k <= index(b.max().z()); ++k) f(cell_key(i, j, k));
+ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::MatrixXi& triangles,
+                                 double close_distance) {
+  std::set<std::pair<int, int>> neighbours;
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f)
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) neighbours.insert({triangles(f, a), triangles(f, b)});
+  ContactSummary s;
+  s.frames = static_cast<int>(positions.rows());
+  s.closest = 1e300;
+  const int vertices = triangles.size() ? triangles.maxCoeff() + 1 : 0;
+  for (Eigen::Index f = 0; f < positions.rows(); ++f) {
+    const Eigen::VectorXd x = positions.row(f).cast<double>().transpose();
+    const int pairs = count_intersecting_pairs(x, triangles);
+    s.frames_intersecting += pairs > 0;
+    s.worst_intersecting = std::max(s.worst_intersecting, pairs);
+    const double closest = closest_non_neighbours(x, neighbours, vertices, close_distance);
+    s.frames_close += closest < close_distance;
+    s.closest = std::min(s.closest, closest);
   }
-  const std::vector<Eigen::AlignedBox3d>& boxes_;
-  double cell_ = 1;
-  std::unordered_map<std::int64_t, std::vector<int>> cells_;
-};
+  return s;
+}
+
+SelfCollision::SelfCollision(Eigen::MatrixXi triangles, double thickness, int sweeps)
+    : triangles_(std::move(triangles)), thickness_(thickness), sweeps_(sweeps) {
+  vertex_count_ = triangles_.size() ? triangles_.maxCoeff() + 1 : 0;
+  edges_ = surface_edges(triangles_);
+}
+
+namespace {
 
 Eigen::AlignedBox3d swept_box(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1,
                               std::initializer_list<int> vs, double pad) {
@@ -166,24 +193,6 @@ Eigen::AlignedBox3d swept_box(const Eigen::VectorXd& x0, const Eigen::VectorXd& 
   box.min().array() -= pad;
   box.max().array() += pad;
   return box;
-}
-
-// Closest points of segments p0p1 and q0q1 as parameters (s, t) (Ericson 5.1.9).
-std::pair<double, double> closest_segment_params(const Vector3d& p0, const Vector3d& p1, const Vector3d& q0,
-                                                 const Vector3d& q1) {
-  const Vector3d d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
-  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
-  const double c = d1.dot(r), b = d1.dot(d2), denom = a * e - b * b;
-  double s = denom > 1e-20 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
-  double t = (b * s + f) / e;
-  if (t < 0) {
-    t = 0;
-    s = std::clamp(-c / a, 0.0, 1.0);
-  } else if (t > 1) {
-    t = 1;
-    s = std::clamp((b - c) / a, 0.0, 1.0);
-  }
-  return {s, t};
 }
 
 }  // namespace

@@ -6,6 +6,8 @@
 // thickness receives an inelastic impulse along its separating direction
 // (Gauss-Seidel, a few sweeps).
 
+#include "phasecast/core/eigen_types.h"
+
 #include <Eigen/Core>
 
 #include <array>
@@ -19,12 +21,32 @@ namespace phasecast::precompute {
 Eigen::Vector3d closest_barycentric(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
                                     const Eigen::Vector3d& b, const Eigen::Vector3d& c);
 
+// Closest points of segments p0p1 and q0q1 as parameters (s, t) along each.
+std::pair<double, double> closest_segment_params(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
+                                                 const Eigen::Vector3d& q0, const Eigen::Vector3d& q1);
+
 // Whether two triangles that share no vertex intersect (closed triangles,
 // orientation tests in double precision).
 bool triangles_intersect(const std::array<Eigen::Vector3d, 3>& t, const std::array<Eigen::Vector3d, 3>& u);
 
 // Number of intersecting pairs of triangles that share no vertex. x: 3V, triangles F x 3.
 int count_intersecting_pairs(const Eigen::VectorXd& x, const Eigen::MatrixXi& triangles);
+
+// Self-contact over recorded frames (rows of 3V positions): the measure of
+// issue 15's guarantee, where it matters. Close pairs are vertices that share
+// no triangle yet lie nearer than `close_distance` (e.g. 2x the thickness).
+struct ContactSummary {
+  int frames = 0;
+  int frames_intersecting = 0;  // frames with an intersecting triangle pair
+  int worst_intersecting = 0;   // most intersecting pairs in one frame
+  int frames_close = 0;         // frames with a close non-neighbour pair
+  double closest = 0;           // smallest non-neighbour vertex distance over all frames, m
+};
+ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::MatrixXi& triangles,
+                                 double close_distance);
+
+// The unique edges (a < b) of a triangle mesh, sorted.
+std::vector<std::array<int, 2>> surface_edges(const Eigen::MatrixXi& triangles);
 
 class SelfCollision {
  public:

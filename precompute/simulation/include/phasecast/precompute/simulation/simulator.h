@@ -46,6 +46,11 @@ class Simulator {
   virtual Eigen::Matrix<double, 3, 4> support_transform() const = 0;
 };
 
+// The sparse Cholesky of the implicit step: Eigen's simplicial LDL^T, fastest
+// below a few thousand DOF, or CHOLMOD's supernodal LL^T (BLAS-3 on dense
+// supernodes), about twice as fast at the paper's cloth size (docs/performance.md).
+enum class LinearSolver { simplicial, supernodal };
+
 struct SimulationSettings {
   double frame_dt = 1.0 / 50;
   int substeps = 2;
@@ -56,6 +61,7 @@ struct SimulationSettings {
   double stiffness_damping = 0;  // Rayleigh b, s
   double max_speed = 50;         // m/s: particle speeds are clamped here (large impulses stay finite)
   double friction = 0.3;         // fraction of tangential velocity removed at an obstacle contact
+  LinearSolver linear_solver = LinearSolver::simplicial;
   double settle = 0;  // s of quasi-static relaxation before a recording starts (see orbit_recorder.h)
 };
 

@@ -1,0 +1,187 @@
+// Continuous collision and its fail-safe against closed forms (crossing times
+// of linear motion), and the guarantee on a two-layer cloth pressed together
+// by the air: no intersecting triangle pair in any frame while the layers stay
+// closer than twice the thickness (so the guarantee is tested where it matters).
+
+#include "phasecast/precompute/simulation/continuous_collision.h"
+#include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "phasecast/precompute/simulation/self_collision.h"
+#include "run_tool.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+namespace phasecast::precompute {
+namespace {
+
+using Eigen::Vector3d;
+using Points = std::array<Vector3d, 4>;
+
+// The unit triangle in z = 0, and a point falling through it at (0.2, 0.2).
+TEST(ContinuousCollision, VertexTriangleContactAtTheCrossingTime) {
+  const Points start = {Vector3d(0.2, 0.2, 0.3), Vector3d(0, 0, 0), Vector3d(1, 0, 0), Vector3d(0, 1, 0)};
+  Points end = start;
+  end[0].z() = -0.1;  // crosses z = 0 at t = 0.3 / 0.4
+  const auto t = vertex_triangle_contact(start, end, 1e-9);
+  ASSERT_TRUE(t.has_value());
+  EXPECT_NEAR(*t, 0.75, 1e-9);
+  end[0] = Vector3d(0.8, 0.8, -0.1);  // crosses the plane outside the triangle (x + y > 1 there)
+  EXPECT_FALSE(vertex_triangle_contact(start, end, 1e-9).has_value());
+}
+
+// The triangle moves up through a still point: only relative motion counts.
+TEST(ContinuousCollision, MovingTriangleMeetsAStillPoint) {
+  const Points start = {Vector3d(0.25, 0.25, 0), Vector3d(0, 0, -0.2), Vector3d(1, 0, -0.2),
+                        Vector3d(0, 1, -0.2)};
+  Points end = start;
+  for (size_t k = 1; k < 4; ++k) end[k].z() = 0.2;
+  const auto t = vertex_triangle_contact(start, end, 1e-9);
+  ASSERT_TRUE(t.has_value());
+  EXPECT_NEAR(*t, 0.5, 1e-9);
+}
+
+// Edge (x axis) and an edge along y, 0.1 above, falling by 0.4: they meet at t = 1/4.
+TEST(ContinuousCollision, EdgeEdgeContactAndAMiss) {
+  const Points start = {Vector3d(-1, 0, 0), Vector3d(1, 0, 0), Vector3d(0, -1, 0.1), Vector3d(0, 1, 0.1)};
+  Points end = start;
+  end[2].z() = end[3].z() = -0.3;
+  const auto t = edge_edge_contact(start, end, 1e-9);
+  ASSERT_TRUE(t.has_value());
+  EXPECT_NEAR(*t, 0.25, 1e-9);
+  Points beside_start = start, beside_end = end;
+  for (size_t k = 2; k < 4; ++k) beside_start[k].x() += 2.0, beside_end[k].x() += 2.0;
+  EXPECT_FALSE(
+      edge_edge_contact(beside_start, beside_end, 1e-9).has_value());  // falls beyond the first edge's end
+}
+
+// Two triangles, the second thrown through the first within one step.
+struct Throw {
+  Eigen::MatrixXi triangles{{0, 1, 2}, {3, 4, 5}};
+  Eigen::VectorXd x0{18}, v{18}, inverse_mass = Eigen::VectorXd::Ones(6);
+};
+Throw throw_through() {
+  Throw t;
+  t.x0 << 0, 0, 0, 1, 0, 0, 0, 1, 0,                   // lower, z = 0
+      0.1, 0.1, 0.05, 0.9, 0.1, 0.05, 0.1, 0.9, 0.05;  // upper, 5 cm above, overlapping in x, y
+  t.v.setZero();
+  for (int k = 3; k < 6; ++k) t.v[3 * k + 2] = -10;  // 10 m/s down: 10 cm in a 10 ms step
+  return t;
+}
+
+bool crosses(const ContinuousCollision& ccd, const Throw& t, double h) {
+  return !ccd.detect(t.x0, t.x0 + h * t.v).empty();
+}
+
+TEST(ContinuousCollision, ImpulsesStopTheCrossing) {
+  Throw t = throw_through();
+  const ContinuousCollision ccd(t.triangles, 1e-4);
+  ASSERT_TRUE(crosses(ccd, t, 0.01));
+  const Vector3d momentum_before = t.v.reshaped(3, 6).rowwise().sum();
+  const CcdReport r = ccd.resolve(t.x0, t.v, 0.01, t.inverse_mass, [](int, const Vector3d&) { return true; });
+  EXPECT_GT(r.collisions, 0);
+  EXPECT_FALSE(crosses(ccd, t, 0.01));
+  EXPECT_TRUE((Vector3d(t.v.reshaped(3, 6).rowwise().sum()) - momentum_before).norm() <
+              1e-9);  // inelastic, equal masses
+}
+
+// With no impulse passes only the fail-safe acts: one zone, moving with the mean velocity.
+TEST(ContinuousCollision, FailSafeZoneMovesRigidlyWithTheMeanVelocity) {
+  Throw t = throw_through();
+  const ContinuousCollision ccd(t.triangles, 1e-4, /*passes=*/0);
+  const CcdReport r = ccd.resolve(t.x0, t.v, 0.01, t.inverse_mass, [](int, const Vector3d&) { return true; });
+  EXPECT_FALSE(crosses(ccd, t, 0.01));
+  EXPECT_EQ(r.zone_vertices, 6);
+  EXPECT_EQ(r.frozen_vertices, 0);
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(t.v[3 * k + 2], -5.0, 1e-12) << "vertex " << k;
+}
+
+TEST(ContinuousCollision, FailSafeHoldsAZoneWithAPinnedVertex) {
+  Throw t = throw_through();
+  t.inverse_mass[0] = 0;  // the lower triangle's corner is attached
+  const ContinuousCollision ccd(t.triangles, 1e-4, /*passes=*/0);
+  const CcdReport r = ccd.resolve(t.x0, t.v, 0.01, t.inverse_mass, [](int, const Vector3d&) { return true; });
+  EXPECT_FALSE(crosses(ccd, t, 0.01));
+  EXPECT_EQ(r.frozen_vertices, 6);
+  EXPECT_TRUE(t.v.isZero(0));
+}
+
+TEST(ContinuousCollision, FailSafeHoldsAVertexThatWouldEndInadmissibly) {
+  Throw t = throw_through();
+  t.v.setZero();
+  t.v[2] = 1.0;  // vertex 0 rises into a half-space z > 0.005 forbidden to it
+  const ContinuousCollision ccd(t.triangles, 1e-4);
+  const CcdReport r = ccd.resolve(t.x0, t.v, 0.01, t.inverse_mass,
+                                  [](int i, const Vector3d& end) { return i != 0 || end.z() < 0.005; });
+  EXPECT_EQ(r.frozen_vertices, 1);
+  EXPECT_TRUE(t.v.isZero(0));
+}
+
+// A towel's two layers, 6 mm apart (thickness 4 mm), pinned along the top and
+// pressed together by the air of an opening door, then let swing.
+Scene two_layer_towel() {
+  const std::string layer = R"(
+[[body]]
+name = "{name}"
+energies = ["membrane", "bending"]
+density = 0.2
+young = 400
+bending = 4e-6
+drag = 1.5
+grid = { origin = [0.2, 0.6, {z}], u = [0.3, 0, 0], v = [0, -0.4, 0], cells = [8, 10] }
+pin = { min = [0.1, 0.59, 0], max = [0.6, 0.61, 0.1] }
+)";
+  const auto make_layer = [&layer](const char* name, const char* z) {
+    std::string s = layer;
+    s.replace(s.find("{name}"), 6, name);
+    s.replace(s.find("{z}"), 3, z);
+    return s;
+  };
+  const std::string text = R"(name = "two_layer_towel"
+[simulation]
+frame_dt = 0.02
+substeps = 2
+newton_iterations = 2
+mass_damping = 0.05
+stiffness_damping = 0.003
+friction = 0.4
+[support]
+motion = "rotational"
+axis = [0, -1, 0]
+[contact]
+thickness = 0.004
+self_collision = true
+[[obstacle]]
+name = "door"
+min = [0.02, 0.0, -0.04]
+max = [0.82, 0.8, 0.0]
+[[palette]]
+name = "open"
+alpha_impulse = [0, -1.5, 0]
+alpha_forcing = [0, -1.5, 0]
+[[palette]]
+name = "stop"
+alpha_impulse = [0, 0, 0]
+alpha_forcing = [0, 0, 0]
+[[palette]]
+name = "close"
+alpha_impulse = [0, 1.5, 0]
+alpha_forcing = [0, 1.5, 0]
+)" + make_layer("back", "0.024") +
+                           make_layer("front", "0.030");
+  const auto path = testing::scratch_dir("two_layer_towel") / "towel.toml";
+  std::ofstream(path) << text;
+  return load_scene_file(path);
+}
+
+TEST(ContinuousCollision, PressedLayersNeverIntersectWhileInContact) {
+  const Scene scene = two_layer_towel();
+  const OrbitStore orbit =
+      simulate_schedule(scene, parse_schedule("open 0.6; stop 0.6; close 0.6; stop 0.6", scene));
+  const ContactSummary c = summarize_contact(orbit.positions, scene.model.surface, 2 * scene.model.thickness);
+  EXPECT_EQ(c.frames_intersecting, 0) << "worst frame: " << c.worst_intersecting << " pairs";
+  EXPECT_GE(c.frames_close, 0.3 * c.frames) << "the layers must stay in contact range for the check to bite";
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
