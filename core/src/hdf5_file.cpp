@@ -232,10 +232,12 @@ DatasetInfo File::info(const std::string& name) const {
   Handle type(check(H5Dget_type(ds.get()), "cannot read datatype"), H5Tclose);
   const int rank = H5Sget_simple_extent_ndims(space.get());
   if (rank < 0) throw Failure("cannot read dataspace rank");
-  std::vector<hsize_t> dims(static_cast<size_t>(rank));
-  if (rank > 0) check(H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr), "cannot read dims");
+  std::vector<hsize_t> dims(static_cast<size_t>(rank)), max_dims(static_cast<size_t>(rank));
+  if (rank > 0)
+    check(H5Sget_simple_extent_dims(space.get(), dims.data(), max_dims.data()), "cannot read dims");
   DatasetInfo info;
   info.dims.assign(dims.begin(), dims.end());
+  info.extensible = rank > 0 && max_dims[0] == H5S_UNLIMITED;
   info.dtype = classify(type.get());
   info.element_bytes = H5Tget_size(type.get());
   describe_storage(ds.get(), info);
@@ -280,24 +282,107 @@ void File::read_raw(const std::string& name, Dtype dtype, void* out) const {
         "cannot read data (truncated or corrupt file?)");
 }
 
+namespace {
+
+// Rows [first, first + count) of dataset `ds`: the file dataspace with them
+// selected and a memory dataspace of their shape.
+struct RowBlock {
+  Handle file_space;
+  Handle memory_space;
+};
+
+RowBlock select_rows(hid_t ds, std::uint64_t first, std::uint64_t count) {
+  Handle file_space(check(H5Dget_space(ds), "cannot read dataspace"), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(file_space.get());
+  if (rank < 1) throw Failure("expected a dataset of rows, got a scalar");
+  std::vector<hsize_t> dims(static_cast<size_t>(rank));
+  check(H5Sget_simple_extent_dims(file_space.get(), dims.data(), nullptr), "cannot read dims");
+  if (count > dims[0] || first > dims[0] - count)
+    throw Failure(fmt::format("rows {}..{} past the end ({} rows)", first, first + count, dims[0]));
+  std::vector<hsize_t> start(dims.size(), 0), size = dims;
+  start[0] = first;
+  size[0] = count;
+  Handle memory_space(check(H5Screate_simple(rank, size.data(), nullptr), "cannot make a dataspace"),
+                      H5Sclose);
+  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start.data(), nullptr, size.data(), nullptr),
+        "cannot select rows");
+  return {std::move(file_space), std::move(memory_space)};
+}
+
+std::vector<hsize_t> extent(hid_t ds) {
+  Handle space(check(H5Dget_space(ds), "cannot read dataspace"), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank < 1) throw Failure("expected a dataset of rows, got a scalar");
+  std::vector<hsize_t> dims(static_cast<size_t>(rank));
+  check(H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr), "cannot read dims");
+  return dims;
+}
+
+}  // namespace
+
 void File::read_rows_raw(const std::string& name, Dtype dtype, std::uint64_t first, std::uint64_t count,
                          void* out) const {
   Handle ds = open_dataset(name);
-  Handle file_space(check(H5Dget_space(ds.get()), "cannot read dataspace"), H5Sclose);
-  hsize_t dims[2] = {0, 0};
-  if (H5Sget_simple_extent_ndims(file_space.get()) != 2) throw Failure("expected a 2-D dataset");
-  H5Sget_simple_extent_dims(file_space.get(), dims, nullptr);
-  if (count > dims[0] || first > dims[0] - count) {
-    throw Failure("rows " + std::to_string(first) + ".." + std::to_string(first + count) + " past the end (" +
-                  std::to_string(dims[0]) + " rows)");
-  }
-  const hsize_t start[2] = {first, 0};
-  const hsize_t size[2] = {count, dims[1]};
-  Handle memory_space(check(H5Screate_simple(2, size, nullptr), "cannot make a dataspace"), H5Sclose);
-  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, size, nullptr),
-        "cannot select rows");
-  check(H5Dread(ds.get(), native_type(dtype), memory_space.get(), file_space.get(), H5P_DEFAULT, out),
+  const RowBlock block = select_rows(ds.get(), first, count);
+  if (count == 0) return;
+  check(H5Dread(ds.get(), native_type(dtype), block.memory_space.get(), block.file_space.get(), H5P_DEFAULT,
+                out),
         "cannot read rows (truncated or corrupt file?)");
+}
+
+std::uint64_t File::rows(const std::string& name) const {
+  Handle ds = open_dataset(name);
+  return extent(ds.get())[0];
+}
+
+void File::create_rows_raw(const std::string& name, Dtype dtype, const std::vector<std::uint64_t>& row_dims,
+                           std::uint64_t chunk_bytes) {
+  ensure_parent_groups(name);
+  std::vector<hsize_t> dims{0}, max_dims{H5S_UNLIMITED}, chunk{1};
+  hsize_t row_bytes = H5Tget_size(file_type(dtype));
+  for (const std::uint64_t d : row_dims) {
+    if (d == 0) throw Failure(fmt::format("{}: rows of {} cannot be empty", name, describe_dims(row_dims)));
+    dims.push_back(d);
+    max_dims.push_back(d);
+    chunk.push_back(d);
+    row_bytes *= d;
+  }
+  chunk[0] = std::max<hsize_t>(1, chunk_bytes / row_bytes);
+  const int rank = static_cast<int>(dims.size());
+  Handle space(check(H5Screate_simple(rank, dims.data(), max_dims.data()),
+                     fmt::format("cannot create dataspace for {}", name)),
+               H5Sclose);
+  Handle dcpl = untimed(H5P_DATASET_CREATE);
+  check(H5Pset_chunk(dcpl.get(), rank, chunk.data()), "cannot set chunking");
+  check(H5Pset_fletcher32(dcpl.get()), "cannot set the Fletcher-32 filter");
+  Handle ds(check(H5Dcreate2(file_.get(), name.c_str(), file_type(dtype), space.get(), H5P_DEFAULT,
+                             dcpl.get(), H5P_DEFAULT),
+                  fmt::format("cannot create dataset {}", name)),
+            H5Dclose);
+}
+
+void File::write_rows_raw(const std::string& name, Dtype dtype, std::uint64_t first, const void* data,
+                          std::uint64_t count) {
+  Handle ds = open_dataset(name);
+  std::vector<hsize_t> dims = extent(ds.get());
+  if (first > dims[0])
+    throw Failure(fmt::format("{}: cannot write from row {}, past the end ({} rows)", name, first, dims[0]));
+  dims[0] = first + count;
+  check(H5Dset_extent(ds.get(), dims.data()),
+        fmt::format("cannot resize {} to {} rows (expected an extensible dataset)", name, dims[0]));
+  if (count == 0) return;
+  const RowBlock block = select_rows(ds.get(), first, count);
+  check(H5Dwrite(ds.get(), native_type(dtype), block.memory_space.get(), block.file_space.get(), H5P_DEFAULT,
+                 data),
+        fmt::format("cannot write rows {}..{} of {}", first, first + count, name));
+}
+
+void File::set_rows(const std::string& name, std::uint64_t rows) {
+  Handle ds = open_dataset(name);
+  std::vector<hsize_t> dims = extent(ds.get());
+  dims[0] = rows;
+  check(H5Dset_extent(ds.get(), dims.data()),
+        fmt::format("cannot resize {} to {} rows (expected an extensible dataset)", name, rows));
 }
 
 std::vector<std::string> File::read_strings(const std::string& name) const {

@@ -164,27 +164,22 @@ void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::f
   }
   auto display = std::make_shared<SamplingDisplay>();
   a.sampling.progress = [display](const precompute::SamplingProgress& p) { (*display)(p); };
-  precompute::OrbitStore store;
+  a.sampling.notice = [](const std::string& line) { fmt::print(stderr, "\n{}\n", line); };
+  precompute::MergedStore merged;
   try {
-    if (ranks.distributed()) {
-      // Each rank checkpoints its chains into the shared work folder; rank 0
-      // then reads them back in chain order, as one process would hold them.
-      precompute::sample_own_chains(scene, rules, a.sampling);
-      ranks.barrier();
-      if (ranks.rank() == 0) store = precompute::read_chain_stores(scene, a.sampling);
-    } else {
-      store = precompute::sample_irfs(scene, rules, a.sampling);
-    }
+    // Each rank's chains stream into their stores in the work folder; rank 0
+    // then merges them in chain order into the orbit store, one IRF at a
+    // time, as one process would (docs/distributed.md).
+    precompute::sample_own_chains(scene, rules, a.sampling);
+    ranks.barrier();
+    if (ranks.rank() == 0) merged = precompute::write_chain_stores(scene, a.sampling, orbits);
   } catch (...) {
     display->finish();
     throw;
   }
   display->finish();
-  if (ranks.rank() == 0) {
-    precompute::write_orbit_store(store, orbits);
-    fmt::print("wrote {} ({} IRFs, {} state nodes)\n", orbits.string(), store.irf_start.size(),
-               store.frames());
-  }
+  if (ranks.rank() == 0)
+    fmt::print("wrote {} ({} IRFs, {} state nodes)\n", orbits.string(), merged.irfs, merged.frames);
   ranks.barrier();  // the store is complete before any rank reads it
 }
 

@@ -6,6 +6,8 @@
 
 #include <fmt/format.h>
 
+#include <unistd.h>
+
 #include <atomic>
 #include <exception>
 #include <mutex>
@@ -23,6 +25,12 @@ std::uint64_t splitmix(std::uint64_t x) {
   x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
   return x ^ (x >> 31);
 }
+
+// Frame chunks of the merged store, which the reduction reads in blocks of
+// frames on each SVD pass: 1-frame chunks (the chain stores' for the cloth
+// door) made its reduce 30 % slower than 64 KiB ones, which cost an append
+// at most 64 KiB per frame dataset to rewrite.
+constexpr std::uint64_t kMergedChunkBytes = std::uint64_t{64} << 10;
 
 std::filesystem::path chain_store(const std::filesystem::path& dir, int chain) {
   return dir / fmt::format("chain-{:03d}.h5", chain);
@@ -90,21 +98,6 @@ Checkpoint read_checkpoint(const std::filesystem::path& path, const SamplingOpti
   }
 }
 
-// Drops IRFs beyond the first `irfs` (a store written just before a crash
-// that kept its state file from being updated).
-void truncate_store(OrbitStore& s, int irfs) {
-  const auto n = static_cast<size_t>(irfs);
-  const std::int32_t frames = irfs == 0 ? 0 : s.irf_start[n - 1] + s.irf_length[n - 1];
-  s.irf_start.resize(n);
-  s.irf_length.resize(n);
-  s.irf_palette.resize(n);
-  s.irf_continues.resize(n);
-  s.frame_palette.resize(static_cast<size_t>(frames));
-  s.positions.conservativeResize(frames, Eigen::NoChange);
-  s.velocities.conservativeResize(frames, Eigen::NoChange);
-  s.support.conservativeResize(frames, Eigen::NoChange);
-}
-
 struct Shared {
   std::mutex mutex;
   SamplingProgress progress;
@@ -112,26 +105,36 @@ struct Shared {
   std::atomic<bool> stop{false};
 };
 
-OrbitStore resume_chain(const Scene& scene, const SamplingOptions& o, int chain, Checkpoint& c,
-                        Simulator& sim) {
-  OrbitStore store = empty_orbit_store(scene);
+// The chain's store, ready for its next IRF: continued after the checkpoint
+// when resuming (`c` and `sim` then hold the checkpointed state), else new.
+// A store that cannot be continued (a crash tore the file) is sampled again:
+// a chain is a pure function of the seed, so nothing changes but the time.
+OrbitStoreAppender open_chain(const Scene& scene, const SamplingOptions& o, int chain, Checkpoint& c,
+                              Simulator& sim, Shared& sh) {
   const auto store_path = chain_store(o.work_dir, chain), state_path = chain_state(o.work_dir, chain);
-  if (!o.resume || !std::filesystem::exists(store_path)) return store;
-  if (!std::filesystem::exists(state_path)) return store;  // crashed before the first state was written
-  c = read_checkpoint(state_path, o, chain, 3 * static_cast<Eigen::Index>(sim.vertices()));
-  store = read_orbit_store(store_path);
-  const int stored = static_cast<int>(store.irf_start.size());
-  if (stored != c.irfs && stored != c.irfs + 1) {
-    throw SamplingError(fmt::format("{}: holds {} IRFs but its state file {} records {}", store_path.string(),
-                                    stored, state_path.string(), c.irfs));
+  if (o.resume && std::filesystem::exists(store_path) && std::filesystem::exists(state_path)) {
+    const Checkpoint saved =
+        read_checkpoint(state_path, o, chain, 3 * static_cast<Eigen::Index>(sim.vertices()));
+    if (saved.irfs > o.irfs_per_chain) {
+      throw SamplingError(fmt::format("{}: checkpoint holds {} IRFs, more than --irfs-per-chain {}",
+                                      state_path.string(), saved.irfs, o.irfs_per_chain));
+    }
+    try {
+      OrbitStoreAppender store = OrbitStoreAppender::reopen(store_path, saved.irfs);
+      c = saved;
+      sim.reset(c.state);
+      return store;
+    } catch (const OrbitStoreError& e) {
+      std::lock_guard lock(sh.mutex);
+      if (o.notice)
+        o.notice(fmt::format("chain {}: {}; sampling the chain again from its start", chain, e.what()));
+    }
   }
-  if (c.irfs > o.irfs_per_chain) {
-    throw SamplingError(fmt::format("{}: checkpoint holds {} IRFs, more than --irfs-per-chain {}",
-                                    state_path.string(), c.irfs, o.irfs_per_chain));
-  }
-  truncate_store(store, c.irfs);
-  sim.reset(c.state);
-  return store;
+  // The stale state goes first: a crash before this chain's first checkpoint
+  // must not pair an old state with the new store.
+  std::error_code ignored;
+  std::filesystem::remove(state_path, ignored);
+  return OrbitStoreAppender::create(store_path, empty_orbit_store(scene));
 }
 
 // Where a chain stands after its first `irfs` IRFs: its history and the
@@ -143,17 +146,16 @@ struct ChainPosition {
 };
 
 ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, int chain,
-                           const OrbitStore& store, int irfs) {
+                           const IrfList& store, int irfs) {
   ChainPosition p;
   for (int i = 0; i < irfs; ++i) {
     const IrfDraw d = draw_irf(rules, o.seed, chain, i, p.history, p.at);
     const auto k = static_cast<size_t>(i);
-    if (d.entry != store.irf_palette[k] || d.frames != store.irf_length[k]) {
+    if (d.entry != store.palette[k] || d.frames != store.length[k]) {
       throw SamplingError(fmt::format(
           "{}: checkpointed IRF {} is entry {} for {} frames but the palette rules now draw {} for {} (was "
           "the scene changed?)",
-          chain_store(o.work_dir, chain).string(), i, store.irf_palette[k], store.irf_length[k], d.entry,
-          d.frames));
+          chain_store(o.work_dir, chain).string(), i, store.palette[k], store.length[k], d.entry, d.frames));
     }
     if (d.from_rest) p.history.clear(), p.at = 0;
     p.history.push_back(d.entry);
@@ -162,8 +164,9 @@ ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, 
   return p;
 }
 
-OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o, int chain,
-                     Shared& sh) {
+// Runs (or resumes) one chain; returns the IRFs its store holds.
+int run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o, int chain,
+              Shared& sh) {
   auto sim = make_simulator(scene);
   // Chains start from the settled rest, as simulate_schedule (the truth the
   // validator compares with) and the server's rest node do.
@@ -171,14 +174,15 @@ OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const Sampli
   Checkpoint c;
   c.state = rest;
   sim->reset(c.state);
-  OrbitStore store = resume_chain(scene, o, chain, c, *sim);
+  OrbitStoreAppender store = open_chain(scene, o, chain, c, *sim, sh);
   {
     std::lock_guard lock(sh.mutex);
     sh.progress.irfs_done += c.irfs;
     sh.progress.nodes += store.frames();
     if (o.progress) o.progress(sh.progress);
   }
-  ChainPosition at = replay_chain(rules, o, chain, store, c.irfs);
+  ChainPosition at = replay_chain(rules, o, chain, store.irf_table(), c.irfs);
+  IrfFrames irf;  // the only frames a chain holds: the IRF being recorded
   for (int i = c.irfs; i < o.irfs_per_chain; ++i) {
     if (sh.stop) break;
     const IrfDraw draw = draw_irf(rules, o.seed, chain, i, at.history, at.at);
@@ -187,13 +191,13 @@ OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const Sampli
       at = ChainPosition{};
     }
     at.history.push_back(draw.entry);
-    record_irf(*sim, scene, draw.entry, draw.frames, store, {}, !draw.from_rest);
+    record_irf_frames(*sim, scene, draw.entry, draw.frames, !draw.from_rest, irf);
     at.at = rules.advance(draw.entry, at.at, draw.frames);
     c.irfs = i + 1;
     c.previous = draw.entry;
     c.state = sim->state();
     // Store first, then state: a crash in between leaves one extra IRF that resume drops.
-    write_orbit_store(store, chain_store(o.work_dir, chain));
+    store.append(irf);
     write_checkpoint(chain_state(o.work_dir, chain), c, o, chain);
     std::lock_guard lock(sh.mutex);
     sh.progress.irfs_done += 1;
@@ -201,24 +205,7 @@ OrbitStore run_chain(const Scene& scene, const PaletteRules& rules, const Sampli
     if (o.progress) o.progress(sh.progress);
     if (o.stop_after_irfs > 0 && ++sh.new_irfs >= o.stop_after_irfs) sh.stop = true;
   }
-  return store;
-}
-
-void append_store(OrbitStore& all, const OrbitStore& s) {
-  const Eigen::Index first = all.frames(), n = s.frames();
-  for (size_t i = 0; i < s.irf_start.size(); ++i) {
-    all.irf_start.push_back(static_cast<std::int32_t>(first) + s.irf_start[i]);
-    all.irf_length.push_back(s.irf_length[i]);
-    all.irf_palette.push_back(s.irf_palette[i]);
-    all.irf_continues.push_back(s.irf_continues[i]);
-  }
-  all.frame_palette.insert(all.frame_palette.end(), s.frame_palette.begin(), s.frame_palette.end());
-  all.positions.conservativeResize(first + n, s.positions.cols());
-  all.positions.bottomRows(n) = s.positions;
-  all.velocities.conservativeResize(first + n, s.velocities.cols());
-  all.velocities.bottomRows(n) = s.velocities;
-  all.support.conservativeResize(first + n, Eigen::NoChange);
-  all.support.bottomRows(n) = s.support;
+  return store.irfs();
 }
 
 }  // namespace
@@ -281,21 +268,20 @@ int own_chains(const SamplingOptions& o) {
   return n;
 }
 
-// This rank's chains (k = rank, rank + ranks, ...) on `jobs` threads; the
-// stores of other ranks' chains stay empty.
-std::vector<OrbitStore> run_own_chains(const Scene& scene, const PaletteRules& rules,
-                                       const SamplingOptions& o) {
+// This rank's chains (k = rank, rank + ranks, ...) on `jobs` threads, each
+// left complete in its store; SamplingError if any stopped short.
+void run_own_chains(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
   check_sampling_options(o);
   make_work_dir(o);
   Shared sh;
   sh.progress.irfs_total = own_chains(o) * o.irfs_per_chain;
-  std::vector<OrbitStore> chains(static_cast<size_t>(o.chains));
+  std::vector<int> irfs(static_cast<size_t>(o.chains), 0);
   std::vector<std::string> errors(static_cast<size_t>(o.chains));
   std::atomic<int> next{0};
   const auto worker = [&] {
     for (int i = next++, k = o.rank + i * o.ranks; k < o.chains; i = next++, k = o.rank + i * o.ranks) {
       try {
-        chains[static_cast<size_t>(k)] = run_chain(scene, rules, o, k, sh);
+        irfs[static_cast<size_t>(k)] = run_chain(scene, rules, o, k, sh);
       } catch (const std::exception& e) {
         errors[static_cast<size_t>(k)] = fmt::format("chain {}: {}", k, e.what());
         sh.stop = true;
@@ -309,12 +295,49 @@ std::vector<OrbitStore> run_own_chains(const Scene& scene, const PaletteRules& r
     if (!e.empty()) throw SamplingError(e);
   }
   for (int k = o.rank; k < o.chains; k += o.ranks) {
-    if (static_cast<int>(chains[static_cast<size_t>(k)].irf_start.size()) != o.irfs_per_chain) {
+    if (irfs[static_cast<size_t>(k)] != o.irfs_per_chain) {
       throw SamplingError(fmt::format(
           "sampling stopped after {} new IRFs (--stop-after-irfs); rerun with --resume", sh.new_irfs.load()));
     }
   }
-  return chains;
+}
+
+// Checks that every chain's store exists, holds all its IRFs and belongs to
+// the scene; returns the frames of them all.
+long long check_chain_stores(const Scene& scene, const SamplingOptions& o) {
+  long long frames = 0;
+  for (int k = 0; k < o.chains; ++k) {
+    const auto path = chain_store(o.work_dir, k);
+    if (!std::filesystem::exists(path)) {
+      throw SamplingError(fmt::format(
+          "{}: chain {} has no store (expected every rank to share the work folder; docs/distributed.md)",
+          path.string(), k));
+    }
+    const OrbitStoreReader c(path);
+    if (static_cast<int>(c.irfs().size()) != o.irfs_per_chain) {
+      throw SamplingError(fmt::format("{}: chain {} holds {} IRFs (expected {}; rerun with --resume)",
+                                      path.string(), k, c.irfs().size(), o.irfs_per_chain));
+    }
+    if (c.header().vertices() != scene.model.vertices()) {
+      throw SamplingError(fmt::format("{}: chain {} has {} vertices, expected the {} of scene '{}'",
+                                      path.string(), k, c.header().vertices(), scene.model.vertices(),
+                                      scene.name));
+    }
+    for (const std::int32_t n : c.irfs().length) frames += n;
+  }
+  return frames;
+}
+
+// Calls `take` with every IRF of every chain, in chain order, one at a time.
+void for_each_chain_irf(const SamplingOptions& o, const std::function<void(const IrfFrames&)>& take) {
+  IrfFrames irf;
+  for (int k = 0; k < o.chains; ++k) {
+    const OrbitStoreReader c(chain_store(o.work_dir, k));
+    for (int i = 0; i < static_cast<int>(c.irfs().size()); ++i) {
+      c.read(i, irf);
+      take(irf);
+    }
+  }
 }
 
 }  // namespace
@@ -325,33 +348,55 @@ void sample_own_chains(const Scene& scene, const PaletteRules& rules, const Samp
 
 OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o) {
   if (o.ranks != 1) throw SamplingError("sample_irfs runs every chain: use sample_own_chains on each rank");
-  auto chains = run_own_chains(scene, rules, o);
-  OrbitStore all = empty_orbit_store(scene);
-  // One chain at a time, freed once copied, so the frames are not held twice.
-  for (auto& c : chains) {
-    append_store(all, c);
-    c = OrbitStore{};
-  }
-  return all;
+  run_own_chains(scene, rules, o);
+  return read_chain_stores(scene, o);
 }
 
 OrbitStore read_chain_stores(const Scene& scene, const SamplingOptions& o) {
+  const auto frames = static_cast<Eigen::Index>(check_chain_stores(scene, o));
   OrbitStore all = empty_orbit_store(scene);
-  for (int k = 0; k < o.chains; ++k) {
-    const auto path = chain_store(o.work_dir, k);
-    if (!std::filesystem::exists(path)) {
-      throw SamplingError(fmt::format(
-          "{}: chain {} has no store (expected every rank to share the work folder; docs/distributed.md)",
-          path.string(), k));
-    }
-    const OrbitStore c = read_orbit_store(path);
-    if (static_cast<int>(c.irf_start.size()) != o.irfs_per_chain) {
-      throw SamplingError(fmt::format("{}: chain {} holds {} IRFs (expected {}; rerun with --resume)",
-                                      path.string(), k, c.irf_start.size(), o.irfs_per_chain));
-    }
-    append_store(all, c);
-  }
+  // Sized once: growing by IRF would copy the frames again for every IRF.
+  all.positions.resize(frames, 3 * static_cast<Eigen::Index>(all.vertices()));
+  all.velocities.resize(frames, all.positions.cols());
+  all.support.resize(frames, core::kSupportFloats);
+  all.frame_palette.reserve(static_cast<size_t>(frames));
+  for_each_chain_irf(o, [&all](const IrfFrames& irf) {
+    const auto first = static_cast<Eigen::Index>(all.frame_palette.size());
+    const Eigen::Index n = irf.frames();
+    all.irf_start.push_back(static_cast<std::int32_t>(first));
+    all.irf_length.push_back(static_cast<std::int32_t>(n));
+    all.irf_palette.push_back(irf.entry);
+    all.irf_continues.push_back(irf.continues && first > 0 ? 1 : 0);
+    all.positions.middleRows(first, n) = irf.positions;
+    all.velocities.middleRows(first, n) = irf.velocities;
+    all.support.middleRows(first, n) = irf.support;
+    all.frame_palette.insert(all.frame_palette.end(), static_cast<size_t>(n), irf.entry);
+  });
+  validate_orbit_store(all, o.work_dir.string());
   return all;
+}
+
+MergedStore write_chain_stores(const Scene& scene, const SamplingOptions& o,
+                               const std::filesystem::path& path) {
+  check_chain_stores(scene, o);
+  const std::filesystem::path tmp = fmt::format("{}.merging-{}", path.string(), ::getpid());
+  MergedStore merged;
+  try {
+    OrbitStoreAppender out = OrbitStoreAppender::create(tmp, empty_orbit_store(scene), kMergedChunkBytes);
+    for_each_chain_irf(o, [&out](const IrfFrames& irf) { out.append(irf); });
+    merged = {out.irfs(), static_cast<long long>(out.frames())};
+    out.close();
+    std::filesystem::rename(tmp, path);
+  } catch (const std::filesystem::filesystem_error& e) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw OrbitStoreError(fmt::format("{}: cannot write: {}", path.string(), e.code().message()));
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw;
+  }
+  return merged;
 }
 
 }  // namespace phasecast::precompute

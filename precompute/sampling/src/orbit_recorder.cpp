@@ -72,29 +72,32 @@ OrbitStore empty_orbit_store(const Scene& scene) {
   return s;
 }
 
-void record_irf(Simulator& simulator, const Scene& scene, int entry, int frames, OrbitStore& store,
-                const std::function<void()>& on_frame, bool continues) {
+void record_irf_frames(Simulator& simulator, const Scene& scene, int entry, int frames, bool continues,
+                       IrfFrames& out, const std::function<void()>& on_frame) {
   const auto& e = scene.palette.at(static_cast<size_t>(entry));
-  const Eigen::Index first = store.frames(), n = 3 * static_cast<Eigen::Index>(simulator.vertices());
-  store.irf_start.push_back(static_cast<std::int32_t>(first));
-  store.irf_length.push_back(frames);
-  store.irf_palette.push_back(entry);
-  store.irf_continues.push_back(continues && first > 0 ? 1 : 0);
-  // One resize per IRF: rows are filled in place.
-  store.positions.conservativeResize(first + frames, n);
-  store.velocities.conservativeResize(first + frames, n);
-  store.support.conservativeResize(first + frames, core::kSupportFloats);
+  const Eigen::Index n = 3 * static_cast<Eigen::Index>(simulator.vertices());
+  out.entry = entry;
+  out.continues = continues;
+  out.positions.resize(frames, n);
+  out.velocities.resize(frames, n);
+  out.support.resize(frames, core::kSupportFloats);
   simulator.impulse(e.alpha_impulse);
   for (int f = 0; f < frames; ++f) {
     const auto& st = simulator.state();
-    store.positions.row(first + f) = st.x.cast<float>().transpose();
-    store.velocities.row(first + f) = st.v.cast<float>().transpose();
-    store.frame_palette.push_back(entry);
+    out.positions.row(f) = st.x.cast<float>().transpose();
+    out.velocities.row(f) = st.v.cast<float>().transpose();
     const Eigen::Matrix<double, 3, 4, Eigen::RowMajor> T = simulator.support_transform();
-    store.support.row(first + f) = Eigen::Map<const Eigen::Matrix<double, 1, 12>>(T.data()).cast<float>();
+    out.support.row(f) = Eigen::Map<const Eigen::Matrix<double, 1, 12>>(T.data()).cast<float>();
     simulator.step(e.alpha_forcing);
     if (on_frame) on_frame();
   }
+}
+
+void record_irf(Simulator& simulator, const Scene& scene, int entry, int frames, OrbitStore& store,
+                const std::function<void()>& on_frame, bool continues) {
+  IrfFrames irf;
+  record_irf_frames(simulator, scene, entry, frames, continues, irf, on_frame);
+  append_irf(store, irf);
 }
 
 void settle(Simulator& simulator, double seconds) {

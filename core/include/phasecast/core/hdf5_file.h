@@ -73,6 +73,7 @@ struct DatasetInfo {
   std::uint64_t stored_bytes = 0;   // what the file holds for it (chunks written, contiguous extent)
   bool compressed = false;          // a filter that may shrink the data (deflate, szip, ...)
   bool external = false;            // raw data in another file: external storage or a virtual dataset
+  bool extensible = false;          // the first dimension may grow without limit (create_rows)
 };
 
 // Why the file cannot hold the data `info` declares, or "" if it can: the
@@ -82,6 +83,10 @@ struct DatasetInfo {
 // kMaxInflation times, deflate's limit; nothing may claim more than the file.
 inline constexpr std::uint64_t kMaxInflation = 1032;
 std::string storage_problem(const DatasetInfo& info, std::uint64_t file_bytes);
+
+// Default chunk size of extensible datasets: small, because writing into a
+// chunk rewrites all of it (it is checksummed whole); at least one row.
+inline constexpr std::uint64_t kRowChunkBytes = std::uint64_t{8} << 10;
 
 class File {
  public:
@@ -100,8 +105,9 @@ class File {
   void read(const std::string& name, T* out) const {
     read_raw(name, dtype_of<T>(), out);
   }
-  // Reads rows [first, first + count) of a 2-D dataset (a block of frames),
-  // so large datasets can be streamed without holding them in memory.
+  // Reads rows [first, first + count) of a dataset (a block of frames; the
+  // elements of a 1-D one), so large datasets can be streamed without holding
+  // them in memory.
   template <class T>
   void read_rows(const std::string& name, std::uint64_t first, std::uint64_t count, T* out) const {
     read_rows_raw(name, dtype_of<T>(), first, count, out);
@@ -126,6 +132,32 @@ class File {
   }
   void write_strings(const std::string& name, const std::vector<std::string>& values);
 
+  // Extensible datasets, for stores that grow by appending: no rows at first,
+  // unlimited along the first dimension; `row_dims` are the dims of one row
+  // ({} for a 1-D dataset). Chunked by about `chunk_bytes` of whole rows and
+  // checksummed like write()'s datasets.
+  template <class T>
+  void create_rows(const std::string& name, const std::vector<std::uint64_t>& row_dims,
+                   std::uint64_t chunk_bytes = kRowChunkBytes) {
+    create_rows_raw(name, dtype_of<T>(), row_dims, chunk_bytes);
+  }
+  // Writes rows [first, first + count) of an extensible dataset and makes
+  // them its last: rows before `first` are left as they are (never
+  // rewritten), rows after the block are dropped.
+  template <class T>
+  void write_rows(const std::string& name, std::uint64_t first, const T* data, std::uint64_t count) {
+    write_rows_raw(name, dtype_of<T>(), first, data, count);
+  }
+  // Writes `count` rows after the dataset's last.
+  template <class T>
+  void append_rows(const std::string& name, const T* data, std::uint64_t count) {
+    write_rows(name, rows(name), data, count);
+  }
+  // The length of a dataset's first dimension (Failure for a scalar).
+  std::uint64_t rows(const std::string& name) const;
+  // Sets an extensible dataset's row count; shrinking drops the rows past `rows`.
+  void set_rows(const std::string& name, std::uint64_t rows);
+
   bool has_attribute(const std::string& name) const;
   Dtype attribute_dtype(const std::string& name) const;
   double read_attribute_number(const std::string& name) const;
@@ -147,6 +179,10 @@ class File {
                      void* out) const;
   void write_raw(const std::string& name, Dtype dtype, const void* data,
                  const std::vector<std::uint64_t>& dims);
+  void create_rows_raw(const std::string& name, Dtype dtype, const std::vector<std::uint64_t>& row_dims,
+                       std::uint64_t chunk_bytes);
+  void write_rows_raw(const std::string& name, Dtype dtype, std::uint64_t first, const void* data,
+                      std::uint64_t count);
   Handle open_dataset(const std::string& name) const;
   void ensure_parent_groups(const std::string& name);
   Handle file_;

@@ -4,6 +4,9 @@
 // Each chain checkpoints after every IRF into the work folder (its orbit store
 // chain-<k>.h5 and the exact simulator state chain-<k>.state.h5), so that a
 // resumed run continues bit-identically without losing or duplicating orbits.
+// A chain holds only the IRF it is recording: each IRF is appended to the
+// chain's store (OrbitStoreAppender) and dropped, so a chain's memory and the
+// bytes it writes per IRF do not grow with its length.
 
 #include "phasecast/precompute/sampling/orbit_store.h"
 #include "phasecast/precompute/sampling/palette_rules.h"
@@ -13,6 +16,7 @@
 #include <filesystem>
 #include <functional>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace phasecast::precompute {
@@ -37,6 +41,9 @@ struct SamplingOptions {
   std::filesystem::path work_dir;
   bool resume = false;      // continue from the checkpoints in work_dir
   int stop_after_irfs = 0;  // > 0: stop (SamplingError) once this many new IRFs are checkpointed (tests)
+  // One line when --resume finds a chain store it cannot continue (a crash tore
+  // the file) and samples the chain again from its start.
+  std::function<void(const std::string&)> notice;
   // Chain k runs in the process of rank k mod ranks (an MPI run, docs/distributed.md).
   int ranks = 1;
   int rank = 0;
@@ -60,7 +67,8 @@ IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int i
 void check_sampling_options(const SamplingOptions& options);
 
 // Runs (or resumes) every chain and returns their orbits concatenated in chain
-// order (options.ranks must be 1).
+// order (options.ranks must be 1), read back from the chain stores: the
+// merged store is whole in memory (write_chain_stores streams it instead).
 OrbitStore sample_irfs(const Scene& scene, const PaletteRules& rules, const SamplingOptions& options);
 
 // Runs (or resumes) this rank's chains, leaving each complete in its store in
@@ -71,5 +79,16 @@ void sample_own_chains(const Scene& scene, const PaletteRules& rules, const Samp
 // sample_irfs returns, once all ranks have run their chains. Throws
 // SamplingError naming a missing or incomplete chain store.
 OrbitStore read_chain_stores(const Scene& scene, const SamplingOptions& options);
+
+struct MergedStore {
+  int irfs = 0;
+  long long frames = 0;
+};
+
+// The same concatenation written to `path` (atomically, as write_orbit_store)
+// one IRF at a time, so that merging holds one IRF rather than every chain.
+// Throws SamplingError as read_chain_stores before writing anything.
+MergedStore write_chain_stores(const Scene& scene, const SamplingOptions& options,
+                               const std::filesystem::path& path);
 
 }  // namespace phasecast::precompute

@@ -32,9 +32,14 @@ using ProgressCallback = std::function<void(int, int)>;
 // A store holding the scene's mesh and palette and no frames yet.
 OrbitStore empty_orbit_store(const Scene& scene);
 
-// Simulates one IRF of `frames` frames from the simulator's current state and
-// appends it; `on_frame` runs after every simulated frame. `continues`: the
-// simulator was not reset since the store's last IRF (ignored for the first).
+// Simulates one IRF of `frames` frames from the simulator's current state
+// into `out` (resized to the IRF: a sampling chain reuses one buffer, so it
+// holds one IRF whatever its length); `on_frame` runs after every simulated
+// frame. `continues`: the simulator was not reset since the previous IRF.
+void record_irf_frames(Simulator& simulator, const Scene& scene, int entry, int frames, bool continues,
+                       IrfFrames& out, const std::function<void()>& on_frame = {});
+
+// record_irf_frames, appended to `store` (`continues` is ignored for its first IRF).
 void record_irf(Simulator& simulator, const Scene& scene, int entry, int frames, OrbitStore& store,
                 const std::function<void()>& on_frame = {}, bool continues = true);
 
