@@ -245,7 +245,10 @@ TEST(ClientNetwork, FramesOfARestartedServerGetTheirOwnFileNames) {
 class CurveKeyOptions : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = testing::scratch_dir("curve_key_options");
+    // One folder per test: ctest runs the cases as parallel processes that would
+    // otherwise rewrite each other's key files mid-read.
+    dir_ = testing::scratch_dir(std::string("curve_key_options_") +
+                                ::testing::UnitTest::GetInstance()->current_test_info()->name());
     core::write_key_files(dir_ / "server", {kServerPublic, kServerSecret});
     core::write_key_files(dir_ / "client", {kClientPublic, kClientSecret});
     std::ofstream(dir_ / "bad.pub") << "public = not-a-key\n";

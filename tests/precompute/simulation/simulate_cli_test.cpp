@@ -44,7 +44,7 @@ void expect_one_line_failure(const testing::ToolResult& r, const std::string& fr
 }
 
 TEST(SimulateCli, MissingSceneFails) {
-  const auto dir = testing::scratch_dir("cli_missing");
+  const auto dir = testing::scratch_dir("simulate_cli_missing");
   expect_one_line_failure(run_tool("phasecast-precompute", {"simulate", "/no/scene.toml", "--schedule",
                                                             "open 1", "-o", (dir / "x.h5").string()}),
                           "/no/scene.toml");
