@@ -252,6 +252,15 @@ void move_zones(ImpactZones& zones, const std::vector<std::uint8_t>& in_zone, Ei
   }
 }
 
+// Whether every free surface vertex (the first `vertices`) ends where it may.
+bool ends_admissibly(int vertices, const Eigen::VectorXd& x0, const Eigen::VectorXd& v, double h,
+                     const Eigen::VectorXd& inverse_mass, const EndAdmissible& admissible) {
+  for (int i = 0; i < vertices; ++i) {
+    if (inverse_mass[i] > 0 && !admissible(i, point(x0, i) + h * point(v, i))) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 CcdReport ContinuousCollision::resolve(const Eigen::VectorXd& x0, Eigen::VectorXd& v, double h,
@@ -260,12 +269,14 @@ CcdReport ContinuousCollision::resolve(const Eigen::VectorXd& x0, Eigen::VectorX
   CcdReport report;
   if (triangles_.rows() == 0) return report;
   const double target = separation_ / h;
-  for (int pass = 0; pass < passes_; ++pass) {
+  bool clean = false;  // the last detection found nothing: the fail-safe needs no second one
+  for (int pass = 0; pass < passes_ && !clean; ++pass) {
     const auto found = detect(x0, x0 + h * v);
-    if (found.empty()) break;
+    clean = found.empty();
     report.collisions += static_cast<int>(found.size());
     for (const auto& c : found) apply_impulse(c, v, target, inverse_mass);
   }
+  if (clean && ends_admissibly(vertex_count_, x0, v, h, inverse_mass, admissible)) return report;
   // Fail-safe: merge whatever still collides (or ends inadmissibly) into zones.
   ImpactZones zones(vertex_count_);
   std::vector<std::uint8_t> in_zone(static_cast<size_t>(vertex_count_), 0);
