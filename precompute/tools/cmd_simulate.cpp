@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -26,11 +27,13 @@ struct SimulateOptions {
 void print_contact(const OrbitStore& store, const Scene& scene) {
   const double close = 2 * scene.model.thickness;
   const ContactSummary c = summarize_contact(store.positions, scene.model.surface, close);
+  const std::string closest =
+      std::isfinite(c.closest) ? fmt::format(", closest {:.2f} mm", 1e3 * c.closest) : std::string();
   fmt::print(
       "contact: {} of {} frames with intersecting triangle pairs (worst {}); {} frames ({:.0f} %) with "
-      "non-neighbour vertices closer than {:.1f} mm (2x thickness), closest {:.2f} mm\n",
+      "non-neighbour vertices closer than {:.1f} mm (2x thickness){}\n",
       c.frames_intersecting, c.frames, c.worst_intersecting, c.frames_close,
-      100.0 * c.frames_close / std::max(1, c.frames), 1e3 * close, 1e3 * c.closest);
+      100.0 * c.frames_close / std::max(1, c.frames), 1e3 * close, closest);
 }
 
 void run_simulate(const SimulateOptions& o) {

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <unordered_map>
 #include <utility>
@@ -144,7 +145,7 @@ double closest_non_neighbours(const Eigen::VectorXd& x, const std::set<std::pair
     boxes.emplace_back(point(x, v).array() - 0.5 * close, point(x, v).array() + 0.5 * close);
   }
   const BoxHash hash(boxes);
-  double closest = 1e300;
+  double closest = std::numeric_limits<double>::infinity();
   for (int v = 0; v < vertices; ++v) {
     for (int u : hash.overlapping(boxes[static_cast<size_t>(v)])) {
       if (u <= v || neighbours.count({v, u})) continue;
@@ -164,7 +165,7 @@ ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::Matrix
       for (int b = 0; b < 3; ++b) neighbours.insert({triangles(f, a), triangles(f, b)});
   ContactSummary s;
   s.frames = static_cast<int>(positions.rows());
-  s.closest = 1e300;
+  s.closest = std::numeric_limits<double>::infinity();
   const int vertices = triangles.size() ? triangles.maxCoeff() + 1 : 0;
   for (Eigen::Index f = 0; f < positions.rows(); ++f) {
     const Eigen::VectorXd x = positions.row(f).cast<double>().transpose();

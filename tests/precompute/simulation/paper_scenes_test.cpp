@@ -42,6 +42,24 @@ TEST(PaperScenes, PaperScaleClothHasThePapersSizeAndStartsInContactRange) {
   EXPECT_GT(c.closest, scene.model.thickness);
 }
 
+// CHOLMOD's supernodal LL^T against Eigen's simplicial LDL^T: two factorizations
+// of the same system, so the same frames up to rounding.
+TEST(PaperScenes, SupernodalSolverFollowsTheSimplicialOne) {
+  Scene scene = load_scene_file(kScenes / "tiny/cloth_door.toml");
+  const auto frames = [&scene](LinearSolver solver) {
+    scene.simulation.linear_solver = solver;
+    auto sim = make_simulator(scene);
+    const auto& open = scene.palette.at(static_cast<size_t>(scene.palette_index("open")));
+    sim->impulse(open.alpha_impulse);
+    for (int i = 0; i < 25; ++i) sim->step(open.alpha_forcing);
+    return sim->state().x;
+  };
+  const Eigen::VectorXd simplicial = frames(LinearSolver::simplicial);
+  const Eigen::VectorXd supernodal = frames(LinearSolver::supernodal);
+  EXPECT_GT((simplicial - scene.model.rest).cwiseAbs().maxCoeff(), 1e-3);  // the cloth moved
+  EXPECT_LT((supernodal - simplicial).cwiseAbs().maxCoeff(), 1e-7);
+}
+
 TEST(PaperScenes, PlantLeavesAreWeldedToTheStem) {
   const Scene s = load_scene_file(kScenes / "tiny/plant_pot.toml");
   ASSERT_EQ(s.bodies.size(), 3u);

@@ -130,6 +130,14 @@ TEST(SceneErrors, NaNValue) {
             ": field 'palette[0].alpha_forcing': expected an array of 3 finite numbers, got array of 3");
 }
 
+TEST(SceneErrors, UnknownLinearSolver) {
+  const std::string message =
+      rejection("solver", edited(kValid, "frame_dt = 0.02", "frame_dt = 0.02\nlinear_solver = \"dense\""));
+  EXPECT_NE(message.find("'simulation.linear_solver': expected \"simplicial\" or \"supernodal\""),
+            std::string::npos)
+      << message;
+}
+
 TEST(SceneErrors, BadAlbedoAndProps) {
   EXPECT_EQ(rejection("albedo", edited(kValid, "density = 0.2", "density = 0.2\nalbedo = [0.5, 1.5, 0.5]")),
             ": field 'body[0].albedo': expected [r, g, b] with each in [0, 1], got array of 3");

@@ -2,9 +2,12 @@
 
 #include "phasecast/precompute/sampling/orbit_store.h"
 #include "phasecast/precompute/simulation/obj_mesh.h"
+#include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
 
 #include <gtest/gtest.h>
+
+#include <fmt/format.h>
 
 #include <fstream>
 
@@ -28,6 +31,15 @@ TEST(SimulateCli, WritesOrbitStoreAndObjFrames) {
   const ObjMesh last = read_obj(dir / "frames/frame_00059.obj");
   EXPECT_EQ(last.vertices.rows(), s.vertices() + 8);  // cloth + door board
   EXPECT_FALSE(std::filesystem::exists(dir / "frames/frame_00060.obj"));
+  // The self-contact line, its counts against a second read of the store.
+  const Eigen::MatrixXi triangles = s.triangles.cast<int>();
+  int intersecting = 0;
+  for (int f = 0; f < s.frames(); ++f)
+    intersecting += count_intersecting_pairs(s.positions.row(f).cast<double>().transpose(), triangles) > 0;
+  EXPECT_NE(
+      r.out.find(fmt::format("contact: {} of 60 frames with intersecting triangle pairs", intersecting)),
+      std::string::npos)
+      << r.out;
 }
 
 TEST(SimulateCli, HelpListsTheSubcommand) {

@@ -40,7 +40,7 @@ struct ContactSummary {
   int frames_intersecting = 0;  // frames with an intersecting triangle pair
   int worst_intersecting = 0;   // most intersecting pairs in one frame
   int frames_close = 0;         // frames with a close non-neighbour pair
-  double closest = 0;           // smallest non-neighbour vertex distance over all frames, m
+  double closest = 0;           // smallest of those distances over all frames, m (infinite: none)
 };
 ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::MatrixXi& triangles,
                                  double close_distance);
