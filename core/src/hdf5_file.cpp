@@ -148,8 +148,10 @@ File File::create(const std::filesystem::path& path) {
   // file's structure is detected on read; h5py and HDF5 >= 1.8 read them.
   Handle fapl(check(H5Pcreate(H5P_FILE_ACCESS), "cannot create file access list"), H5Pclose);
   check(H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_LATEST), "cannot set format bounds");
+  // The root group's header is made here, not by ensure_parent_groups: untimed too.
+  Handle fcpl = untimed(H5P_FILE_CREATE);
   return File(
-      Handle(check(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), "cannot create the file"),
+      Handle(check(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get()), "cannot create the file"),
              H5Fclose));
 }
 
@@ -448,7 +450,8 @@ void File::write_strings(const std::string& name, const std::vector<std::string>
   Handle type = string_type(true);
   const hsize_t n = values.size();
   Handle space(check(H5Screate_simple(1, &n, nullptr), "cannot create dataspace"), H5Sclose);
-  Handle ds(check(H5Dcreate2(file_.get(), name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT,
+  Handle dcpl = untimed(H5P_DATASET_CREATE);
+  Handle ds(check(H5Dcreate2(file_.get(), name.c_str(), type.get(), space.get(), H5P_DEFAULT, dcpl.get(),
                              H5P_DEFAULT),
                   "cannot create dataset " + name),
             H5Dclose);
