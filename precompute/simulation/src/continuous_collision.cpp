@@ -34,7 +34,8 @@ std::array<double, 4> coplanarity_cubic(const Points& s, const Points& e) {
 }
 
 // Times in [0, 1] worth a proximity test, ascending: the cubic's roots (by
-// bisection on its monotone pieces) and its interior extrema (near-tangency).
+// bisection on its monotone pieces), its interior extrema (near-tangency) and
+// the end of the step.
 std::vector<double> coplanar_times(const std::array<double, 4>& c) {
   const auto f = [&c](double t) { return ((c[3] * t + c[2]) * t + c[1]) * t + c[0]; };
   const double scale = std::abs(c[0]) + std::abs(c[1]) + std::abs(c[2]) + std::abs(c[3]);
@@ -70,7 +71,9 @@ std::vector<double> coplanar_times(const std::array<double, 4>& c) {
     }
     times.push_back(hi);
   }
-  if (f(1.0) == 0) times.push_back(1.0);
+  // The end is always tested: obstacle clipping puts two layers pressed onto a
+  // padded face exactly coplanar there, and rounding of f(1) can hide that root.
+  times.push_back(1.0);
   std::sort(times.begin(), times.end());
   return times;
 }
@@ -193,8 +196,10 @@ std::vector<ContinuousCollision::Collision> ContinuousCollision::detect(const Ei
     tri_boxes.push_back(swept(x0, x1, {triangles_(f, 0), triangles_(f, 1), triangles_(f, 2)}));
   for (const auto& e : edges_) edge_boxes.push_back(swept(x0, x1, {e[0], e[1]}));
   const BoxHash tri_hash(tri_boxes), edge_hash(edge_boxes);
+  std::vector<int> near;
   for (int p = 0; p < vertex_count_; ++p) {
-    for (int f : tri_hash.overlapping(swept(x0, x1, {p}))) {
+    tri_hash.overlapping(swept(x0, x1, {p}), near);
+    for (int f : near) {
       const std::array<int, 4> v = {p, triangles_(f, 0), triangles_(f, 1), triangles_(f, 2)};
       if (v[1] == p || v[2] == p || v[3] == p) continue;
       const Points s = corners(x0, v), e = corners(x1, v);
@@ -203,7 +208,8 @@ std::vector<ContinuousCollision::Collision> ContinuousCollision::detect(const Ei
     }
   }
   for (size_t i = 0; i < edges_.size(); ++i) {
-    for (int g : edge_hash.overlapping(edge_boxes[i])) {
+    edge_hash.overlapping(edge_boxes[i], near);
+    for (int g : near) {
       const auto& a = edges_[i];
       const auto& b = edges_[static_cast<size_t>(g)];
       if (static_cast<size_t>(g) <= i || a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1])

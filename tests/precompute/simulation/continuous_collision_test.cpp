@@ -55,6 +55,25 @@ TEST(ContinuousCollision, EdgeEdgeContactAndAMiss) {
       edge_edge_contact(beside_start, beside_end, 1e-9).has_value());  // falls beyond the first edge's end
 }
 
+// Recorded from the paper-size towel (a front-layer vertex and a back-layer
+// triangle, both clipped onto the door's padded face z = 4 mm): the pair ends
+// exactly coplanar and touching, and rounding made the coplanarity cubic's
+// value at the end the sign of its start, so no root was bracketed and the
+// vertex was left lying in the triangle (an intersecting pair in every later frame).
+TEST(ContinuousCollision, ContactExactlyAtTheEndOfTheStepIsFound) {
+  const Points start = {Vector3d(0.38176286705466222, 1.5028187074046977, 0.0057328543666030967),
+                        Vector3d(0.36722424169573625, 1.5060747391556053, 0.004),
+                        Vector3d(0.38238914770454135, 1.5061742711912678, 0.004),
+                        Vector3d(0.3824090851912566, 1.4920154329783042, 0.004)};
+  const Points end = {Vector3d(0.38175086263551611, 1.5023849421579816, 0.004),
+                      Vector3d(0.36754671792592208, 1.5072372393753366, 0.004),
+                      Vector3d(0.3824643487747042, 1.5071462009234999, 0.004),
+                      Vector3d(0.38214841787422038, 1.4931459767764561, 0.004)};
+  const auto t = vertex_triangle_contact(start, end, 1e-6);
+  ASSERT_TRUE(t.has_value());
+  EXPECT_NEAR(*t, 1.0, 1e-9);
+}
+
 // Two triangles, the second thrown through the first within one step.
 struct Throw {
   Eigen::MatrixXi triangles{{0, 1, 2}, {3, 4, 5}};
