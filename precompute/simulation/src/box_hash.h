@@ -1,14 +1,17 @@
 #pragma once
 // Uniform grid hash over axis-aligned boxes (the broad phase of contact): the
-// cell size is the mean box extent, so each box touches few cells. Private to
-// the simulation section.
+// cell size is the mean box extent, so each box touches few cells. The cells'
+// box lists live in one flat array (counted, then filled) behind an
+// open-addressing table: a paper-size cloth builds several of these per
+// substep, and a map of vectors spent more time allocating than testing.
+// Private to the simulation section.
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace phasecast::precompute {
@@ -19,30 +22,68 @@ class BoxHash {
     double extent = 1e-9;
     for (const auto& b : boxes) extent += b.sizes().maxCoeff() / static_cast<double>(boxes.size());
     cell_ = extent;
-    for (size_t i = 0; i < boxes.size(); ++i) {
-      visit(boxes[i], [&](std::int64_t key) { cells_[key].push_back(static_cast<int>(i)); });
-    }
+    size_t entries = 0;
+    for (const auto& b : boxes) visit(b, [&](std::int64_t) { ++entries; });
+    size_t slots = 16;
+    while (slots < 2 * entries) slots *= 2;
+    keys_.assign(slots, kEmpty);
+    first_.assign(slots + 1, 0);
+    // Count each cell's boxes, turn counts into offsets, then fill in box order
+    // (so every cell lists its boxes ascending).
+    for (const auto& b : boxes) visit(b, [&](std::int64_t key) { ++first_[claim(key)]; });
+    size_t offset = 0;
+    for (size_t s = 0; s < slots; ++s) offset += std::exchange(first_[s], offset);
+    first_[slots] = offset;
+    members_.resize(entries);
+    std::vector<size_t> next(first_.begin(), first_.end() - 1);
+    for (size_t i = 0; i < boxes.size(); ++i)
+      visit(boxes[i], [&](std::int64_t key) { members_[next[find(key)]++] = static_cast<int>(i); });
   }
 
   // Indices of boxes overlapping `query`, sorted and unique (deterministic).
   std::vector<int> overlapping(const Eigen::AlignedBox3d& query) const {
     std::vector<int> out;
+    overlapping(query, out);
+    return out;
+  }
+  // The same into `out` (cleared first), for callers that query in a loop.
+  void overlapping(const Eigen::AlignedBox3d& query, std::vector<int>& out) const {
+    out.clear();
     visit(query, [&](std::int64_t key) {
-      const auto it = cells_.find(key);
-      if (it == cells_.end()) return;
-      for (int i : it->second) {
+      const size_t s = find(key);
+      if (s == kMissing) return;
+      for (size_t k = first_[s]; k < first_[s + 1]; ++k) {
+        const int i = members_[k];
         if (boxes_[static_cast<size_t>(i)].intersects(query)) out.push_back(i);
       }
     });
     std::sort(out.begin(), out.end());
     out.erase(std::unique(out.begin(), out.end()), out.end());
-    return out;
   }
 
  private:
+  static constexpr std::int64_t kEmpty = INT64_MIN;
+  static constexpr size_t kMissing = SIZE_MAX;
+
   // Spatial hash of integer cells; key from the three cell coordinates.
   static std::int64_t cell_key(std::int64_t i, std::int64_t j, std::int64_t k) {
     return (i * 73856093) ^ (j * 19349663) ^ (k * 83492791);
+  }
+  size_t home(std::int64_t key) const {
+    return static_cast<size_t>(static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ull) & (keys_.size() - 1);
+  }
+  // The slot of `key`, taken if new (linear probing; the table is at most half full).
+  size_t claim(std::int64_t key) {
+    size_t s = home(key);
+    while (keys_[s] != kEmpty && keys_[s] != key) s = (s + 1) & (keys_.size() - 1);
+    keys_[s] = key;
+    return s;
+  }
+  size_t find(std::int64_t key) const {
+    for (size_t s = home(key);; s = (s + 1) & (keys_.size() - 1)) {
+      if (keys_[s] == key) return s;
+      if (keys_[s] == kEmpty) return kMissing;
+    }
   }
   template <class F>
   void visit(const Eigen::AlignedBox3d& b, F&& f) const {
@@ -51,9 +92,12 @@ class BoxHash {
       for (auto j = index(b.min().y()); j <= index(b.max().y()); ++j)
         for (auto k = index(b.min().z()); k <= index(b.max().z()); ++k) f(cell_key(i, j, k));
   }
+
   const std::vector<Eigen::AlignedBox3d>& boxes_;
   double cell_ = 1;
-  std::unordered_map<std::int64_t, std::vector<int>> cells_;
+  std::vector<std::int64_t> keys_;  // open-addressing table of cell keys
+  std::vector<size_t> first_;       // per slot: its boxes are members_[first_[s], first_[s + 1])
+  std::vector<int> members_;
 };
 
 }  // namespace phasecast::precompute

@@ -10,6 +10,8 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
+#include <dlfcn.h>
+
 #include <algorithm>
 #include <cmath>
 #include <utility>
@@ -35,6 +37,19 @@ Vector3d to_vector3(const VectorXd& alpha, int expected, const char* what) {
   return alpha.head<3>();
 }
 
+// Debian's CHOLMOD opens OpenMP regions of a fixed 4 threads inside every large
+// supernode. Beside our own threads on a 2-core machine they spent half of a
+// paper-size cloth frame waking and parking threads (perf: libgomp and futex
+// 49 %), so the factorization runs serial: the OpenMP limit of active levels is
+// 0 in the calling thread (a per-thread setting). Looked up at run time because
+// libgomp is there only when CHOLMOD brought it; the numbers do not depend on it.
+void serial_openmp_in_this_thread() {
+  using SetLevels = void (*)(int);
+  static const auto set_levels =
+      reinterpret_cast<SetLevels>(::dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"));
+  if (set_levels) set_levels(0);
+}
+
 // The implicit step's sparse Cholesky (settings.linear_solver), its symbolic
 // analysis done once: the system's pattern never changes.
 class StepFactorization {
@@ -44,6 +59,7 @@ class StepFactorization {
 
   void analyze(const Matrix& A) {
     if (kind_ == LinearSolver::supernodal) {
+      serial_openmp_in_this_thread();
       supernodal_.analyzePattern(A);
     } else {
       simplicial_.analyzePattern(A);
@@ -51,6 +67,7 @@ class StepFactorization {
   }
   bool factorize(const Matrix& A) {
     if (kind_ == LinearSolver::supernodal) {
+      serial_openmp_in_this_thread();
       supernodal_.factorize(A);
       return supernodal_.info() == Eigen::Success;
     }

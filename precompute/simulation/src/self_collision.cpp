@@ -207,14 +207,17 @@ SelfCollision::Pairs SelfCollision::candidates(const Eigen::VectorXd& x0, const 
   }
   for (const auto& e : edges_) edge_boxes.push_back(swept_box(x0, x1, {e[0], e[1]}, thickness_));
   const BoxHash tri_hash(tri_boxes), edge_hash(edge_boxes);
+  std::vector<int> near;
   for (int v = 0; v < vertex_count_; ++v) {
-    for (int f : tri_hash.overlapping(swept_box(x0, x1, {v}, 0.0))) {
+    tri_hash.overlapping(swept_box(x0, x1, {v}, 0.0), near);
+    for (int f : near) {
       if (triangles_(f, 0) != v && triangles_(f, 1) != v && triangles_(f, 2) != v)
         pairs.vertex_triangle.push_back({v, f});
     }
   }
   for (size_t e = 0; e < edges_.size(); ++e) {
-    for (int g : edge_hash.overlapping(edge_boxes[e])) {
+    edge_hash.overlapping(edge_boxes[e], near);
+    for (int g : near) {
       const auto& a = edges_[e];
       const auto& b = edges_[static_cast<size_t>(g)];
       if (static_cast<size_t>(g) > e && a[0] != b[0] && a[0] != b[1] && a[1] != b[0] && a[1] != b[1]) {
