@@ -1,6 +1,7 @@
 // phasecast-precompute simulate: run a scene through a schedule of palette entries.
 
 #include "commands.h"
+#include "contact_report.h"
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/sampling/obj_frames.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
@@ -23,19 +24,6 @@ struct SimulateOptions {
   std::string obj_dir;
 };
 
-// The self-contact the run went through, against the guarantee (docs/simulation.md).
-void print_contact(const OrbitStore& store, const Scene& scene) {
-  const double close = 2 * scene.model.thickness;
-  const ContactSummary c = summarize_contact(store.positions, scene.model.surface, close);
-  const std::string closest =
-      std::isfinite(c.closest) ? fmt::format(", closest {:.2f} mm", 1e3 * c.closest) : std::string();
-  fmt::print(
-      "contact: {} of {} frames with intersecting triangle pairs (worst {}); {} frames ({:.0f} %) with "
-      "non-neighbour vertices closer than {:.1f} mm (2x thickness){}\n",
-      c.frames_intersecting, c.frames, c.worst_intersecting, c.frames_close,
-      100.0 * c.frames_close / std::max(1, c.frames), 1e3 * close, closest);
-}
-
 void run_simulate(const SimulateOptions& o) {
   using namespace phasecast::precompute;
   const Scene scene = load_scene_file(o.scene);
@@ -48,7 +36,10 @@ void run_simulate(const SimulateOptions& o) {
   bar.finish();
   write_orbit_store(store, o.output);
   fmt::print("wrote {} ({} frames, {} IRFs)\n", o.output, store.frames(), store.irf_start.size());
-  if (scene.model.self_collision) print_contact(store, scene);
+  if (scene.model.self_collision) {
+    const double close = close_distance(scene);
+    fmt::print("{}\n", contact_line(summarize_contact(store.positions, scene.model.surface, close), close));
+  }
   if (!o.obj_dir.empty()) {
     phasecast::core::ProgressBar obj_bar("obj frames");
     const int n = write_obj_frames(store, scene.model.obstacles, o.obj_dir,

@@ -1,5 +1,7 @@
 #include "pipeline.h"
 
+#include "contact_report.h"
+
 #include "phasecast/core/package.h"
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/distributed/ranks.h"
@@ -178,8 +180,11 @@ void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::f
     throw;
   }
   display->finish();
-  if (ranks.rank() == 0)
+  if (ranks.rank() == 0) {
     fmt::print("wrote {} ({} IRFs, {} state nodes)\n", orbits.string(), merged.irfs, merged.frames);
+    if (scene.model.self_collision)
+      fmt::print("{}\n", contact_line(store_contact(scene, orbits), close_distance(scene)));
+  }
   ranks.barrier();  // the store is complete before any rank reads it
 }
 

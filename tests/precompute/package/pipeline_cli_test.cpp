@@ -4,10 +4,13 @@
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
+#include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
 #include "scene_files.h"
 
 #include <gtest/gtest.h>
+
+#include <fmt/format.h>
 
 #include <sys/wait.h>
 #include <chrono>
@@ -127,6 +130,18 @@ TEST(PipelineCli, SampleThenReduceMatchesRun) {
   const auto s = run_tool("phasecast-precompute", {"sample", scene, "-o", orbits, "--chains", "2",
                                                    "--irfs-per-chain", "3", "--seed", "4"});
   ASSERT_EQ(s.exit_code, 0) << s.err;
+  // The self-contact of every sampled frame, its count against a second read of the store.
+  const precompute::OrbitStore store = precompute::read_orbit_store(orbits);
+  const Eigen::MatrixXi triangles = store.triangles.cast<int>();
+  int intersecting = 0;
+  for (int f = 0; f < store.frames(); ++f) {
+    intersecting +=
+        precompute::count_intersecting_pairs(store.positions.row(f).cast<double>().transpose(), triangles) > 0;
+  }
+  EXPECT_NE(s.out.find(fmt::format("contact: {} of {} frames with intersecting triangle pairs", intersecting,
+                                   store.frames())),
+            std::string::npos)
+      << s.out;
   const auto r =
       run_tool("phasecast-precompute", {"reduce", scene, orbits, "-o", staged, "--max-rank", "20"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
