@@ -9,11 +9,15 @@ render client playing the first 8 IRFs of each package from disk (OSMesa, render
 frames/s): without /appearance ("Defo") and with it
 ("Defo + Trnsfr").
 
-  bench/paper_tables.py [--bin build/bin] [--work DIR] [--quick] [--reuse] [--size 512x512] [SCENE ...]
+  bench/paper_tables.py [--bin build/bin] [--work DIR] [--quick | --paper] [--reuse] [--size 512x512] [SCENE ...]
 
 --quick samples 2 chains x 6 IRFs (the demo preset) instead of
-phasecast-precompute's defaults. Prints a markdown table and writes
-DIR/paper_tables.json.
+phasecast-precompute's defaults. --paper runs the paper-size scenes of
+scenes/paper/ (skipping scenes that have none yet) with the paper's #IRF
+(Table 1) and its r_u, and adds V, DOF, both displacement errors at the
+paper's r_u (its relErr, sigma_{r+1}/sigma_1 of §2.3.1, and our Frobenius
+figure), and the peak memory of each stage. Prints a markdown table and
+writes DIR/paper_tables.json.
 """
 import argparse
 import json
@@ -31,11 +35,19 @@ PAPER = {  # Table 1 (F, V, r_u, relErr_u, N_a, r_a, relErr_a, N, #IRF) and Tabl
 }
 
 
+# Chains x IRFs per chain giving the paper's #IRF (Table 1: 260, 171, 150).
+PAPER_SAMPLING = {"toy_dashboard": (4, 65), "cloth_door": (3, 57), "plant_pot": (3, 50)}
+
+
 def timed(args, log):
+    """Wall seconds and peak resident memory (MiB) of one child run."""
     start = time.monotonic()
     with open(log, "w") as f:
-        subprocess.run(args, check=True, stdout=f, stderr=subprocess.STDOUT)
-    return time.monotonic() - start
+        child = subprocess.Popen(args, stdout=f, stderr=subprocess.STDOUT)
+        _, status, usage = os.wait4(child.pid, 0)
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError(f"{' '.join(args)} failed; see {log}")
+    return time.monotonic() - start, usage.ru_maxrss / 1024.0
 
 
 def inspect(bin_dir, package):
@@ -64,26 +76,34 @@ def measure(scene, args):
     work = os.path.join(args.work, scene)
     os.makedirs(work, exist_ok=True)
     tool = os.path.join(args.bin, "phasecast-precompute")
-    scene_file = os.path.join(args.source, "scenes", scene + ".toml")
+    scene_file = os.path.join(args.source, "scenes", "paper" if args.paper else "", scene + ".toml")
     sampling = ["--chains", "2", "--irfs-per-chain", "6"] if args.quick else []
+    if args.paper:
+        chains, per_chain = PAPER_SAMPLING[scene]
+        sampling = ["--chains", str(chains), "--irfs-per-chain", str(per_chain), "--rank", str(PAPER[scene][3])]
     checkpoints = os.path.join(work, "checkpoints")
     defo, full = os.path.join(work, "defo.h5"), os.path.join(work, "full.h5")
     times = os.path.join(work, "times.json")
     if args.reuse and os.path.exists(times):
-        t_dyn, t_transfer = json.load(open(times))
+        (t_dyn, mem_dyn), (t_transfer, mem_transfer) = json.load(open(times))
     else:
         print(f"paper_tables: {scene}: dynamics...", file=sys.stderr, flush=True)
-        t_dyn = timed([tool, "run", scene_file, "-o", defo, "--work-dir", checkpoints, "--no-appearance", *sampling],
-                      os.path.join(work, "dynamics.log"))
+        t_dyn, mem_dyn = timed([tool, "run", scene_file, "-o", defo, "--work-dir", checkpoints, "--no-appearance",
+                                *sampling], os.path.join(work, "dynamics.log"))
         print(f"paper_tables: {scene}: transfer...", file=sys.stderr, flush=True)
-        t_transfer = timed([tool, "run", scene_file, "-o", full, "--work-dir", checkpoints, "--resume", *sampling],
-                           os.path.join(work, "transfer.log"))
-        json.dump([t_dyn, t_transfer], open(times, "w"))
+        t_transfer, mem_transfer = timed([tool, "run", scene_file, "-o", full, "--work-dir", checkpoints, "--resume",
+                                          *sampling], os.path.join(work, "transfer.log"))
+        json.dump([[t_dyn, mem_dyn], [t_transfer, mem_transfer]], open(times, "w"))
     s = inspect(args.bin, full)
+    sigma = s["singular_values_u"]
+    paper_r = PAPER[scene][3]
     print(f"paper_tables: {scene}: frame rates...", file=sys.stderr, flush=True)
     irfs = min(s["n_irf"], 8)
     return {
-        "scene": scene, "F": s["F"], "S": s["S"], "r_u": s["r_u"], "rel_error_u": s["rel_error_u"],
+        "scene": scene, "F": s["F"], "S": s["S"], "V": s["deformable_points"], "r_u": s["r_u"],
+        "rel_error_u": s["rel_error_u"],
+        "sigma_ratio_at_paper_r_u": sigma[paper_r] / sigma[0] if len(sigma) > paper_r and sigma[0] > 0 else None,
+        "peak_mib_dynamics": mem_dyn, "peak_mib_transfer": mem_transfer,
         "N_a": s.get("N_a", 0), "r_a": s["r_a"], "rel_error_a": s["rel_error_a"], "N": s["N"], "n_irf": s["n_irf"],
         "dynamics_s": t_dyn, "transfer_s": t_transfer,
         "fps_defo": render_fps(args.bin, defo, args.size, irfs),
@@ -110,6 +130,14 @@ def table(rows, args):
               f"| {p[10]} | {p[11]} | {p[12]} | {p[13]} | |")
     print(f"\nfps: OSMesa llvmpipe, {args.size}, render-only, the first 8 IRFs played from the package; "
           f"{'quick sampling (2 x 6 IRFs)' if args.quick else 'phasecast-precompute defaults'}.")
+    if args.paper:
+        print("\n| scene | V (deformable scene points) | relErr = sigma_{r+1}/sigma_1 at the paper's r_u (§2.3.1) "
+              "| Frobenius error at r_u | peak memory: dynamics / transfer |")
+        print("|---|---|---|---|---|")
+        for r in rows:
+            ratio = r["sigma_ratio_at_paper_r_u"]
+            print(f"| {r['scene']} | {r['V']} | {pct(ratio) if ratio is not None else 'n/a'} "
+                  f"| {pct(r['rel_error_u'])} | {r['peak_mib_dynamics']:.0f} / {r['peak_mib_transfer']:.0f} MiB |")
 
 
 def main():
@@ -117,17 +145,29 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenes", nargs="*", metavar="SCENE", help=f"scenes among {SCENES} (default: all)")
     parser.add_argument("--bin", default=os.path.join(here, "..", "build", "bin"))
-    parser.add_argument("--work", default=os.path.join(here, "..", "out", "paper_tables"))
+    parser.add_argument("--work", help="working folder (default: out/paper_tables, out/paper_tables_paper with --paper)")
     parser.add_argument("--quick", action="store_true", help="2 chains x 6 IRFs instead of the defaults")
+    parser.add_argument("--paper", action="store_true",
+                        help="the paper-size scenes of scenes/paper/ at the paper's #IRF and r_u")
     parser.add_argument("--size", default="512x512", help="render size for the frame rates")
     parser.add_argument("--reuse", action="store_true",
                         help="keep the packages and times of an earlier run in --work; measure the frame rates again")
     args = parser.parse_args()
     args.source = os.path.join(here, "..")
+    if args.work is None:
+        args.work = os.path.join(here, "..", "out", "paper_tables_paper" if args.paper else "paper_tables")
     unknown = [s for s in args.scenes if s not in SCENES]
     if unknown:
         parser.error(f"unknown scene {unknown[0]!r} (expected one of {', '.join(SCENES)})")
-    rows = [measure(scene, args) for scene in (args.scenes or SCENES)]
+    if args.quick and args.paper:
+        parser.error("--quick and --paper exclude each other")
+    chosen = args.scenes or SCENES
+    if args.paper:
+        missing = [s for s in chosen if not os.path.exists(os.path.join(args.source, "scenes", "paper", s + ".toml"))]
+        for s in missing:
+            print(f"paper_tables: {s}: no paper-size scene in scenes/paper/ yet, skipped", file=sys.stderr)
+        chosen = [s for s in chosen if s not in missing]
+    rows = [measure(scene, args) for scene in chosen]
     os.makedirs(args.work, exist_ok=True)
     with open(os.path.join(args.work, "paper_tables.json"), "w") as f:
         json.dump(rows, f, indent=1)

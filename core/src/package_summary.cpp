@@ -81,6 +81,11 @@ PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& fil
   s.clusters = p.appearance ? p.appearance->clusters() : 0;
   s.chosen_rank = rank > 0 ? rank : s.rank_u;
   s.error_u_at_rank = displacement_error_at_rank(p, s.chosen_rank);
+  const auto& sigma = p.reduction.singular_values;
+  s.singular_values_u.assign(sigma.data(), sigma.data() + sigma.size());
+  s.sigma_ratio_u_at_rank = s.chosen_rank >= 1 && s.chosen_rank < sigma.size() && sigma[0] > 0
+                                ? sigma[s.chosen_rank] / sigma[0]
+                                : std::nan("");
   s.error_a_at_rank = std::nan("");
   if (p.appearance && s.rank_a > 0 && s.rank_a <= p.appearance->rel_error.size()) {
     s.error_a_at_rank = p.appearance->rel_error[s.rank_a - 1];
@@ -108,7 +113,11 @@ std::string to_text(const PackageSummary& s) {
   for (size_t i = 0; i < s.palette.size(); ++i)
     entries.push_back(fmt::format("{}: {} ({} IRFs)", i, s.palette[i], s.irfs_per_entry[i]));
   line("palette      D = {}: {}", s.palette_entries, fmt::join(entries, ", "));
-  line("displacement r_u = {}, relative error at rank {} = {:.3g}%", s.rank_u, s.chosen_rank,
+  line("displacement r_u = {}, at rank {}: relative l2 error sigma_{{r+1}}/sigma_1 = {} (the paper's "
+       "relErr, §2.3.1), Frobenius error = {:.3g}%",
+       s.rank_u, s.chosen_rank,
+       std::isfinite(s.sigma_ratio_u_at_rank) ? fmt::format("{:.3g}%", 100 * s.sigma_ratio_u_at_rank)
+                                              : std::string("n/a (no sigma_{r+1} computed)"),
        100 * s.error_u_at_rank);
   if (s.rank_a > 0) {
     line("appearance   r_a = {}, N_a = {} clusters, truncation error at r_a = {:.3g}% (on the clusters)",
@@ -155,6 +164,8 @@ nlohmann::json to_json(const PackageSummary& s) {
       {"N_a", s.clusters},
       {"rank", s.chosen_rank},
       {"rel_error_u", number_or_null(s.error_u_at_rank)},
+      {"sigma_ratio_u", number_or_null(s.sigma_ratio_u_at_rank)},
+      {"singular_values_u", s.singular_values_u},
       {"rel_error_a", number_or_null(s.error_a_at_rank)},
       {"rel_error_a_curve", s.error_a_curve},
       {"paper_rank_a", s.paper_rank_a},

@@ -53,6 +53,10 @@ TEST_F(InspectCli, ValidPackageJson) {
   EXPECT_EQ(j["r_u"], 4);
   EXPECT_EQ(j["rank"], 2);
   EXPECT_NEAR(j["rel_error_u"].get<double>(), package_.reduction.rel_error[1], 1e-7);
+  // The paper's relErr (§2.3.1) at rank 2 is sigma_3 / sigma_1 of the package's curve.
+  const auto& sigma = package_.reduction.singular_values;
+  EXPECT_NEAR(j["sigma_ratio_u"].get<double>(), sigma[2] / sigma[0], 1e-7);
+  EXPECT_EQ(j["singular_values_u"].size(), static_cast<size_t>(sigma.size()));
   EXPECT_EQ(j["frame_state_bytes"], 4 * (4 + package_.rank_a() + 12));
   EXPECT_EQ(j["file_bytes"], std::filesystem::file_size(dir_ / "plate.h5"));
 }

@@ -24,7 +24,9 @@ struct PackageSummary {
   double dt = 0, duration_s = 0;             // N * dt
   int rank_u = 0, rank_a = 0, clusters = 0;  // r_u, r_a, N_a
   int chosen_rank = 0;                       // rank the error is reported at
-  double error_u_at_rank = 0;                // relative l2 (Fig. 12, blue)
+  double error_u_at_rank = 0;                // Frobenius: |X - X_r|_F / |X|_F (Fig. 12, blue)
+  double sigma_ratio_u_at_rank = 0;          // the paper's relErr (§2.3.1): sigma_{r+1} / sigma_1; NaN past the curve
+  std::vector<double> singular_values_u;     // every computed sigma of the displacements
   double error_a_at_rank = 0;                // at r_a (Fig. 12, red); NaN without appearance
   std::vector<double> error_a_curve;         // Fig. 12, red: relative error at rank 1..N_a
   int paper_rank_a = 0;                      // the paper's r_a for this scene (0: unknown)
