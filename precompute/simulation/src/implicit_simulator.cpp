@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <utility>
 #include <vector>
 
@@ -50,6 +51,15 @@ void serial_openmp_in_this_thread() {
   if (set_levels) set_levels(0);
 }
 
+// CHOLMOD's supernodal factorization and solve call BLAS, and Debian's serial
+// OpenBLAS is not safe to call from two threads at once (it is built without
+// USE_LOCKING): two sampled chains factorizing together got garbage ("not
+// positive definite" at the first step). Concurrent chains take turns here.
+std::mutex& blas_turn() {
+  static std::mutex m;
+  return m;
+}
+
 // The implicit step's sparse Cholesky (settings.linear_solver), its symbolic
 // analysis done once: the system's pattern never changes.
 class StepFactorization {
@@ -67,6 +77,7 @@ class StepFactorization {
   }
   bool factorize(const Matrix& A) {
     if (kind_ == LinearSolver::supernodal) {
+      const std::lock_guard turn(blas_turn());
       serial_openmp_in_this_thread();
       supernodal_.factorize(A);
       return supernodal_.info() == Eigen::Success;
@@ -75,8 +86,11 @@ class StepFactorization {
     return simplicial_.info() == Eigen::Success;
   }
   VectorXd solve(const VectorXd& b) {
-    return kind_ == LinearSolver::supernodal ? VectorXd(supernodal_.solve(b))
-                                             : VectorXd(simplicial_.solve(b));
+    if (kind_ == LinearSolver::supernodal) {
+      const std::lock_guard turn(blas_turn());
+      return supernodal_.solve(b);
+    }
+    return simplicial_.solve(b);
   }
 
  private:
