@@ -28,7 +28,8 @@ void run_simulate(const SimulateOptions& o) {
   using namespace phasecast::precompute;
   const Scene scene = load_scene_file(o.scene);
   const auto schedule = parse_schedule(o.schedule, scene);
-  fmt::print(stderr, "{}: {} vertices, {} palette entries, {} IRFs\n", scene.name, scene.model.vertices(),
+  fmt::print(stderr, "{}: {} vertices, {} surface triangles, {} tetrahedra, {} palette entries, {} IRFs\n",
+             scene.name, scene.model.vertices(), scene.model.surface.rows(), scene.model.tets.size(),
              scene.palette.size(), schedule.size());
   phasecast::core::ProgressBar bar("simulate");
   const OrbitStore store =
