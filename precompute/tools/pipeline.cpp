@@ -216,7 +216,7 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
     stage.split.owns = [&ranks](long j) { return ranks.owns(static_cast<int>(j)); };
     stage.split.share = [&ranks](MatrixXfR& fields) { ranks.share_rows(fields); };
     const auto report = precompute::run_appearance_stage(
-        p, precompute::scene_point_vertices(scene), A,
+        p, precompute::scene_point_embedding(scene), A,
         precompute::package_node_frames(index.irfs, built.filter.kept), stage,
         [&transfer_bar](const char*, long done, long total) {
           transfer_bar.update(static_cast<int>(done), static_cast<int>(total));

@@ -39,31 +39,27 @@ std::vector<std::int64_t> package_node_frames(const IrfList& irfs, const std::ve
   return frames;
 }
 
-MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const std::vector<int>& point_vertex,
+MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const VertexEmbedding& embedding,
                                 const Eigen::Ref<const Eigen::RowVectorXf>& frame) {
-  if (static_cast<Eigen::Index>(point_vertex.size()) != mesh.points()) {
+  if (embedding.rows() != mesh.points() || 3 * embedding.cols() != frame.size()) {
     throw std::invalid_argument(
-        fmt::format("appearance: point-to-vertex map has {} entries, mesh has {} points", point_vertex.size(),
-                    mesh.points()));
+        fmt::format("appearance: embedding of {} points in {} vertices, but the mesh has {} points and a "
+                    "frame {} vertices",
+                    embedding.rows(), embedding.cols(), mesh.points(), frame.size() / 3));
   }
+  const MatrixXfR moved = embed_rows(embedding, frame.transpose());
   MatrixXfR x = mesh.rest_positions;
   for (Eigen::Index p = 0; p < x.rows(); ++p) {
-    const int v = point_vertex[static_cast<size_t>(p)];
-    if (v < 0 || !mesh.deformable[static_cast<size_t>(p)]) continue;
-    if (3 * static_cast<Eigen::Index>(v) + 2 >= frame.size()) {
-      throw std::invalid_argument(
-          fmt::format("appearance: scene point {} moves with vertex {}, but a frame has {} vertices", p, v,
-                      frame.size() / 3));
-    }
-    for (int k = 0; k < 3; ++k) x(p, k) = frame(3 * v + k);
+    if (!embeds(embedding, p) || !mesh.deformable[static_cast<size_t>(p)]) continue;
+    for (int k = 0; k < 3; ++k) x(p, k) = moved(3 * p + k, 0);
   }
   return x;
 }
 
-MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>& point_vertex,
+MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const VertexEmbedding& embedding,
                             const Eigen::Ref<const Eigen::RowVectorXf>& frame,
                             const TransferOptions& options) {
-  const MatrixXfR x = deformed_scene_points(mesh, point_vertex, frame);
+  const MatrixXfR x = deformed_scene_points(mesh, embedding, frame);
   const MatrixXfR n = core::vertex_normals(x, mesh.triangles);
   return compute_transfer(x, mesh.triangles, n, options);  // §4.1, on the unreduced mesh
 }
@@ -85,7 +81,7 @@ std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<
   return pool;
 }
 
-AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const std::vector<int>& point_vertex,
+AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const VertexEmbedding& embedding,
                                            const OrbitDisplacementSource& orbits,
                                            const std::vector<std::int64_t>& node_frames,
                                            const AppearanceStageOptions& o,
@@ -120,7 +116,7 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const std::v
     if (!o.split.owns(j)) continue;
     MatrixXfR frame;
     orbits.read_frames(node_frames[static_cast<size_t>(nodes[static_cast<size_t>(j)])], 1, frame);
-    const MatrixXfR T = transfer_at_frame(pkg.mesh, point_vertex, frame.row(0), transfer);
+    const MatrixXfR T = transfer_at_frame(pkg.mesh, embedding, frame.row(0), transfer);
     fields.row(j) = Eigen::Map<const Eigen::RowVectorXf>(T.data(), T.size());  // S x 48 row-major = 48S
     if (progress) progress("appearance transfer", ++done, own);
   }

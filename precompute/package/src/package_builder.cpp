@@ -7,6 +7,7 @@
 
 #include "phasecast/precompute/reduction/phase_portrait.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
+#include "phasecast/precompute/simulation/render_surface.h"
 
 #include "phasecast/core/hdf5_file.h"
 
@@ -80,23 +81,48 @@ void add_box(core::SceneMesh& m, const Eigen::Vector3d& lo, const Eigen::Vector3
     for (int side = 0; side < 2; ++side) add_box_face(m, lo, hi, axis, side, cell);
 }
 
-// Vertices that get a back-side copy, ascending: those of sheet triangles
-// (surface triangles with no vertex in a tetrahedron).
-std::vector<int> back_side_vertices(const DeformableModel& model) {
-  const auto V = static_cast<size_t>(model.vertices());
-  std::vector<std::uint8_t> in_tet(V, 0), sheet(V, 0);
-  for (const auto& t : model.tets)
-    for (int v : t.v) in_tet[static_cast<size_t>(v)] = 1;
-  for (Eigen::Index t = 0; t < model.surface.rows(); ++t) {
-    const bool thin = !in_tet[static_cast<size_t>(model.surface(t, 0))] &&
-                      !in_tet[static_cast<size_t>(model.surface(t, 1))] &&
-                      !in_tet[static_cast<size_t>(model.surface(t, 2))];
-    if (thin)
-      for (int k = 0; k < 3; ++k) sheet[static_cast<size_t>(model.surface(t, k))] = 1;
+// Surface points that get a back-side copy, ascending: those of sheet
+// triangles (no corner moved by a vertex of a tetrahedron).
+std::vector<int> back_side_points(const RenderSurface& surface) {
+  const auto P = static_cast<size_t>(surface.points());
+  std::vector<std::uint8_t> sheet(P, 0);
+  const auto solid = [&](Eigen::Index t, int k) {
+    return surface.solid[static_cast<size_t>(surface.triangles(t, k))];
+  };
+  for (Eigen::Index t = 0; t < surface.triangles.rows(); ++t) {
+    if (solid(t, 0) || solid(t, 1) || solid(t, 2)) continue;
+    for (int k = 0; k < 3; ++k) sheet[static_cast<size_t>(surface.triangles(t, k))] = 1;
   }
   std::vector<int> out;
-  for (size_t v = 0; v < V; ++v)
-    if (sheet[v]) out.push_back(static_cast<int>(v));
+  for (size_t p = 0; p < P; ++p)
+    if (sheet[p]) out.push_back(static_cast<int>(p));
+  return out;
+}
+
+// Scene points the props add, in obstacle order.
+Eigen::Index prop_points(const Scene& scene) {
+  Eigen::Index n = 0;
+  for (size_t i = 0; i < scene.model.obstacles.size(); ++i) {
+    const auto& o = scene.model.obstacles[i];
+    n += box_points(o.min, o.max, i < scene.props.size() ? scene.props[i].cell : 0);
+  }
+  return n;
+}
+
+// x-bar and U_u of the scene points from those of the simulated vertices:
+// W x-bar and W U_u (a back side shares its front's rows); static points
+// keep their rest position and zero rows. sigma and rel_error are those of
+// the simulated displacements the SVD saw.
+core::Reduction embedded_reduction(const core::SceneMesh& mesh, const VertexEmbedding& W,
+                                   const DisplacementBasis& basis) {
+  core::Reduction out;
+  const MatrixXfR mean = embed_rows(W, basis.mean_shape);
+  out.mean_shape = Eigen::Map<const VectorXf>(mesh.rest_positions.data(), 3 * mesh.points());
+  for (Eigen::Index p = 0; p < mesh.points(); ++p)
+    if (embeds(W, p)) out.mean_shape.segment(3 * p, 3) = mean.col(0).segment(3 * p, 3);
+  out.U_u = embed_rows(W, basis.U_u);
+  out.singular_values = basis.singular_values;
+  out.rel_error = basis.rel_error;
   return out;
 }
 
@@ -154,12 +180,13 @@ OrbitIndex read_orbit_index(const std::filesystem::path& path) {
 
 core::SceneMesh scene_mesh(const Scene& scene) {
   const auto& model = scene.model;
-  const Eigen::Index V = model.vertices();
+  const RenderSurface surface = render_surface(scene);
   core::SceneMesh m;
-  m.rest_positions = Eigen::Map<const RowMatrix<double>>(model.rest.data(), V, 3).cast<float>();
-  m.triangles = model.surface.cast<std::uint32_t>();
+  const MatrixXfR rest = embed_rows(surface.weights, model.rest.cast<float>());  // W X
+  m.rest_positions = Eigen::Map<const MatrixXfR>(rest.data(), surface.points(), 3);
+  m.triangles = surface.triangles.cast<std::uint32_t>();
   m.normals = core::vertex_normals(m.rest_positions, m.triangles);  // front side
-  core::add_back_side(m.rest_positions, m.normals, m.triangles, back_side_vertices(model));
+  core::add_back_side(m.rest_positions, m.normals, m.triangles, back_side_points(surface));
   m.deformable.assign(static_cast<size_t>(m.rest_positions.rows()), 1);
   for (size_t i = 0; i < model.obstacles.size(); ++i)
     add_box(m, model.obstacles[i].min, model.obstacles[i].max,
@@ -169,26 +196,32 @@ core::SceneMesh scene_mesh(const Scene& scene) {
   return m;
 }
 
-std::vector<int> scene_point_vertices(const Scene& scene) {
-  const int V = scene.model.vertices();
-  std::vector<int> out(static_cast<size_t>(V));
-  for (int v = 0; v < V; ++v) out[static_cast<size_t>(v)] = v;
-  const auto back = back_side_vertices(scene.model);
-  out.insert(out.end(), back.begin(), back.end());
-  out.resize(static_cast<size_t>(scene_mesh(scene).points()), -1);  // the props' points
-  return out;
+VertexEmbedding scene_point_embedding(const Scene& scene) {
+  const RenderSurface surface = render_surface(scene);
+  const auto back = back_side_points(surface);
+  const Eigen::Index P = surface.points(), B = static_cast<Eigen::Index>(back.size());
+  std::vector<Eigen::Triplet<double>> w;
+  for (Eigen::Index p = 0; p < P + B; ++p) {
+    const Eigen::Index front = p < P ? p : back[static_cast<size_t>(p - P)];
+    for (VertexEmbedding::InnerIterator it(surface.weights, front); it; ++it)
+      w.emplace_back(static_cast<int>(p), static_cast<int>(it.col()), it.value());
+  }
+  VertexEmbedding W(P + B + prop_points(scene), scene.model.vertices());  // the props' rows stay empty
+  W.setFromTriplets(w.begin(), w.end());
+  return W;
 }
 
 MatrixXfR scene_point_albedo(const Scene& scene) {
-  const auto point_vertex = scene_point_vertices(scene);
-  std::vector<Eigen::Vector3d> vertex_albedo(static_cast<size_t>(scene.model.vertices()), kDefaultAlbedo);
-  for (const auto& body : scene.bodies)
-    for (int v : body.vertices) vertex_albedo[static_cast<size_t>(v)] = body.albedo;
-  const auto S = static_cast<Eigen::Index>(point_vertex.size());
-  MatrixXfR rho(S, 3);
+  const RenderSurface surface = render_surface(scene);
+  const auto back = back_side_points(surface);
+  const Eigen::Index P = surface.points(), B = static_cast<Eigen::Index>(back.size());
+  MatrixXfR rho(P + B + prop_points(scene), 3);
   Eigen::Index p = 0;
-  for (; p < S && point_vertex[static_cast<size_t>(p)] >= 0; ++p)
-    rho.row(p) = vertex_albedo[static_cast<size_t>(point_vertex[static_cast<size_t>(p)])].cast<float>();
+  for (; p < P + B; ++p) {
+    const Eigen::Index front = p < P ? p : back[static_cast<size_t>(p - P)];
+    rho.row(p) =
+        scene.bodies[static_cast<size_t>(surface.body[static_cast<size_t>(front)])].albedo.cast<float>();
+  }
   // The props' points follow in obstacle order, each box's points in one block.
   for (size_t i = 0; i < scene.model.obstacles.size(); ++i) {
     const auto& o = scene.model.obstacles[i];
@@ -245,23 +278,8 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
   }
   const double beta = o.beta > 0 ? o.beta : default_beta(p.q_u, p.qdot_u);
   p.nearest_irf = nearest_irf_cache(p.q_u, p.qdot_u, beta, p.irf_start, p.irf_palette, rules.size());
-  // Mesh and reduction: static points keep their rest position and zero rows of U_u.
   pkg.mesh = scene_mesh(scene);
-  const Eigen::Index S = pkg.mesh.points(), M = basis.mean_shape.size();
-  pkg.reduction.mean_shape = Eigen::Map<const VectorXf>(pkg.mesh.rest_positions.data(), 3 * S);
-  pkg.reduction.mean_shape.head(M) = basis.mean_shape;
-  pkg.reduction.U_u = MatrixXfR::Zero(3 * S, r);
-  pkg.reduction.U_u.topRows(M) = basis.U_u;
-  // Back-side points share the mean shape and U_u rows of the vertex they copy.
-  const auto point_vertex = scene_point_vertices(scene);
-  for (Eigen::Index point = M / 3; point < S; ++point) {
-    const int v = point_vertex[static_cast<size_t>(point)];
-    if (v < 0) continue;
-    pkg.reduction.mean_shape.segment(3 * point, 3) = basis.mean_shape.segment(3 * v, 3);
-    pkg.reduction.U_u.middleRows(3 * point, 3) = basis.U_u.middleRows(3 * v, 3);
-  }
-  pkg.reduction.singular_values = basis.singular_values;
-  pkg.reduction.rel_error = basis.rel_error;
+  pkg.reduction = embedded_reduction(pkg.mesh, scene_point_embedding(scene), basis);
   // Palette.
   auto& pal = pkg.palette;
   auto arrays = palette_arrays(scene);

@@ -3,6 +3,7 @@
 #include "phasecast/precompute/simulation/obj_mesh.h"
 #include "phasecast/precompute/simulation/scene_fields.h"
 #include "phasecast/precompute/simulation/tet_mesh.h"
+#include "render_mesh.h"
 
 #include <fmt/format.h>
 
@@ -29,6 +30,8 @@ struct BodyGeometry {
   Eigen::MatrixX3i triangles;
   std::vector<std::array<int, 2>> segments;
   Eigen::MatrixX4i tets;
+  double scale = 1;  // a tetgen body's placement, shared by its render OBJ
+  Eigen::Vector3d translate = Eigen::Vector3d::Zero();
 };
 
 BodyGeometry grid_geometry(Fields grid) {
@@ -119,6 +122,8 @@ BodyGeometry tetgen_geometry(Fields tg, const std::filesystem::path& dir) {
   for (Eigen::Index i = 0; i < tm.vertices.rows(); ++i) g.points.emplace_back(tm.vertices.row(i).transpose());
   g.tets = tm.tets;
   g.triangles = tm.boundary;
+  g.scale = tg.positive("scale", 1.0);
+  g.translate = tg.vec3("translate", Eigen::Vector3d::Zero());
   return g;
 }
 
@@ -324,6 +329,12 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
   m.surface.conservativeResize(m.surface.rows() + g.triangles.rows(), 3);
   for (Eigen::Index t = 0; t < g.triangles.rows(); ++t)
     for (int k = 0; k < 3; ++k) m.surface(info.first_surface_triangle + t, k) = gid(g.triangles(t, k));
+  if (body.has("render")) {
+    detail::SimulatedBody simulated{m.rest, m.surface.bottomRows(g.triangles.rows()), g.tets, g.scale,
+                                    g.translate};
+    for (Eigen::Index i = 0; i < simulated.tets.size(); ++i) simulated.tets(i) = gid(simulated.tets(i));
+    info.render = detail::read_render_mesh(body.table("render"), dir, simulated);
+  }
   body.finish();
   scene.bodies.push_back(std::move(info));
 }

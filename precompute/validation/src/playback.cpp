@@ -1,6 +1,7 @@
 #include "phasecast/precompute/validation/playback.h"
 
 #include "phasecast/precompute/sampling/irf_sampler.h"
+#include "phasecast/precompute/simulation/render_surface.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "phasecast/server/synthesis_engine.h"
 
@@ -21,10 +22,10 @@ double rms(const Eigen::VectorXd& d) {
   return d.size() ? std::sqrt(d.squaredNorm() / (static_cast<double>(d.size()) / 3)) : 0;
 }
 
-// The served shapes x-bar + U_u q_u of the simulated vertices, one row per
-// frame, and the IRF each frame played, from the real synthesis engine.
+// The served shapes x-bar + U_u q_u of the render surface's points, one row
+// per frame, and the IRF each frame played, from the real synthesis engine.
 struct Served {
-  Eigen::MatrixXd x;                 // N x 3V
+  Eigen::MatrixXd x;                 // N x 3P
   std::vector<std::int32_t> irf;     // N: IRF played (-1 at rest)
   std::vector<std::uint32_t> irf_t;  // N: node inside it
   std::vector<std::string> refused;  // per schedule item
@@ -122,6 +123,29 @@ std::vector<double> irf_end_speeds(const Served& served, double dt) {
   return out;
 }
 
+// The simulated frames (N x 3V) where the render surface shows them (N x 3P):
+// the frames themselves when no body has a render mesh.
+Eigen::MatrixXd embedded_frames(const RenderSurface& surface, const MatrixXfR& frames) {
+  return embed_rows(surface.weights, frames.transpose()).transpose().cast<double>();
+}
+
+// The package's first P scene points must be the scene's render surface at rest.
+void check_render_surface(const Scene& scene, const RenderSurface& surface, const core::SceneMesh& mesh) {
+  const MatrixXfR rest = embed_rows(surface.weights, scene.model.rest.cast<float>());
+  const Eigen::Index P = surface.points();
+  const bool same =
+      mesh.points() >= P && (Eigen::Map<const MatrixXfR>(rest.data(), P, 3) - mesh.rest_positions.topRows(P))
+                                    .cwiseAbs()
+                                    .maxCoeff() <= 1e-5f;
+  if (!same) {
+    throw std::invalid_argument(
+        fmt::format("validate: the package's scene points are not the {} render-surface points of scene file "
+                    "'{}' (was the "
+                    "package built from another version of it?)",
+                    P, scene.name));
+  }
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
@@ -183,8 +207,10 @@ ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core
         fmt::format("validate: package of scene '{}' at dt {} s does not match scene file '{}' at dt {} s",
                     package->attributes.scene, package->attributes.dt, scene.name, dt));
   }
+  const RenderSurface surface = render_surface(scene);
+  check_render_surface(scene, surface, package->mesh);
   const OrbitStore truth = simulate_schedule(scene, schedule, o.progress);
-  const Eigen::MatrixXd sim = truth.positions.cast<double>();
+  const Eigen::MatrixXd sim = embedded_frames(surface, truth.positions);
   const int N = static_cast<int>(sim.rows());
   std::vector<int> starts;
   for (int f = 0; const auto& item : schedule) starts.push_back(f), f += schedule_frames(item.duration, dt);
@@ -215,9 +241,8 @@ ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core
   for (int f = 1; f < N; ++f) speeds.push_back(rms(motion(sim, f)) / dt);
   out.median_simulated_speed = median(speeds);
   if (o.intersections) {
-    const Eigen::MatrixXi triangles = scene.model.surface;
     for (int f = 0; f < N; ++f) {
-      const int pairs = count_intersecting_pairs(served.x.row(f).transpose(), triangles);
+      const int pairs = count_intersecting_pairs(served.x.row(f).transpose(), surface.triangles);
       out.frames_with_intersections += pairs > 0;
       out.max_intersecting_pairs = std::max(out.max_intersecting_pairs, pairs);
     }

@@ -15,6 +15,7 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <string>
@@ -135,7 +136,7 @@ TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
     }
     const MatrixXfR direct =
         precompute::compute_transfer(x, p.mesh.triangles, core::vertex_normals(x, p.mesh.triangles), options);
-    const MatrixXfR staged = precompute::transfer_at_frame(p.mesh, precompute::scene_point_vertices(scene),
+    const MatrixXfR staged = precompute::transfer_at_frame(p.mesh, precompute::scene_point_embedding(scene),
                                                            store.positions.row(node), options);
     EXPECT_TRUE(direct == staged) << "node " << node;
     const Eigen::VectorXf field = Eigen::Map<const Eigen::VectorXf>(direct.data(), direct.size());
@@ -164,8 +165,9 @@ TEST(AppearanceStage, DefaultScenesAreColouredWithTessellatedProps) {
   EXPECT_EQ(cloth.props.at(0).albedo, Eigen::Vector3d(0.62, 0.42, 0.24));
   EXPECT_EQ(cloth.appearance.clusters, 64);
   EXPECT_EQ(cloth.appearance.paper_rank_a, 12);
-  const auto map = precompute::scene_point_vertices(cloth);
-  const auto door = std::count(map.begin(), map.end(), -1);
+  const auto W = precompute::scene_point_embedding(cloth);
+  int door = 0;  // static points: moved by no vertex
+  for (Eigen::Index p = 0; p < W.rows(); ++p) door += !precompute::embeds(W, p);
   EXPECT_GE(door, 2000);  // dense enough to receive the cloth's shadow
 }
 
@@ -186,10 +188,11 @@ TEST(AppearanceStage, ClothHasTwoSidesSharingTheirVertexRows) {
     EXPECT_EQ(m.triangles(F + t, 1), m.triangles(t, 2) + V);
     EXPECT_EQ(m.triangles(F + t, 2), m.triangles(t, 1) + V);
   }
-  const auto map = precompute::scene_point_vertices(scene);
-  ASSERT_EQ(static_cast<int>(map.size()), m.points());
-  EXPECT_EQ(map[static_cast<size_t>(V + 3)], 3);
-  EXPECT_EQ(map.back(), -1);
+  const auto W = precompute::scene_point_embedding(scene);  // the back of vertex 3 moves with vertex 3 alone
+  ASSERT_EQ(W.rows(), m.points());
+  EXPECT_EQ(W.row(V + 3).nonZeros(), 1);
+  EXPECT_EQ(W.coeff(V + 3, 3), 1.0);
+  EXPECT_FALSE(precompute::embeds(W, m.points() - 1));
 
   // Every door point lies on the board's surface, at a 0.2 m grid step or a face edge.
   const auto& door = scene.model.obstacles.at(0);
@@ -297,6 +300,43 @@ TEST(AppearanceStage, MoreClustersThanStateNodesIsAOneLineError) {
                   n))
       << r.err;
   EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+// A render mesh is lit where its embedding puts it: under a rigid motion of
+// the simulated cloth, the subdivided cloth (both sides) moves rigidly with
+// it and the door stays, so its transfer is taken on the moved render mesh.
+TEST(AppearanceStage, RenderMeshPointsAreDeformedByTheirEmbedding) {
+  const auto scene = precompute::load_scene_file(
+      testing::edited_tiny_scene(scratch_dir("appearance_render_mesh"), "grid = { origin",
+                                 "render = { subdivide = 1 }\ngrid = { origin"));
+  const auto m = precompute::scene_mesh(scene);
+  const auto W = precompute::scene_point_embedding(scene);
+  // In double, per coordinate: fixed-size float temporaries trip GCC 12's -Warray-bounds.
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1, 0.3).normalized()).toRotationMatrix();
+  const Eigen::Vector3d t(0.05, -0.1, 0.2);
+  const auto moved_rigidly = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return R * x + t; };
+  const int V = scene.model.vertices();
+  Eigen::RowVectorXf frame(3 * V);
+  for (int v = 0; v < V; ++v) {
+    const Eigen::Vector3d y = moved_rigidly(scene.model.rest.segment<3>(3 * v));
+    for (int k = 0; k < 3; ++k) frame(3 * v + k) = static_cast<float>(y[k]);
+  }
+  const MatrixXfR x = precompute::deformed_scene_points(m, W, frame);
+  int moved = 0;
+  for (Eigen::Index p = 0; p < m.points(); ++p) {
+    const Eigen::Vector3d rest = m.rest_positions.row(p).cast<double>().transpose();
+    const bool deformable = m.deformable[static_cast<size_t>(p)];
+    const Eigen::Vector3d expected = deformable ? moved_rigidly(rest) : rest;
+    double off = 0;
+    for (int k = 0; k < 3; ++k) off = std::max(off, std::abs(x(p, k) - expected[k]));
+    EXPECT_LT(off, 1e-5) << "point " << p;
+    moved += deformable;
+  }
+  EXPECT_GT(moved, 2 * V);  // the render mesh, not the simulated vertices
+  precompute::TransferOptions options;
+  options.rays = 16;
+  EXPECT_EQ(precompute::transfer_at_frame(m, W, frame, options).rows(), m.points());
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 // (docs/validation.md), and checks that each figure can fail.
 
 #include "phasecast/precompute/validation/playback.h"
+#include "error_of.h"
+#include "phasecast/precompute/package/package_builder.h"
 #include "run_tool.h"
 #include "scene_files.h"
 
@@ -100,6 +102,42 @@ TEST(Playback, AStillPackageIsCaught) {
   const auto g = validate_schedule(scene(), still, parse_schedule(kStandard, scene()));
   EXPECT_LT(g.motion_ratio, 0.1);  // measured 0.05: only the eq. 12 blend offsets move
   EXPECT_GT(g.nrmse, 0.8);
+}
+
+// The committed package's simulated rows embedded into the cloth subdivided
+// once (what build_package does: W x-bar, W U_u, static points at rest).
+std::shared_ptr<const core::ScenePackage> subdivided_package(const Scene& embedded) {
+  auto p = std::make_shared<core::ScenePackage>(*package());
+  const Eigen::Index rows = 3 * embedded.model.vertices();
+  const VertexEmbedding W = scene_point_embedding(embedded);
+  p->mesh = scene_mesh(embedded);
+  const MatrixXfR mean = embed_rows(W, package()->reduction.mean_shape.head(rows));
+  p->reduction.mean_shape = Eigen::Map<const VectorXf>(p->mesh.rest_positions.data(), 3 * p->mesh.points());
+  for (Eigen::Index q = 0; q < W.rows(); ++q)
+    if (embeds(W, q)) p->reduction.mean_shape.segment(3 * q, 3) = mean.col(0).segment(3 * q, 3);
+  p->reduction.U_u = embed_rows(W, package()->reduction.U_u.topRows(rows));
+  p->appearance.reset();
+  p->portrait.q_a.resize(p->portrait.q_u.rows(), 0);
+  return p;
+}
+
+// A package with a render mesh is measured on the render points, against the
+// simulation embedded the same way: the same playback, so nearly the same
+// figures as on the simulated vertices. A package of another surface is refused.
+TEST(Playback, ARenderMeshIsMeasuredWhereItIsShown) {
+  const Scene embedded = load_scene_file(
+      testing::edited_tiny_scene(testing::scratch_dir("playback_render_mesh"), "grid = { origin",
+                                 "render = { subdivide = 1 }\ngrid = { origin"));
+  const auto rendered = subdivided_package(embedded);
+  const auto plain = validate_schedule(scene(), package(), parse_schedule(kStandard, scene()));
+  const auto g = validate_schedule(embedded, rendered, parse_schedule(kStandard, embedded));
+  EXPECT_NEAR(g.nrmse, plain.nrmse, 0.1 * plain.nrmse);
+  EXPECT_NEAR(g.motion_ratio, plain.motion_ratio, 0.1 * plain.motion_ratio);
+  EXPECT_EQ(g.max_intersecting_pairs, 0);
+  EXPECT_EQ(
+      testing::error_of([&] { validate_schedule(scene(), rendered, parse_schedule(kStandard, scene())); }),
+      "validate: the package's scene points are not the 48 render-surface points of scene file "
+      "'cloth_door_tiny' (was the package built from another version of it?)");
 }
 
 TEST(Playback, RandomSchedulesObeyTheRulesAndTheRange) {

@@ -10,6 +10,7 @@
 #include "phasecast/precompute/appearance/transfer_appearance.h"
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 #include "phasecast/precompute/sampling/orbit_filter.h"
+#include "phasecast/precompute/simulation/embedding.h"
 
 #include <cstdint>
 #include <functional>
@@ -53,16 +54,17 @@ void check_appearance_stage_options(const AppearanceStageOptions& options);
 std::vector<std::int64_t> package_node_frames(const IrfList& store_irfs, const std::vector<int>& kept);
 
 // Scene points of the package mesh at one orbit-store frame: deformable points
-// at the simulated positions of their vertex (`point_vertex`, from
-// scene_point_vertices), static points at rest. All in the support frame.
+// where the embedding puts them (`embedding`, S x V, from
+// scene_point_embedding: a vertex's own position, or a render point's
+// sum_i W_pi x_i), static points at rest. All in the support frame.
 //   @param[in] frame  3V positions of the frame, as stored
-MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const std::vector<int>& point_vertex,
+MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const VertexEmbedding& embedding,
                                 const Eigen::Ref<const Eigen::RowVectorXf>& frame);
 
 // Transfer (S x 48) of the package's scene points at one orbit-store frame:
 // normals of the deformed mesh (angle-weighted; the back side of a sheet has
 // reversed triangles, hence flipped normals), then compute_transfer.
-MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const std::vector<int>& point_vertex,
+MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const VertexEmbedding& embedding,
                             const Eigen::Ref<const Eigen::RowVectorXf>& frame,
                             const TransferOptions& options);
 
@@ -85,7 +87,7 @@ std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<
 //   @param[in] node_frames  package_node_frames(...) of that reduction
 // Throws std::invalid_argument for bad options (N_a above the node count
 // included) and OrbitStoreError when a frame cannot be read.
-AppearanceStageReport run_appearance_stage(core::ScenePackage& package, const std::vector<int>& point_vertex,
+AppearanceStageReport run_appearance_stage(core::ScenePackage& package, const VertexEmbedding& embedding,
                                            const OrbitDisplacementSource& orbits,
                                            const std::vector<std::int64_t>& node_frames,
                                            const AppearanceStageOptions& options,

@@ -8,6 +8,7 @@
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 #include "phasecast/precompute/sampling/orbit_filter.h"
 #include "phasecast/precompute/sampling/palette_rules.h"
+#include "phasecast/precompute/simulation/embedding.h"
 #include "phasecast/precompute/simulation/scene.h"
 
 #include <filesystem>
@@ -42,20 +43,23 @@ struct PackageBuild {
   OrbitFilterResult filter;  // what was dropped and why
 };
 
-// Scene points: the simulated (deformable) vertices first (front side), then
-// the back side of the thin sheets (a copy of every vertex of a sheet
-// triangle, flipped normal, reversed triangles, moved by the same U_u rows),
-// then every box obstacle as static points: each face a grid of quads of
-// about the prop's `cell` edge (one quad when 0), single-sided, outward
-// normals, its own points per face. Sheet triangles are the surface triangles none of whose
-// vertices belongs to a tetrahedron (cloth, leaves); a solid's boundary stays
-// single-sided. Both sides get their own transfer (§4.1).
+// Scene points: the render surface first (front side; render_surface.h: the
+// simulated vertices of bodies without a render mesh, then the render
+// meshes, at rest W X), then the back side of the thin sheets (a copy of
+// every point of a sheet triangle, flipped normal, reversed triangles, moved
+// by the same U_u rows), then every box obstacle as static points: each face
+// a grid of quads of about the prop's `cell` edge (one quad when 0),
+// single-sided, outward normals, its own points per face. Sheet triangles are
+// the surface triangles none of whose corners moves with a vertex of a
+// tetrahedron (cloth, leaves); a solid's boundary stays single-sided. Both
+// sides get their own transfer (§4.1).
 core::SceneMesh scene_mesh(const Scene& scene);
 
-// The simulated vertex that moves each scene point of scene_mesh(scene), -1
-// for static points. Front points map to themselves, back points to the
-// vertex they copy.
-std::vector<int> scene_point_vertices(const Scene& scene);
+// How the simulated vertices move each scene point of scene_mesh(scene):
+// S x V, point p at sum_i W_pi x_i. Back points have their front's row,
+// static points none. Without render meshes every front point is its own
+// vertex (one weight 1).
+VertexEmbedding scene_point_embedding(const Scene& scene);
 
 // Diffuse albedo (RGB) of each scene point of scene_mesh(scene): its body's
 // or prop's `albedo` in the scene file (docs/scenes.md). S x 3.

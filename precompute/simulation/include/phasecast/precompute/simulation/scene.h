@@ -5,6 +5,7 @@
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/simulation/deformable_model.h"
+#include "phasecast/precompute/simulation/embedding.h"
 #include "phasecast/precompute/simulation/simulator.h"
 #include "phasecast/precompute/simulation/support_motion.h"
 
@@ -12,6 +13,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -47,6 +49,7 @@ struct BodyInfo {
   int first_surface_triangle = 0;
   int surface_triangles = 0;
   Eigen::Vector3d albedo = kDefaultAlbedo;  // diffuse rho per RGB channel (§4.1), for the transfer
+  std::optional<RenderMesh> render;         // shown instead of the simulated surface (scene file `render`)
 };
 
 inline constexpr int kMaxPropCells = 256;  // cells along one edge of a tessellated prop

@@ -1,0 +1,180 @@
+// A body's `render` mesh in scene files: what the scene shows instead of the
+// simulated surface (render_surface), the simulation left as it was, and a
+// one-line error naming the field for every bad value.
+
+#include "error_of.h"
+#include "phasecast/precompute/simulation/obj_mesh.h"
+#include "phasecast/precompute/simulation/render_surface.h"
+#include "phasecast/precompute/simulation/self_collision.h"
+#include "run_tool.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include <fstream>
+#include <string>
+
+namespace phasecast::precompute {
+namespace {
+
+using phasecast::testing::error_of;
+
+const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+
+// The shipped tiny scene `name` with `from` replaced by `to`, written to a scratch folder.
+std::filesystem::path edited_scene(const std::string& name, const std::string& from, const std::string& to,
+                                   const std::string& test) {
+  std::string text = testing::read_file(kScenes / "tiny" / (name + ".toml"));
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  const auto path = testing::scratch_dir("render_" + test) / "scene.toml";
+  std::ofstream(path) << text;
+  return path;
+}
+
+const std::string kClothGrid = "grid = { origin";
+const std::string kToyMesh = "tetgen = { path = \"../meshes/bunny_tiny.obj\"";
+std::string toy_mesh() {
+  return "tetgen = { path = \"" + (kScenes / "meshes/bunny_tiny.obj").string() + "\"";
+}
+
+// The render points at rest: W X.
+Eigen::MatrixX3d render_rest(const Scene& s, const RenderSurface& r) {
+  const Eigen::MatrixX3d X = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(
+      s.model.rest.data(), s.model.vertices(), 3);
+  return Eigen::MatrixXd(r.weights) * X;
+}
+
+TEST(RenderSurface, WithoutRenderMeshesItIsTheSimulatedSurface) {
+  const Scene s = load_scene_file(kScenes / "tiny/cloth_door.toml");
+  const RenderSurface r = render_surface(s);
+  const VertexEmbedding I = Eigen::MatrixXd::Identity(s.model.vertices(), s.model.vertices()).sparseView();
+  EXPECT_EQ(Eigen::MatrixXd(r.weights), Eigen::MatrixXd(I));
+  EXPECT_EQ(r.triangles, s.model.surface);
+}
+
+TEST(RenderSurface, SubdividedClothReplacesTheSimulatedSurfaceAndLeavesTheSimulationAlone) {
+  const Scene plain = load_scene_file(kScenes / "tiny/cloth_door.toml");
+  const Scene s = load_scene_file(edited_scene(
+      "cloth_door", kClothGrid, "render = { subdivide = 1 }\n" + kClothGrid, "cloth_subdivided"));
+  EXPECT_EQ(s.model.rest, plain.model.rest);
+  EXPECT_EQ(s.model.mass, plain.model.mass);
+  EXPECT_EQ(s.model.surface, plain.model.surface);
+  const RenderSurface r = render_surface(s);
+  const auto edges = static_cast<Eigen::Index>(surface_edges(plain.model.surface).size());
+  ASSERT_EQ(r.points(), 48 + edges);  // one point per vertex and per edge
+  EXPECT_EQ(r.triangles.rows(), 4 * plain.model.surface.rows());
+  EXPECT_EQ(r.triangles.maxCoeff(), r.points() - 1);
+  // The cloth is a flat 0.5 x 0.7 m sheet at z = 0.012: so is its render mesh.
+  const Eigen::MatrixX3d x = render_rest(s, r);
+  EXPECT_LT((x.col(2).array() - 0.012).abs().maxCoeff(), 1e-12);
+  EXPECT_GE(x.col(0).minCoeff(), 0.2 - 1e-12);
+  EXPECT_LE(x.col(0).maxCoeff(), 0.7 + 1e-12);
+  EXPECT_GE(x.col(1).minCoeff(), 1.15 - 1e-12);
+  EXPECT_LE(x.col(1).maxCoeff(), 1.85 + 1e-12);
+  for (size_t p = 0; p < r.body.size(); ++p) {
+    EXPECT_EQ(r.body[p], 0);
+    EXPECT_EQ(r.solid[p], 0);  // a sheet: the package gives it a back side
+  }
+}
+
+TEST(RenderSurface, ObjInsideTheToyMovesWithItsTets) {
+  const Scene s = load_scene_file(edited_scene(
+      "toy_dashboard", kToyMesh,
+      "render = { obj = \"" + (kScenes / "meshes/bunny_tiny.obj").string() + "\" }\n" + toy_mesh(),
+      "toy_obj"));
+  const ObjMesh fine = read_obj(kScenes / "meshes/bunny_tiny.obj");
+  const RenderSurface r = render_surface(s);
+  ASSERT_EQ(r.points(), fine.vertices.rows());
+  EXPECT_LT((render_rest(s, r) - fine.vertices).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(r.triangles, Eigen::MatrixXi(fine.triangles));
+  for (auto solid : r.solid) EXPECT_EQ(solid, 1);  // a solid's boundary: single-sided
+}
+
+TEST(RenderSurface, RenderedLeavesKeepTheStemTheyAreWeldedTo) {
+  std::string text = testing::read_file(kScenes / "tiny/plant_pot.toml");
+  const std::string weld = "weld_to = \"stem\"", render = "render = { subdivide = 1 }\n";
+  for (size_t at = 0; (at = text.find(weld, at)) != std::string::npos; at += render.size() + weld.size())
+    text.insert(at, render);
+  const auto path = testing::scratch_dir("render_leaves") / "scene.toml";
+  std::ofstream(path) << text;
+  const Scene s = load_scene_file(path);
+  const RenderSurface r = render_surface(s);
+  const auto& stem = s.bodies.at(0).vertices;
+  bool welded = false;  // some leaf point moves with a stem vertex
+  for (Eigen::Index p = 0; p < r.points(); ++p) {
+    if (p < static_cast<Eigen::Index>(stem.size())) {
+      EXPECT_EQ(r.weights.coeff(p, stem[static_cast<size_t>(p)]), 1.0);  // the rod as simulated
+      continue;
+    }
+    EXPECT_GT(r.body[static_cast<size_t>(p)], 0);
+    for (VertexEmbedding::InnerIterator it(r.weights, p); it; ++it)
+      welded |= std::find(stem.begin(), stem.end(), it.col()) != stem.end();
+  }
+  EXPECT_TRUE(welded);
+}
+
+// The message after the file name, checked to be one line naming the file.
+std::string rejection(const std::filesystem::path& path) {
+  const std::string message = error_of([&] { load_scene_file(path); });
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  EXPECT_EQ(message.rfind(path.string(), 0), 0u) << message;
+  return message.substr(std::min(message.size(), path.string().size()));
+}
+
+std::string cloth_rejection(const std::string& render, const std::string& test) {
+  return rejection(edited_scene("cloth_door", kClothGrid, render + "\n" + kClothGrid, test));
+}
+
+TEST(RenderErrors, BadValuesNameTheKeyAndWhatWasExpected) {
+  EXPECT_EQ(cloth_rejection("render = { subdivide = 0 }", "zero"),
+            ": field 'body[0].render.subdivide': expected a positive integer, got integer 0");
+  EXPECT_EQ(cloth_rejection("render = { subdivide = 6 }", "six"),
+            ": field 'body[0].render.subdivide': expected a subdivision level in 1..5 (each level has 4x the "
+            "triangles), got integer 6");
+  EXPECT_EQ(cloth_rejection("render = { subdivide = \"two\" }", "string"),
+            ": field 'body[0].render.subdivide': expected a positive integer, got string \"two\"");
+  EXPECT_EQ(cloth_rejection("render = 2", "number"),
+            ": field 'body[0].render': expected a table, got integer 2");
+  EXPECT_EQ(
+      cloth_rejection("render = {}", "empty"),
+      ": field 'body[0].render.subdivide': expected either subdivide = n (Loop subdivision of the "
+      "simulated surface) or obj = \"fine.obj\" (a surface inside a tetgen body), got nothing (missing)");
+  EXPECT_NE(cloth_rejection("render = { subdivide = 1, obj = \"a.obj\" }", "both")
+                .find(": field 'body[0].render.obj': expected either subdivide = n"),
+            std::string::npos);
+  EXPECT_EQ(cloth_rejection("render = { subdivide = 1, smooth = true }", "unknown"),
+            ": field 'body[0].render.smooth': unknown field (misspelt?)");
+  EXPECT_EQ(
+      cloth_rejection("render = { obj = \"a.obj\" }", "obj_on_sheet"),
+      ": field 'body[0].render.obj': expected a tetgen body (a render OBJ moves with the tets around it; "
+      "sheets use subdivide), got string \"a.obj\"");
+}
+
+TEST(RenderErrors, ARodHasNoSurfaceToSubdivide) {
+  EXPECT_EQ(
+      rejection(edited_scene("plant_pot", "polyline = {", "render = { subdivide = 1 }\npolyline = {", "rod")),
+      ": field 'body[0].render.subdivide': expected a body with a triangle surface (grid, obj or tetgen) "
+      "to subdivide, got integer 1");
+}
+
+TEST(RenderErrors, AnObjOutsideTheTetsIsRefused) {
+  // The 240-vertex bunny around the 60-vertex one's tets: its ears stick out by 11 mm.
+  const std::string message = rejection(
+      edited_scene("toy_dashboard", kToyMesh,
+                   "render = { obj = \"" + (kScenes / "meshes/bunny.obj").string() + "\" }\n" + toy_mesh(),
+                   "toy_outside"));
+  EXPECT_EQ(message.rfind(": field 'body[0].render.obj': render vertex ", 0), 0u) << message;
+  EXPECT_NE(message.find(" outside the tets (expected within 0.00"), std::string::npos) << message;
+  EXPECT_NE(message.find("mesh the tets from a surface that encloses the render mesh"), std::string::npos)
+      << message;
+  const std::string missing = rejection(edited_scene(
+      "toy_dashboard", kToyMesh, "render = { obj = \"no_such.obj\" }\n" + toy_mesh(), "toy_missing"));
+  EXPECT_EQ(missing.rfind(": field 'body[0].render.obj': ", 0), 0u) << missing;
+  EXPECT_NE(missing.find("no_such.obj"), std::string::npos) << missing;
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
