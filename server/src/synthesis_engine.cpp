@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -251,10 +253,15 @@ int SynthesisEngine::add_scene(std::shared_ptr<const core::ScenePackage> data,
   s.package = package_name;
   s.content_hash = content_hash;
   s.blend_lambda = lambda;
-  // The undeformed rest shape in reduced coordinates: U_u^T (x_rest - x-bar), U_u orthonormal.
+  // The undeformed rest shape in reduced coordinates: the least-squares q with
+  // U_u q = x_rest - x-bar. U_u^T U_u is not the identity once sheets' back
+  // sides repeat rows or render points are embedded (rows W U_u), so the
+  // normal equations are solved (r_u x r_u, in double).
   const auto& m = data->mesh;
   const Eigen::Map<const VectorXf> rest(m.rest_positions.data(), 3 * m.rest_positions.rows());
-  const VectorXf q_rest = data->reduction.U_u.transpose() * (rest - data->reduction.mean_shape);
+  const Eigen::MatrixXd U = data->reduction.U_u.cast<double>();
+  const Eigen::VectorXd offset = (rest - data->reduction.mean_shape).cast<double>();
+  const VectorXf q_rest = (U.transpose() * U).ldlt().solve(U.transpose() * offset).cast<float>();
   const auto& pp = data->portrait;
   double best = std::numeric_limits<double>::infinity();
   // Among IRF starts only: chains start from the settled rest (a cloth sagged
