@@ -50,10 +50,18 @@ void BM_ToyDashboardFrame(benchmark::State& s) {
 void BM_PaperClothDoorFrame(benchmark::State& s) {
   simulate_frames(s, "paper/cloth_door", "open");
 }
+void BM_PaperPlantPotFrame(benchmark::State& s) {
+  simulate_frames(s, "paper/plant_pot", "right");
+}
+void BM_PaperToyDashboardFrame(benchmark::State& s) {
+  simulate_frames(s, "paper/toy_dashboard", "forward");
+}
 BENCHMARK(BM_ClothDoorFrame)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(40);
 BENCHMARK(BM_PaperClothDoorFrame)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(50);
 BENCHMARK(BM_PlantPotFrame)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(100);
 BENCHMARK(BM_ToyDashboardFrame)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(20);
+BENCHMARK(BM_PaperPlantPotFrame)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(30);
+BENCHMARK(BM_PaperToyDashboardFrame)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(30);
 
 // u = U_u q_u for the cloth_door mesh at rank r (float, as on the client).
 void BM_ClothDoorReducedReconstruction(benchmark::State& state) {

@@ -42,6 +42,33 @@ TEST(PaperScenes, PaperScaleClothHasThePapersSizeAndStartsInContactRange) {
   EXPECT_GT(c.closest, scene.model.thickness);
 }
 
+// Table 1's plant: 788 quad shell elements, 6 304 triangles drawn; many leaves.
+TEST(PaperScenes, PaperScalePlantHasThePapersShellsAndLeaves) {
+  const Scene scene = load_scene_file(kScenes / "paper/plant_pot.toml");
+  int leaves = 0, drawn = 0;
+  for (const auto& body : scene.bodies) {
+    if (body.surface_triangles == 0) continue;
+    ++leaves;
+    ASSERT_TRUE(body.render.has_value()) << body.name;
+    drawn += static_cast<int>(body.render->triangles.rows());
+  }
+  EXPECT_GE(leaves, 10);
+  EXPECT_NEAR(scene.model.surface.rows() / 2, 788, 0.02 * 788);  // two triangles a quad
+  EXPECT_NEAR(drawn, 6304, 0.02 * 6304);
+  EXPECT_TRUE(scene.model.self_collision);
+  MatrixXfR rest = scene.model.rest.cast<float>().transpose();
+  EXPECT_EQ(summarize_contact(rest, scene.model.surface, 2 * scene.model.thickness).frames_intersecting, 0);
+}
+
+// Table 1's dinosaur: 6 499 tetrahedra driving a 24 690-vertex surface.
+TEST(PaperScenes, PaperScaleToyHasThePapersTetsAndAFineSurface) {
+  const Scene scene = load_scene_file(kScenes / "paper/toy_dashboard.toml");
+  EXPECT_NEAR(static_cast<double>(scene.model.tets.size()), 6499, 0.05 * 6499);
+  ASSERT_EQ(scene.bodies.size(), 1u);
+  ASSERT_TRUE(scene.bodies[0].render.has_value());
+  EXPECT_NEAR(scene.bodies[0].render->weights.rows(), 24690, 0.15 * 24690);
+}
+
 // CHOLMOD's supernodal LL^T against Eigen's simplicial LDL^T: two factorizations
 // of the same system, so the same frames up to rounding.
 TEST(PaperScenes, SupernodalSolverFollowsTheSimplicialOne) {
