@@ -16,15 +16,40 @@
 
 #include <algorithm>
 #include <csignal>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
+#include <string>
 #include <thread>
 
 namespace phasecast::testing {
 namespace {
 
 using namespace std::chrono_literals;
+
+// SIGSTOP is delivered asynchronously: kill() returns while the server's
+// threads may still run (and answer) for a moment, the more so on a loaded
+// machine (CI once saw the "silent" server answer). Waits until every thread
+// of the process shows the stopped state in /proc.
+bool pause_process(pid_t pid) {
+  if (::kill(pid, SIGSTOP) != 0) return false;
+  const auto task = std::filesystem::path("/proc") / std::to_string(pid) / "task";
+  for (int attempt = 0; attempt < 500; ++attempt) {
+    bool all_stopped = true;
+    for (const auto& thread : std::filesystem::directory_iterator(task)) {
+      std::ifstream stat(thread.path() / "stat");
+      std::string line;
+      std::getline(stat, line);
+      const auto close = line.rfind(')');  // the name may hold spaces and parentheses
+      all_stopped &= close != std::string::npos && close + 2 < line.size() &&
+                     (line[close + 2] == 'T' || line[close + 2] == 't');
+    }
+    if (all_stopped) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
 
 std::filesystem::path plate_package(const std::string& test) {
   const auto path = scratch_dir("gateway_" + test) / "plate.h5";
@@ -247,7 +272,7 @@ TEST(Gateway, RequestsBeyondTheInFlightBoundWaitUnreadAndAreAllAnswered) {
   GatewayProcess gateway(server.cmd(), {"--max-requests-in-flight", "4"});
   PageClient page("127.0.0.1", gateway.port());
   ASSERT_TRUE(page.next());                     // hello, written: it no longer counts
-  ASSERT_EQ(::kill(server.pid(), SIGSTOP), 0);  // a server that does not answer for now
+  ASSERT_TRUE(pause_process(server.pid()));     // a server that does not answer for now
   for (std::uint64_t id = 1; id <= 12; ++id) {  // all at once, before reading anything
     v1::PageMessage m;
     m.mutable_request()->set_id(id);
@@ -321,7 +346,7 @@ TEST(Gateway, ASilentServerTimesRequestsOutAndAGoneOneRefusesThemAtOnce) {
   GatewayProcess gateway(server.cmd(), {"--request-timeout", "0.5"});
   PageClient page("127.0.0.1", gateway.port());
   ASSERT_TRUE(page.call(list_scenes()).ok());
-  ASSERT_EQ(::kill(server.pid(), SIGSTOP), 0);  // connected, but silent
+  ASSERT_TRUE(pause_process(server.pid()));  // connected, but silent
   auto reply = page.call(list_scenes());
   EXPECT_FALSE(reply.ok());
   EXPECT_NE(reply.error().find("did not answer within 0.5 s"), std::string::npos) << reply.error();
