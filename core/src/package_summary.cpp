@@ -113,12 +113,13 @@ std::string to_text(const PackageSummary& s) {
   for (size_t i = 0; i < s.palette.size(); ++i)
     entries.push_back(fmt::format("{}: {} ({} IRFs)", i, s.palette[i], s.irfs_per_entry[i]));
   line("palette      D = {}: {}", s.palette_entries, fmt::join(entries, ", "));
-  line("displacement r_u = {}, at rank {}: relative l2 error sigma_{{r+1}}/sigma_1 = {} (the paper's "
-       "relErr, §2.3.1), Frobenius error = {:.3g}%",
-       s.rank_u, s.chosen_rank,
-       std::isfinite(s.sigma_ratio_u_at_rank) ? fmt::format("{:.3g}%", 100 * s.sigma_ratio_u_at_rank)
-                                              : std::string("n/a (no sigma_{r+1} computed)"),
-       100 * s.error_u_at_rank);
+  line(
+      "displacement r_u = {}, at rank {}: relative l2 error sigma_{{r+1}}/sigma_1 = {} (the paper's "
+      "relErr, §2.3.1), Frobenius error = {:.3g}%",
+      s.rank_u, s.chosen_rank,
+      std::isfinite(s.sigma_ratio_u_at_rank) ? fmt::format("{:.3g}%", 100 * s.sigma_ratio_u_at_rank)
+                                             : std::string("n/a (no sigma_{r+1} computed)"),
+      100 * s.error_u_at_rank);
   if (s.rank_a > 0) {
     line("appearance   r_a = {}, N_a = {} clusters, truncation error at r_a = {:.3g}% (on the clusters)",
          s.rank_a, s.clusters, 100 * s.error_a_at_rank);

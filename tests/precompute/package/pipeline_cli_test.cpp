@@ -135,8 +135,8 @@ TEST(PipelineCli, SampleThenReduceMatchesRun) {
   const Eigen::MatrixXi triangles = store.triangles.cast<int>();
   int intersecting = 0;
   for (int f = 0; f < store.frames(); ++f) {
-    intersecting +=
-        precompute::count_intersecting_pairs(store.positions.row(f).cast<double>().transpose(), triangles) > 0;
+    intersecting += precompute::count_intersecting_pairs(store.positions.row(f).cast<double>().transpose(),
+                                                         triangles) > 0;
   }
   EXPECT_NE(s.out.find(fmt::format("contact: {} of {} frames with intersecting triangle pairs", intersecting,
                                    store.frames())),
