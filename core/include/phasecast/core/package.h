@@ -119,8 +119,8 @@ struct ImpulsePalette {
 
 // Displacement model reduction (§2.3.1, eqs. 3-7).
 struct Reduction {
-  VectorXf mean_shape;  // 3S: x-bar; static points keep their rest position
-  MatrixXfR U_u;  // 3S x r_u displacement basis: W U of the orthonormal SVD basis (rows of static points 0)
+  VectorXf mean_shape;       // 3S: x-bar; static points keep their rest position
+  MatrixXfR U_u;             // 3S x r_u: W times the orthonormal SVD basis (static rows 0)
   VectorXf singular_values;  // every computed sigma, decreasing
   VectorXf rel_error;        // same length: relative l2 reconstruction error at rank i+1 (Fig. 12)
 

@@ -25,14 +25,14 @@ struct PackageSummary {
   int rank_u = 0, rank_a = 0, clusters = 0;  // r_u, r_a, N_a
   int chosen_rank = 0;                       // rank the error is reported at
   double error_u_at_rank = 0;                // Frobenius: |X - X_r|_F / |X|_F (Fig. 12, blue)
-  double sigma_ratio_u_at_rank = 0;  // the paper's relErr (§2.3.1): sigma_{r+1} / sigma_1; NaN past the curve
-  std::vector<double> singular_values_u;  // every computed sigma of the displacements
-  double error_a_at_rank = 0;             // at r_a (Fig. 12, red); NaN without appearance
-  std::vector<double> error_a_curve;      // Fig. 12, red: relative error at rank 1..N_a
-  int paper_rank_a = 0;                   // the paper's r_a for this scene (0: unknown)
-  double error_a_at_paper_rank = 0;       // NaN when unknown or above N_a
-  std::string interpolant;                // "nrbf" or "knn", with its parameters
-  int held_out_nodes = 0;                 // 0: no held-out truth in the package
+  double sigma_ratio_u_at_rank = 0;          // the paper's relErr (§2.3.1): sigma_{r+1}/sigma_1, or NaN
+  std::vector<double> singular_values_u;     // every computed sigma of the displacements
+  double error_a_at_rank = 0;                // at r_a (Fig. 12, red); NaN without appearance
+  std::vector<double> error_a_curve;         // Fig. 12, red: relative error at rank 1..N_a
+  int paper_rank_a = 0;                      // the paper's r_a for this scene (0: unknown)
+  double error_a_at_paper_rank = 0;          // NaN when unknown or above N_a
+  std::string interpolant;                   // "nrbf" or "knn", with its parameters
+  int held_out_nodes = 0;                    // 0: no held-out truth in the package
   double held_out_total = 0, held_out_truncation = 0, held_out_interpolation = 0, held_out_of_transfer = 0;
   std::uint64_t client_download_bytes = 0;    // sum of basis parts
   std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
