@@ -10,6 +10,7 @@
 // its peak resident memory (VmHWM). Figures go to docs/performance-server.md.
 
 #include "bench_scene.h"
+#include "phasecast/core/process_memory.h"
 
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
@@ -107,14 +108,8 @@ struct ServerChild {
   }
   // Peak and current resident memory of the server, MiB.
   std::pair<double, double> memory_mib() const {
-    std::ifstream in(fmt::format("/proc/{}/status", pid));
-    std::string key;
-    double hwm = 0, rss = 0, kb = 0;
-    while (in >> key) {
-      if (key == "VmHWM:" && in >> kb) hwm = kb / 1024;
-      if (key == "VmRSS:" && in >> kb) rss = kb / 1024;
-    }
-    return {hwm, rss};
+    const phasecast::core::ResidentMemory m = phasecast::core::resident_memory(pid);
+    return {m.peak_mib, m.current_mib};
   }
 };
 

@@ -52,19 +52,25 @@ OrbitDisplacementSource::~OrbitDisplacementSource() = default;
 
 void OrbitDisplacementSource::read_frames(Eigen::Index first, Eigen::Index count, MatrixXfR& rows) const {
   rows.resize(count, mean_.size());
+  read_into(first, count, rows.data());
+}
+
+// `out` holds count x 3V floats: frames as rows, which is the same memory as
+// frames as the columns of a column-major 3V x count block.
+void OrbitDisplacementSource::read_into(Eigen::Index first, Eigen::Index count, float* out) const {
   try {
-    h5_->file.read_rows(kPositions, static_cast<std::uint64_t>(first), static_cast<std::uint64_t>(count),
-                        rows.data());
+    h5_->file.read_rows(kPositions, static_cast<std::uint64_t>(first), static_cast<std::uint64_t>(count), out);
   } catch (const h5::Failure& e) {
     throw OrbitStoreError(fmt::format("{}: {}: cannot read frames {}..{}: {}", path_.string(), kPositions,
                                       first, first + count - 1, e.what()));
   }
 }
 
+// Read in place and centred in place: the block is the only copy of its frames.
 void OrbitDisplacementSource::read(Eigen::Index first, Eigen::Index count, Eigen::MatrixXf& block) const {
-  MatrixXfR rows;
-  read_frames(first, count, rows);
-  block = (rows.transpose().colwise() - mean_);
+  block.resize(mean_.size(), count);
+  read_into(first, count, block.data());
+  block.colwise() -= mean_;
 }
 
 void check_reduction_options(const ReductionOptions& o) {

@@ -45,8 +45,15 @@ MatrixXf gaussian_rows(Index first, Index count, Index l, std::uint64_t seed) {
 
 }  // namespace
 
+Index block_columns(const RandomizedSvdOptions& o, Index rows) {
+  if (o.block_columns > 0) return o.block_columns;
+  const auto column_bytes = static_cast<std::size_t>(std::max<Index>(rows, 1)) * sizeof(float);
+  return static_cast<Index>(std::max<std::size_t>(1, o.block_bytes / column_bytes));
+}
+
 SvdResult randomized_svd(const ColumnSource& A, const RandomizedSvdOptions& o) {
   const Index M = A.rows(), N = A.cols();
+  const Index columns = block_columns(o, M);
   if (M == 0 || N == 0) throw std::invalid_argument("randomized_svd: empty matrix");
   if (o.rank < 1) throw std::invalid_argument("randomized_svd: rank must be >= 1");
   const Index r = std::min<Index>(o.rank, std::min(M, N));
@@ -60,7 +67,7 @@ SvdResult randomized_svd(const ColumnSource& A, const RandomizedSvdOptions& o) {
   // Pass 1: Y = A Omega, and ||A||_F^2 on the way.
   SvdResult result;
   MatrixXf Y = MatrixXf::Zero(M, l);
-  for_each_block(A, o.block_columns, [&](Index first, const MatrixXf& block) {
+  for_each_block(A, columns, [&](Index first, const MatrixXf& block) {
     Y.noalias() += block * gaussian_rows(first, block.cols(), l, o.seed);
     result.frobenius_squared += block.cast<double>().squaredNorm();
   });
@@ -71,13 +78,13 @@ SvdResult randomized_svd(const ColumnSource& A, const RandomizedSvdOptions& o) {
   // step so that rounding does not collapse the small directions.
   for (int it = 0; it < o.power_iterations; ++it) {
     MatrixXf Z(N, l);
-    for_each_block(A, o.block_columns, [&](Index first, const MatrixXf& block) {
+    for_each_block(A, columns, [&](Index first, const MatrixXf& block) {
       Z.middleRows(first, block.cols()).noalias() = block.transpose() * Q;
     });
     done_pass();
     Z = orthonormalize(Z);
     Y.setZero();
-    for_each_block(A, o.block_columns, [&](Index first, const MatrixXf& block) {
+    for_each_block(A, columns, [&](Index first, const MatrixXf& block) {
       Y.noalias() += block * Z.middleRows(first, block.cols());
     });
     done_pass();
@@ -86,7 +93,7 @@ SvdResult randomized_svd(const ColumnSource& A, const RandomizedSvdOptions& o) {
 
   // Final pass: B = Q^T A (l x N), whose small SVD gives the factors.
   MatrixXf B(l, N);
-  for_each_block(A, o.block_columns, [&](Index first, const MatrixXf& block) {
+  for_each_block(A, columns, [&](Index first, const MatrixXf& block) {
     B.middleCols(first, block.cols()).noalias() = Q.transpose() * block;
   });
   done_pass();

@@ -35,6 +35,8 @@ class OrbitDisplacementSource final : public ColumnSource {
   void read_frames(Eigen::Index first, Eigen::Index count, MatrixXfR& rows) const;
 
  private:
+  void read_into(Eigen::Index first, Eigen::Index count, float* out) const;
+
   struct Hdf5;
   std::unique_ptr<Hdf5> h5_;
   std::filesystem::path path_;

@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 
@@ -42,7 +43,11 @@ struct RandomizedSvdOptions {
   int rank = 30;             // r: number of singular triplets wanted
   int oversampling = 10;     // p: extra random directions (l = r + p)
   int power_iterations = 2;  // q: sharpen a slowly decaying spectrum
-  Eigen::Index block_columns = 2048;
+  // Columns read at a time; 0: as many as fit in block_bytes (at least one).
+  // Sized in bytes so that the one block held stays small whatever 3V is: 2048
+  // columns of the paper cloth's 3V = 9 996 were 82 MB, and it was read twice.
+  Eigen::Index block_columns = 0;
+  std::size_t block_bytes = std::size_t{16} << 20;
   std::uint64_t seed = 1;
   // Called after each pass over the columns with (pass, total passes).
   std::function<void(int, int)> progress;
@@ -55,7 +60,12 @@ struct SvdResult {
   double frobenius_squared = 0;  // ||A||_F^2, exact, for the error curve
 };
 
-// Rank-r approximation A ~ U diag(sigma) V^T.
+// Columns per block for A's row count under `options` (block_columns, else block_bytes of floats).
+Eigen::Index block_columns(const RandomizedSvdOptions& options, Eigen::Index rows);
+
+// Rank-r approximation A ~ U diag(sigma) V^T. Holds one block of A, the
+// rows x l panels Y, Q and the l x cols panels Z, B: O((rows + cols) l) floats
+// besides the block, never A itself (tests/precompute/reduction/reduction_memory_test.cpp).
 SvdResult randomized_svd(const ColumnSource& A, const RandomizedSvdOptions& options);
 
 // Largest r with sigma_r >= eps * sigma_1 (§2.3.1); at least 1, at most sigma.size().
