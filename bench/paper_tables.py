@@ -99,8 +99,10 @@ def measure(scene, args):
     sigma = s["singular_values_u"]
     # V: simulated vertices, as the sampling stage prints them (the package's
     # deformable points also count the back side of sheets).
-    m = re.search(r"^\S+: (\d+) vertices,", open(os.path.join(work, "dynamics.log")).read(), re.M)
+    dynamics_log = open(os.path.join(work, "dynamics.log")).read()
+    m = re.search(r"^\S+: (\d+) vertices,", dynamics_log, re.M)
     vertices = int(m.group(1)) if m else None
+    stages = stage_figures(dynamics_log)
     paper_r = PAPER[scene][3]
     print(f"paper_tables: {scene}: frame rates...", file=sys.stderr, flush=True)
     irfs = min(s["n_irf"], 8)
@@ -108,13 +110,25 @@ def measure(scene, args):
         "scene": scene, "F": s["F"], "S": s["S"], "V": vertices, "DOF": 3 * vertices if vertices else None, "r_u": s["r_u"],
         "rel_error_u": s["rel_error_u"],
         "sigma_ratio_at_paper_r_u": sigma[paper_r] / sigma[0] if len(sigma) > paper_r and sigma[0] > 0 else None,
-        "peak_mib_dynamics": mem_dyn, "peak_mib_transfer": mem_transfer,
+        "peak_mib_dynamics": mem_dyn, "peak_mib_transfer": mem_transfer, **stages,
         "N_a": s.get("N_a", 0), "r_a": s["r_a"], "rel_error_a": s["rel_error_a"], "N": s["N"], "n_irf": s["n_irf"],
         "dynamics_s": t_dyn, "transfer_s": t_transfer,
         "fps_defo": render_fps(args.bin, defo, args.size, irfs),
         "fps_defo_transfer": render_fps(args.bin, full, args.size, irfs),
         "frame_state_bytes": s["frame_state_bytes"], "full_vertex_frame_bytes": s["full_vertex_frame_bytes"],
     }
+
+
+def stage_figures(log):
+    """What `run` prints of its stages: each chain's wall time, the merge, and
+    the randomized SVD's time and peak memory (docs/distributed.md's model)."""
+    chains = [{"chain": int(c), "irfs": int(i), "frames": int(n), "seconds": float(t)}
+              for c, i, n, t in re.findall(r"chain (\d+): (\d+) IRFs, (\d+) state nodes in ([\d.]+) s", log)]
+    merge = re.search(r"chain stores merged in ([\d.]+) s", log)
+    svd = re.search(r"randomized SVD of A_u \((\d+) x (\d+)\): ([\d.]+) s, peak resident memory (\d+) MiB", log)
+    return {"chains": chains, "merge_s": float(merge.group(1)) if merge else None,
+            "svd_rows": int(svd.group(1)) if svd else None, "svd_cols": int(svd.group(2)) if svd else None,
+            "svd_s": float(svd.group(3)) if svd else None, "peak_mib_svd": float(svd.group(4)) if svd else None}
 
 
 def pct(x):
@@ -143,12 +157,20 @@ def table(rows, args):
           f"{sampling_text(args)}.")
     if args.paper:
         print("\n| scene | V (simulated) | DOF | relErr = sigma_{r+1}/sigma_1 at the paper's r_u (§2.3.1) "
-              "| Frobenius error at r_u | peak memory: dynamics / transfer |")
+              "| Frobenius error at r_u | peak memory: dynamics run / its SVD / transfer run |")
         print("|---|---|---|---|---|---|")
         for r in rows:
             ratio = r["sigma_ratio_at_paper_r_u"]
+            svd = f"{r['peak_mib_svd']:.0f}" if r.get("peak_mib_svd") is not None else "n/a"
             print(f"| {r['scene']} | {r['V']} | {r['DOF']} | {pct(ratio) if ratio is not None else 'n/a'} "
-                  f"| {pct(r['rel_error_u'])} | {r['peak_mib_dynamics']:.0f} / {r['peak_mib_transfer']:.0f} MiB |")
+                  f"| {pct(r['rel_error_u'])} | {r['peak_mib_dynamics']:.0f} / {svd} / {r['peak_mib_transfer']:.0f} MiB |")
+        print("\n| scene | chain: IRFs, state nodes, wall s | merge | SVD of A_u |")
+        print("|---|---|---|---|")
+        for r in rows:
+            chains = "; ".join(f"{c['chain']}: {c['irfs']}, {c['frames']}, {c['seconds']:.0f} s" for c in r["chains"])
+            svd = (f"{r['svd_rows']} x {r['svd_cols']}: {r['svd_s']:.1f} s" if r.get("svd_s") is not None else "n/a")
+            merge = f"{r['merge_s']:.1f} s" if r.get("merge_s") is not None else "n/a"
+            print(f"| {r['scene']} | {chains or 'n/a'} | {merge} | {svd} |")
 
 
 def main():

@@ -3,6 +3,7 @@
 #include "contact_report.h"
 
 #include "phasecast/core/package.h"
+#include "phasecast/core/process_memory.h"
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/distributed/ranks.h"
 #include "phasecast/precompute/reduction/displacement_reduction.h"
@@ -13,6 +14,16 @@
 
 namespace phasecast::precompute::tools {
 namespace {
+
+class Stopwatch {
+ public:
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
 
 constexpr int kDefaultClusters = 16;
 constexpr int kDefaultHeldOut = 40;
@@ -167,21 +178,30 @@ void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::f
   auto display = std::make_shared<SamplingDisplay>();
   a.sampling.progress = [display](const precompute::SamplingProgress& p) { (*display)(p); };
   a.sampling.notice = [](const std::string& line) { fmt::print(stderr, "\n{}\n", line); };
+  a.sampling.chain_sampled = [&ranks](const precompute::ChainSampled& c) {
+    fmt::print(stderr, "\n{}chain {}: {} IRFs, {} state nodes in {:.1f} s ({:.0f} ms per node)\n",
+               ranks.distributed() ? fmt::format("rank {}: ", ranks.rank()) : "", c.chain, c.irfs, c.frames,
+               c.seconds, 1e3 * c.seconds / static_cast<double>(c.frames));
+  };
   precompute::MergedStore merged;
+  double merge_seconds = 0;
   try {
     // Each rank's chains stream into their stores in the work folder; rank 0
     // then merges them in chain order into the orbit store, one IRF at a
     // time, as one process would (docs/distributed.md).
     precompute::sample_own_chains(scene, rules, a.sampling);
     ranks.barrier();
+    const Stopwatch merge;
     if (ranks.rank() == 0) merged = precompute::write_chain_stores(scene, a.sampling, orbits);
+    merge_seconds = merge.seconds();
   } catch (...) {
     display->finish();
     throw;
   }
   display->finish();
   if (ranks.rank() == 0) {
-    fmt::print("wrote {} ({} IRFs, {} state nodes)\n", orbits.string(), merged.irfs, merged.frames);
+    fmt::print("wrote {} ({} IRFs, {} state nodes; chain stores merged in {:.1f} s)\n", orbits.string(),
+               merged.irfs, merged.frames, merge_seconds);
     if (scene.model.self_collision)
       fmt::print("{}\n", contact_line(store_contact(scene, orbits), close_distance(scene)));
   }
@@ -196,6 +216,9 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
       appearance.skip ? precompute::AppearanceStageOptions{} : appearance_stage_options(scene, appearance);
   const auto rules = precompute::make_palette_rules(scene);
   const auto index = precompute::read_orbit_index(orbits);
+  // The stage's own peak (a `run` has sampled before), as the benchmarks report it.
+  core::reset_peak_resident_memory();
+  const Stopwatch svd_time;
   core::ProgressBar mean_bar("mean shape");
   const precompute::OrbitDisplacementSource A(orbits);
   mean_bar.update(1, 1);
@@ -205,11 +228,16 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
   options.progress = [&bar](int done, int total) { bar.update(done, total); };
   const auto basis = precompute::reduce_displacements(A, options);
   bar.finish();
+  if (Ranks::world().rank() == 0) {
+    fmt::print(stderr, "randomized SVD of A_u ({} x {}): {:.1f} s, peak resident memory {:.0f} MiB\n",
+               A.rows(), A.cols(), svd_time.seconds(), core::resident_memory().peak_mib);
+  }
   auto built = precompute::build_package(scene, rules, index, basis, a.package);
   if (Ranks::world().rank() == 0)
     for (const auto& line : built.filter.messages) fmt::print(stderr, "dropped {}\n", line);
   auto& p = built.package;
   if (!appearance.skip) {
+    const Stopwatch appearance_time;
     core::ProgressBar transfer_bar("appearance transfer");
     auto stage = stage_options;
     const auto& ranks = Ranks::world();
@@ -222,6 +250,10 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
           transfer_bar.update(static_cast<int>(done), static_cast<int>(total));
         });
     transfer_bar.finish();
+    if (Ranks::world().rank() == 0) {
+      fmt::print(stderr, "appearance stage: {:.1f} s, peak resident memory of the reduce stage {:.0f} MiB\n",
+                 appearance_time.seconds(), core::resident_memory().peak_mib);
+    }
     core::validate_package(p, scene.name);
     if (Ranks::world().rank() == 0) print_appearance_report(p, report);
   }

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <exception>
 #include <mutex>
 #include <thread>
@@ -182,6 +183,9 @@ int run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptio
     if (o.progress) o.progress(sh.progress);
   }
   ChainPosition at = replay_chain(rules, o, chain, store.irf_table(), c.irfs);
+  const int resumed_irfs = c.irfs;
+  const std::int64_t resumed_frames = store.frames();
+  const auto start = std::chrono::steady_clock::now();
   IrfFrames irf;  // the only frames a chain holds: the IRF being recorded
   for (int i = c.irfs; i < o.irfs_per_chain; ++i) {
     if (sh.stop) break;
@@ -204,6 +208,12 @@ int run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptio
     sh.progress.nodes += draw.frames;
     if (o.progress) o.progress(sh.progress);
     if (o.stop_after_irfs > 0 && ++sh.new_irfs >= o.stop_after_irfs) sh.stop = true;
+  }
+  // The time of one chain is what a run spread over many ranks costs per chain (docs/distributed.md).
+  const auto frames = store.frames() - resumed_frames;
+  if (o.chain_sampled && store.irfs() == o.irfs_per_chain && frames > 0) {
+    o.chain_sampled({chain, store.irfs() - resumed_irfs, frames,
+                     std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()});
   }
   return store.irfs();
 }

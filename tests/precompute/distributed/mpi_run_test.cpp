@@ -1,6 +1,6 @@
 // phasecast-precompute run under a real mpirun (Open MPI, ranks on this
 // machine): the package of any number of ranks is the single process's, bit
-// for bit; a rank killed mid-run loses no finished chain and --resume finishes
+// for bit, dataset by dataset and as a file; a rank killed mid-run loses no finished chain and --resume finishes
 // the same package; a rank that fails ends every rank with one line naming it.
 
 #include "phasecast/core/package.h"
@@ -76,6 +76,8 @@ TEST(MpiRun, AnyNumberOfRanksWritesTheSinglePackage) {
     EXPECT_NE(r.out.find("wrote " + pkg.string() + ": N = "), std::string::npos) << r.out;
     SCOPED_TRACE(std::string("np ") + n);
     expect_same_package(truth, core::read_package(pkg));
+    // The file itself too: packages carry no times, so same content is same bytes (same hash).
+    EXPECT_TRUE(read_file(pkg) == read_file(dir / "np1.h5")) << "np " << n << ": the files differ";
   }
 }
 
@@ -129,6 +131,7 @@ TEST(MpiRun, KilledRankLosesNoFinishedChainAndResumeWritesTheSamePackage) {
   ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
   EXPECT_NE(resumed.err.find("(resuming)"), std::string::npos) << resumed.err;
   expect_same_package(truth, core::read_package(pkg));
+  EXPECT_TRUE(read_file(pkg) == read_file(dir / "np1.h5")) << "the resumed package's file differs";
 }
 
 TEST(MpiRun, ABadOptionOnOneRankEndsEveryRankWithOneLine) {

@@ -33,6 +33,15 @@ struct SamplingProgress {
   long long nodes = 0;  // state nodes (frames) recorded so far, all chains
 };
 
+// A chain that has sampled the IRFs it lacked: the unit of work of a run
+// spread over many ranks, timed (docs/distributed.md).
+struct ChainSampled {
+  int chain = 0;
+  int irfs = 0;          // sampled by this run (a resumed chain's earlier IRFs not counted)
+  long long frames = 0;  // state nodes of those IRFs
+  double seconds = 0;    // wall time
+};
+
 struct SamplingOptions {
   int chains = 4;           // independent work units
   int irfs_per_chain = 16;  // IRFs sampled by each chain
@@ -48,6 +57,7 @@ struct SamplingOptions {
   int ranks = 1;
   int rank = 0;
   std::function<void(const SamplingProgress&)> progress;
+  std::function<void(const ChainSampled&)> chain_sampled;  // called from the chain's thread
 };
 
 // The chain-th chain's decision for its `irf`-th IRF given its history (the
