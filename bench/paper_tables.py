@@ -122,8 +122,10 @@ def measure(scene, args):
 def stage_figures(log):
     """What `run` prints of its stages: each chain's wall time, the merge, and
     the randomized SVD's time and peak memory (docs/distributed.md's model)."""
-    chains = [{"chain": int(c), "irfs": int(i), "frames": int(n), "seconds": float(t)}
-              for c, i, n, t in re.findall(r"chain (\d+): (\d+) IRFs, (\d+) state nodes in ([\d.]+) s", log)]
+    chains = [{"chain": int(c), "irfs": int(i), "frames": int(n), "seconds": float(t),
+               "settle_s": float(settle) if settle else None}
+              for c, i, n, t, settle in
+              re.findall(r"chain (\d+): (\d+) IRFs, (\d+) state nodes in ([\d.]+) s(?: \(settling ([\d.]+) s)?", log)]
     merge = re.search(r"chain stores merged in ([\d.]+) s", log)
     svd = re.search(r"randomized SVD of A_u \((\d+) x (\d+)\): ([\d.]+) s, peak resident memory (\d+) MiB", log)
     return {"chains": chains, "merge_s": float(merge.group(1)) if merge else None,

@@ -179,9 +179,11 @@ void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::f
   a.sampling.progress = [display](const precompute::SamplingProgress& p) { (*display)(p); };
   a.sampling.notice = [](const std::string& line) { fmt::print(stderr, "\n{}\n", line); };
   a.sampling.chain_sampled = [&ranks](const precompute::ChainSampled& c) {
-    fmt::print(stderr, "\n{}chain {}: {} IRFs, {} state nodes in {:.1f} s ({:.0f} ms per node)\n",
-               ranks.distributed() ? fmt::format("rank {}: ", ranks.rank()) : "", c.chain, c.irfs, c.frames,
-               c.seconds, 1e3 * c.seconds / static_cast<double>(c.frames));
+    fmt::print(
+        stderr,
+        "\n{}chain {}: {} IRFs, {} state nodes in {:.1f} s (settling {:.1f} s, then {:.0f} ms per node)\n",
+        ranks.distributed() ? fmt::format("rank {}: ", ranks.rank()) : "", c.chain, c.irfs, c.frames,
+        c.seconds, c.settle_seconds, 1e3 * (c.seconds - c.settle_seconds) / static_cast<double>(c.frames));
   };
   precompute::MergedStore merged;
   double merge_seconds = 0;

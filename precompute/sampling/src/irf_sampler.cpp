@@ -165,13 +165,19 @@ ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, 
   return p;
 }
 
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 // Runs (or resumes) one chain; returns the IRFs its store holds.
 int run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptions& o, int chain,
               Shared& sh) {
+  const auto start = std::chrono::steady_clock::now();
   auto sim = make_simulator(scene);
   // Chains start from the settled rest, as simulate_schedule (the truth the
   // validator compares with) and the server's rest node do.
   const SimState rest = settled_rest_state(scene, *sim);
+  const double settle_seconds = seconds_since(start);
   Checkpoint c;
   c.state = rest;
   sim->reset(c.state);
@@ -185,7 +191,6 @@ int run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptio
   ChainPosition at = replay_chain(rules, o, chain, store.irf_table(), c.irfs);
   const int resumed_irfs = c.irfs;
   const std::int64_t resumed_frames = store.frames();
-  const auto start = std::chrono::steady_clock::now();
   IrfFrames irf;  // the only frames a chain holds: the IRF being recorded
   for (int i = c.irfs; i < o.irfs_per_chain; ++i) {
     if (sh.stop) break;
@@ -212,8 +217,7 @@ int run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptio
   // The time of one chain is what a run spread over many ranks costs per chain (docs/distributed.md).
   const auto frames = store.frames() - resumed_frames;
   if (o.chain_sampled && store.irfs() == o.irfs_per_chain && frames > 0) {
-    o.chain_sampled({chain, store.irfs() - resumed_irfs, frames,
-                     std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()});
+    o.chain_sampled({chain, store.irfs() - resumed_irfs, frames, seconds_since(start), settle_seconds});
   }
   return store.irfs();
 }

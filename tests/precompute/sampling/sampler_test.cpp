@@ -7,13 +7,12 @@
 
 #include <gtest/gtest.h>
 
-#include <cmath>
-
 #include <algorithm>
-
-#include <numbers>
-
+#include <cmath>
 #include <fstream>
+#include <mutex>
+#include <numbers>
+#include <vector>
 
 namespace phasecast::precompute {
 namespace {
@@ -131,6 +130,42 @@ TEST_F(Sampler, ResumeAfterAStoppedRunLosesAndDuplicatesNothing) {
   const OrbitStore resumed = sample_irfs(scene, rules, o);
   const OrbitStore straight = sample_irfs(scene, rules, small_options(scratch_dir("sampler_straight")));
   expect_identical(resumed, straight);
+}
+
+// Each chain reports the IRFs and state nodes it sampled (the per-chain
+// figures of docs/distributed.md): the store's own counts, and on a resume only
+// what the resumed run added.
+TEST_F(Sampler, EveryChainReportsWhatItSampledAndAResumeOnlyWhatItAdded) {
+  const auto dir = scratch_dir("sampler_chain_reports");
+  auto o = small_options(dir);
+  o.jobs = 1;
+  o.stop_after_irfs = 3;  // chain 0 stops after 3 of its 4 IRFs, chain 1 does not start
+  std::mutex mutex;
+  std::vector<ChainSampled> reports;
+  o.chain_sampled = [&](const ChainSampled& c) {
+    std::lock_guard lock(mutex);
+    reports.push_back(c);
+  };
+  EXPECT_THROW(sample_irfs(scene, rules, o), SamplingError);
+  EXPECT_TRUE(reports.empty()) << "a chain that stopped short reported itself done";
+  o.stop_after_irfs = 0;
+  o.resume = true;
+  const OrbitStore all = sample_irfs(scene, rules, o);
+  ASSERT_EQ(reports.size(), 2u);
+  std::sort(reports.begin(), reports.end(), [](auto& a, auto& b) { return a.chain < b.chain; });
+  const auto frames_of = [&](int first_irf, int irfs) {
+    long long n = 0;
+    for (int i = first_irf; i < first_irf + irfs; ++i) n += all.irf_length[static_cast<size_t>(i)];
+    return n;
+  };
+  EXPECT_EQ(reports[0].irfs, 1);  // the resumed chain: its 4th IRF only
+  EXPECT_EQ(reports[0].frames, frames_of(3, 1));
+  EXPECT_EQ(reports[1].irfs, 4);
+  EXPECT_EQ(reports[1].frames, frames_of(4, 4));
+  for (const auto& c : reports) {
+    EXPECT_GT(c.settle_seconds, 0) << "chain " << c.chain;
+    EXPECT_GT(c.seconds, c.settle_seconds) << "chain " << c.chain;
+  }
 }
 
 TEST_F(Sampler, ResumeDropsAnIrfWrittenAfterTheLastStateCheckpoint) {

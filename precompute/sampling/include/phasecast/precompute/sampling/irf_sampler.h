@@ -37,9 +37,10 @@ struct SamplingProgress {
 // spread over many ranks, timed (docs/distributed.md).
 struct ChainSampled {
   int chain = 0;
-  int irfs = 0;          // sampled by this run (a resumed chain's earlier IRFs not counted)
-  long long frames = 0;  // state nodes of those IRFs
-  double seconds = 0;    // wall time
+  int irfs = 0;               // sampled by this run (a resumed chain's earlier IRFs not counted)
+  long long frames = 0;       // state nodes of those IRFs
+  double seconds = 0;         // wall time, settling included
+  double settle_seconds = 0;  // of it, relaxing to the settled rest the chain starts from
 };
 
 struct SamplingOptions {
