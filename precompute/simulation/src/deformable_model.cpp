@@ -89,7 +89,7 @@ void add_rod_bend(DeformableModel& model, int a, int b, int c, double ei) {
   model.rod_bend.push_back({a, b, c, c0, ei / l_bar});
 }
 
-void add_tet(DeformableModel& model, std::array<int, 4> v, Lame lame) {
+void add_tet(DeformableModel& model, std::array<int, 4> v, Lame lame, TetEnergy energy) {
   for (int i : v) check_index(model, i, "tet");
   Eigen::Matrix3d Dm;
   for (int k = 0; k < 3; ++k) {
@@ -104,7 +104,7 @@ void add_tet(DeformableModel& model, std::array<int, 4> v, Lame lame) {
     throw std::invalid_argument(
         fmt::format("tet ({}, {}, {}, {}) is degenerate (zero volume)", v[0], v[1], v[2], v[3]));
   }
-  model.tets.push_back({v, Dm.inverse(), volume, lame});
+  model.tets.push_back({v, Dm.inverse(), volume, lame, energy});
 }
 
 std::vector<std::array<int, 4>> mesh_hinges(const Eigen::MatrixXi& triangles) {

@@ -1,5 +1,7 @@
 #include "phasecast/precompute/simulation/elastic_forces.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 
@@ -90,6 +92,71 @@ void corotational(const std::array<int, D + 1>& v, const Eigen::Matrix<double, D
                                         lame.lambda * W.col(a) * W.col(b).transpose());
       add_block(out, v[static_cast<size_t>(a)], v[static_cast<size_t>(b)], block);
     }
+  }
+}
+
+// Cross-product matrix: skew(a) b = a x b.
+Matrix3d skew(const Vector3d& a) {
+  Matrix3d m;
+  m << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+  return m;
+}
+
+// A positive semi-definite stand-in for an indefinite Hessian: negative
+// eigenvalues replaced by their magnitudes (Chen et al. 2024, "Trust-region
+// eigenvalue filtering for projected Newton"). Clamping them to zero instead
+// leaves compressed rubber without curvature in its flip modes, and the paper
+// toy's two Newton iterations overshot there until it blew up. A Cholesky
+// factorization spots the already definite case for a fraction of the cost.
+template <int N>
+Eigen::Matrix<double, N, N> psd_projection(const Eigen::Matrix<double, N, N>& H) {
+  if (Eigen::LLT<Eigen::Matrix<double, N, N>>(H).info() == Eigen::Success) return H;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(H);
+  return eig.eigenvectors() * eig.eigenvalues().cwiseAbs().asDiagonal() * eig.eigenvectors().transpose();
+}
+
+// Stable neo-Hookean tetrahedron (Smith, de Goes & Kim 2018, without their log term):
+//   Psi = mu/2 (I_C - 3) - mu (J - 1) + lambda/2 (J - 1)^2,  I_C = |F|^2, J = det F,
+// their mu/2 (I_C - 3) + lambda/2 (J - alpha)^2 with alpha = 1 + mu/lambda less its constant, so Psi(I) = 0.
+// It linearises to mu |eps|^2 + (lambda - mu)/2 tr(eps)^2, so lambda = Lame lambda + mu matches linear
+// elasticity at small strain. Defined for J <= 0, it pushes inverted tets back. The stiffness is the
+// exact Hessian, mu I + lambda g g^T + (lambda (J - 1) - mu) d2J/dF2 on vec(F) with g = vec(dJ/dF),
+// made positive semi-definite by psd_projection.
+void stable_neo_hookean(const TetElement& t, const Eigen::VectorXd& x, bool with_stiffness, ElementOut& out) {
+  Eigen::Matrix<double, 4, 3> G;
+  G.bottomRows<3>() = t.Dm_inv;
+  G.row(0) = -t.Dm_inv.colwise().sum();
+  Eigen::Matrix<double, 3, 4> X;
+  for (int a = 0; a < 4; ++a) X.col(a) = point(x, t.v[static_cast<size_t>(a)]);
+  const Matrix3d F = X * G;
+  const double mu = t.lame.mu, lambda = t.lame.lambda + t.lame.mu;
+  const double J = F.determinant();
+  Matrix3d dJdF;  // the cofactor matrix
+  dJdF << F.col(1).cross(F.col(2)), F.col(2).cross(F.col(0)), F.col(0).cross(F.col(1));
+  out.energy +=
+      t.volume * (0.5 * mu * (F.squaredNorm() - 3) - mu * (J - 1) + 0.5 * lambda * (J - 1) * (J - 1));
+  const double s = lambda * (J - 1) - mu;
+  const Matrix3d P = mu * F + s * dJdF;
+  const Eigen::Matrix<double, 3, 4> forces = -t.volume * P * G.transpose();
+  for (int a = 0; a < 4; ++a) add_force(out, a, forces.col(a));
+  if (!with_stiffness) return;
+  using Matrix9d = Eigen::Matrix<double, 9, 9>;
+  const Eigen::Map<const Eigen::Matrix<double, 9, 1>> g(dJdF.data());
+  Matrix9d H = mu * Matrix9d::Identity() + lambda * g * g.transpose();
+  // d2J/dF2: column i of cof F is f_j x f_k, (i, j, k) cyclic.
+  for (int i = 0; i < 3; ++i) {
+    const int j = (i + 1) % 3, k = (i + 2) % 3;
+    H.block<3, 3>(3 * i, 3 * j) -= s * skew(F.col(k));
+    H.block<3, 3>(3 * i, 3 * k) += s * skew(F.col(j));
+  }
+  H = psd_projection<9>(H);
+  Eigen::Matrix<double, 9, 12> B = Eigen::Matrix<double, 9, 12>::Zero();  // vec(F) = B vec(X)
+  for (int a = 0; a < 4; ++a)
+    for (int i = 0; i < 3; ++i) B.block<3, 3>(3 * i, 3 * a) = G(a, i) * Matrix3d::Identity();
+  const Eigen::Matrix<double, 12, 12> K = t.volume * B.transpose() * H * B;
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 4; ++b)
+      add_block(out, t.v[static_cast<size_t>(a)], t.v[static_cast<size_t>(b)], K.block<3, 3>(3 * a, 3 * b));
   }
 }
 
@@ -273,6 +340,7 @@ ElasticEvaluation evaluate_elastic(const DeformableModel& model, const Eigen::Ve
   e.add(
       model.tets, 4, [](const TetElement& t) { return t.v; },
       [](const TetElement& t, const Eigen::VectorXd& xs, bool k, ElementOut& out) {
+        if (t.energy == TetEnergy::stable_neo_hookean) return stable_neo_hookean(t, xs, k, out);
         corotational<3>(t.v, t.Dm_inv, t.volume, t.lame, xs, k, out);
       });
   return e.gather();

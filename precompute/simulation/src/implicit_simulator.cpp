@@ -115,6 +115,14 @@ class ImplicitSimulator final : public Simulator {
                       "newton_iterations >= 1, got {}, {}, {}",
                       settings_.frame_dt, settings_.substeps, settings_.newton_iterations));
     }
+    const double gamma = settings_.newmark_gamma, beta = settings_.newmark_beta;
+    if (settings_.integrator == Integrator::newmark &&
+        !(gamma >= 0.5 && beta >= (gamma + 0.5) * (gamma + 0.5) / 4)) {
+      throw SimulationError(
+          fmt::format("simulation settings: expected newmark_gamma >= 1/2 and newmark_beta >= "
+                      "(newmark_gamma + 1/2)^2 / 4 (unconditionally stable Newmark), got {}, {}",
+                      gamma, beta));
+    }
     free_index_.assign(static_cast<size_t>(3 * model_.vertices()), -1);
     for (int i = 0; i < model_.vertices(); ++i) {
       if (model_.pinned[static_cast<size_t>(i)]) continue;
@@ -227,32 +235,83 @@ class ImplicitSimulator final : public Simulator {
     return f;
   }
 
-  // One backward Euler step: solve M (v - v0) = h f(x0 + h v, v) for v by Newton.
+  // How the step weighs damping and stiffness in its system matrix: h and h^2
+  // for backward Euler, gamma h and beta h^2 for Newmark.
+  struct StepWeights {
+    double damping;
+    double stiffness;
+  };
+
+  // Newmark's start of step: f0 = f(x0, v0) = M a0, and the step velocity u = (x - x0) / h at v = v0.
+  struct NewmarkStart {
+    VectorXd force;
+    VectorXd drift;
+  };
+
+  NewmarkStart newmark_start(const VectorXd& x0, const VectorXd& v0, const FrameKinematics& kin,
+                             double h) const {
+    // Recomputed from the state rather than carried over: contact, clamps and
+    // support jumps change the state between steps, and a run restarted from
+    // any recorded (x, v) continues exactly.
+    const bool damped = settings_.stiffness_damping > 0;
+    std::vector<Eigen::Matrix3d> drag_blocks;
+    NewmarkStart start;
+    start.force = forces(evaluate_elastic(model_, x0, damped), x0, v0, kin, drag_blocks);
+    const double gamma = settings_.newmark_gamma, beta = settings_.newmark_beta;
+    start.drift = v0 + (h * (0.5 - beta / gamma)) * inverse_mass_times(start.force);
+    return start;
+  }
+
+  // Every force at positions x and velocities v: elastic, external, Rayleigh damping.
+  VectorXd forces(const ElasticEvaluation& el, const VectorXd& x, const VectorXd& v,
+                  const FrameKinematics& kin, std::vector<Eigen::Matrix3d>& drag_blocks) const {
+    const double a = settings_.mass_damping, b = settings_.stiffness_damping;
+    VectorXd Kv = VectorXd::Zero(x.size());
+    for (const auto& t : el.stiffness) Kv[t.row()] += t.value() * v[t.col()];
+    return el.force + external_forces(x, v, kin, drag_blocks) - a * mass_times(v) - b * Kv;
+  }
+
+  // One implicit step of length h, solved by Newton for the end-of-step velocities v:
+  //   backward Euler  M (v - v0) = h f(x0 + h v, v);
+  //   Newmark         M (v - v0) = h ((1 - gamma) f0 + gamma f(x0 + h u, v)), f0 = f(x0, v0) = M a0,
+  //                   u = v0 + (beta/gamma) (v - v0) + h (1/2 - beta/gamma) a0,
+  // which is Newmark's x = x0 + h v0 + h^2 ((1/2 - beta) a0 + beta a) with a from v = v0 + h ((1 - gamma)
+  // a0 + gamma a). Contact then acts on the step velocity u = (x - x0) / h (v itself for backward Euler).
   void substep(double h) {
     const FrameKinematics kin = support_.kinematics(state_.support);
     const VectorXd x0 = state_.x, v0 = state_.v;
+    const bool newmark = settings_.integrator == Integrator::newmark;
+    const double gamma = settings_.newmark_gamma, beta = settings_.newmark_beta;
+    const NewmarkStart start = newmark ? newmark_start(x0, v0, kin, h) : NewmarkStart{};
+    const StepWeights weights = newmark ? StepWeights{gamma * h, beta * h * h} : StepWeights{h, h * h};
+    const auto step_velocity = [&](const VectorXd& v) -> VectorXd {
+      return newmark ? VectorXd(start.drift + (beta / gamma) * (v - v0)) : v;
+    };
     VectorXd v = v0;
-    const double a = settings_.mass_damping, b = settings_.stiffness_damping;
     std::vector<Eigen::Matrix3d> drag_blocks;
     for (int it = 0; it < settings_.newton_iterations; ++it) {
-      const VectorXd x = x0 + h * v;
+      const VectorXd x = x0 + h * step_velocity(v);
       const ElasticEvaluation el = evaluate_elastic(model_, x, true);
-      VectorXd Kv = VectorXd::Zero(x.size());
-      for (const auto& t : el.stiffness) Kv[t.row()] += t.value() * v[t.col()];
-      const VectorXd f = el.force + external_forces(x, v, kin, drag_blocks) - a * mass_times(v) - b * Kv;
-      const VectorXd residual = mass_times(v - v0) - h * f;
-      const VectorXd delta = solve(el.stiffness, drag_blocks, residual, h);
+      const VectorXd f = forces(el, x, v, kin, drag_blocks);
+      const VectorXd residual =
+          newmark ? VectorXd(mass_times(v - v0) - h * ((1 - gamma) * start.force + gamma * f))
+                  : VectorXd(mass_times(v - v0) - h * f);
+      const VectorXd delta = solve(el.stiffness, drag_blocks, residual, weights);
       v += delta;
       if (delta.lpNorm<Eigen::Infinity>() < settings_.newton_tolerance) break;
     }
-    self_collision_.filter(x0, v, h, inverse_mass_);
-    clip_obstacles(x0, v, h);
+    VectorXd u = step_velocity(v);
+    const VectorXd unfiltered = u;
+    self_collision_.filter(x0, u, h, inverse_mass_);
+    clip_obstacles(x0, u, h);
     if (model_.self_collision) {
-      continuous_collision_.resolve(x0, v, h, inverse_mass_,
+      continuous_collision_.resolve(x0, u, h, inverse_mass_,
                                     [this](int, const Vector3d& end) { return clear_of_obstacles(end); });
     }
-    state_.v = v;
-    state_.x = x0 + h * v;
+    // Contact changes Newmark's end velocity by what it changed the step's: an
+    // inelastic impulse, as for backward Euler, whose end velocity is u.
+    state_.v = newmark ? VectorXd(v + (u - unfiltered)) : u;
+    state_.x = x0 + h * u;
     if (!model_.self_collision) resolve_obstacles();  // with CCD every end is already clear
     clamp_speeds();
     apply_support_jump(support_.advance(state_.support, h));
@@ -264,11 +323,19 @@ class ImplicitSimulator final : public Simulator {
     return out;
   }
 
-  // Solves A delta = -residual on the free coordinates, A = M (1 + h a) + (h b + h^2) K + h D_drag.
+  // M^-1 f on the free particles, zero on pinned ones.
+  VectorXd inverse_mass_times(const VectorXd& f) const {
+    VectorXd out(f.size());
+    for (int i = 0; i < vertices(); ++i) out.segment<3>(3 * i) = inverse_mass_[i] * f.segment<3>(3 * i);
+    return out;
+  }
+
+  // Solves A delta = -residual on the free coordinates, A = M (1 + c a) + (c b + s) K + c D_drag with
+  // (c, s) the step's weights: (h, h^2) for backward Euler, (gamma h, beta h^2) for Newmark.
   VectorXd solve(const std::vector<Eigen::Triplet<double>>& stiffness,
-                 const std::vector<Eigen::Matrix3d>& drag_blocks, const VectorXd& residual, double h) {
+                 const std::vector<Eigen::Matrix3d>& drag_blocks, const VectorXd& residual, StepWeights w) {
     const double a = settings_.mass_damping, b = settings_.stiffness_damping;
-    const double k_scale = h * b + h * h;
+    const double k_scale = w.damping * b + w.stiffness;
     triplets_.clear();
     triplets_.reserve(stiffness.size() + static_cast<size_t>(3 * free_count_));
     for (const auto& t : stiffness) {
@@ -282,9 +349,9 @@ class ImplicitSimulator final : public Simulator {
         const int fr = free_index_[static_cast<size_t>(3 * i + r)];
         rhs[fr] = -residual[3 * i + r];
         for (int c = 0; c < 3; ++c) {
-          const double m = r == c ? model_.mass[i] * (1 + h * a) : 0.0;
+          const double m = r == c ? model_.mass[i] * (1 + w.damping * a) : 0.0;
           triplets_.emplace_back(fr, free_index_[static_cast<size_t>(3 * i + c)],
-                                 m + h * drag_blocks[static_cast<size_t>(i)](r, c));
+                                 m + w.damping * drag_blocks[static_cast<size_t>(i)](r, c));
         }
       }
     }

@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -23,6 +24,7 @@ constexpr double kPi = 3.14159265358979323846;
 // and the validator all start from the same settled rest (the cloth sags, a
 // toy settles onto its base) instead of an unsettled mesh.
 constexpr double kDefaultSettle = 0.5;
+constexpr const char* kEnergyNames = "membrane, bending, rod, tet_fem, tet_neo_hookean";
 
 // Geometry of one body before assembly: points plus triangles, rod segments or tets.
 struct BodyGeometry {
@@ -246,15 +248,15 @@ void add_energy(DeformableModel& m, Fields& body, const std::string& e, const Bo
       add_rod_bend(m, gid(g.segments[k][0]), gid(g.segments[k][1]), gid(g.segments[k + 1][1]),
                    mat.young * inertia);
     }
-  } else if (e == "tet_fem") {
-    if (g.tets.rows() == 0) body.fail("energies", "'tet_fem' only on tetgen meshes");
+  } else if (e == "tet_fem" || e == "tet_neo_hookean") {
+    if (g.tets.rows() == 0) body.fail("energies", fmt::format("'{}' only on tetgen meshes", e));
+    const TetEnergy energy = e == "tet_fem" ? TetEnergy::corotational : TetEnergy::stable_neo_hookean;
     for (Eigen::Index t = 0; t < g.tets.rows(); ++t) {
       add_tet(m, {gid(g.tets(t, 0)), gid(g.tets(t, 1)), gid(g.tets(t, 2)), gid(g.tets(t, 3))},
-              lame_from_young(mat.young, mat.poisson));
+              lame_from_young(mat.young, mat.poisson), energy);
     }
   } else {
-    body.fail("energies",
-              fmt::format("energy names among membrane, bending, rod, tet_fem ('{}' is unknown)", e));
+    body.fail("energies", fmt::format("energy names among {} ('{}' is unknown)", kEnergyNames, e));
   }
 }
 
@@ -315,7 +317,11 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
   DeformableModel& m = scene.model;
   const Material mat = read_material(body);
   const auto energies = body.strings("energies");
-  if (energies.empty()) body.fail("energies", "at least one of membrane, bending, rod, tet_fem");
+  if (energies.empty()) body.fail("energies", fmt::format("at least one of {}", kEnergyNames));
+  if (std::count(energies.begin(), energies.end(), "tet_fem") +
+          std::count(energies.begin(), energies.end(), "tet_neo_hookean") >
+      1)
+    body.fail("energies", "one tet energy, 'tet_fem' or 'tet_neo_hookean' (each is a whole material)");
   try {
     for (const auto& e : energies) add_energy(m, body, e, g, mat, gid);
   } catch (const std::invalid_argument& e) {
@@ -337,6 +343,26 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
   }
   body.finish();
   scene.bodies.push_back(std::move(info));
+}
+
+// [simulation] integrator, and Newmark's gamma and beta, held to the
+// unconditionally stable part of the family.
+void read_integrator(Fields& sim, SimulationSettings& s) {
+  const std::string integrator = sim.optional_string("integrator").value_or("backward_euler");
+  if (integrator != "backward_euler" && integrator != "newmark")
+    sim.fail("integrator", "\"backward_euler\" or \"newmark\"");
+  if (integrator == "backward_euler") {
+    for (const char* key : {"newmark_gamma", "newmark_beta"})
+      if (sim.has(key)) sim.fail(key, "no value unless integrator = \"newmark\"");
+    return;
+  }
+  s.integrator = Integrator::newmark;
+  s.newmark_gamma = sim.number("newmark_gamma", s.newmark_gamma);
+  if (!(s.newmark_gamma >= 0.5)) sim.fail("newmark_gamma", "a number >= 0.5");
+  const double least_beta = (s.newmark_gamma + 0.5) * (s.newmark_gamma + 0.5) / 4;
+  s.newmark_beta = sim.number("newmark_beta", least_beta);  // 1/4 for the trapezoidal rule
+  if (!(s.newmark_beta >= least_beta))
+    sim.fail("newmark_beta", fmt::format("a number >= (newmark_gamma + 1/2)^2 / 4 = {}", least_beta));
 }
 
 SimulationSettings read_simulation(Fields sim) {
@@ -361,6 +387,7 @@ SimulationSettings read_simulation(Fields sim) {
       sim.fail("linear_solver", "\"simplicial\" or \"supernodal\"");
     s.linear_solver = solver == "supernodal" ? LinearSolver::supernodal : LinearSolver::simplicial;
   }
+  read_integrator(sim, s);
   sim.finish();
   return s;
 }

@@ -157,9 +157,60 @@ TEST(SceneErrors, BadAlbedoAndProps) {
 
 TEST(SceneErrors, UnknownEnergyName) {
   EXPECT_EQ(rejection("energy", edited(kValid, "\"bending\"]", "\"stretchy\"]")),
-            ": field 'body[0].energies': expected energy names among membrane, bending, rod, tet_fem "
-            "('stretchy' is "
-            "unknown), got array of 2");
+            ": field 'body[0].energies': expected energy names among membrane, bending, rod, tet_fem, "
+            "tet_neo_hookean ('stretchy' is unknown), got array of 2");
+}
+
+TEST(SceneErrors, TetEnergiesOnlyOnTetMeshesAndOneAtATime) {
+  EXPECT_EQ(rejection("snhgrid", edited(kValid, "\"bending\"]", "\"tet_neo_hookean\"]")),
+            ": field 'body[0].energies': expected 'tet_neo_hookean' only on tetgen meshes, got array of 2");
+  EXPECT_EQ(
+      rejection("twotets",
+                edited(kValid, "[\"membrane\", \"bending\"]", "[\"tet_fem\", \"tet_neo_hookean\"]")),
+      ": field 'body[0].energies': expected one tet energy, 'tet_fem' or 'tet_neo_hookean' (each is a whole "
+      "material), got array of 2");
+}
+
+TEST(SceneErrors, UnknownIntegratorAndUnstableNewmarkParameters) {
+  const auto with = [](const std::string& lines) {
+    return edited(kValid, "frame_dt = 0.02", "frame_dt = 0.02\n" + lines);
+  };
+  EXPECT_EQ(
+      rejection("integrator", with("integrator = \"verlet\"")),
+      ": field 'simulation.integrator': expected \"backward_euler\" or \"newmark\", got string \"verlet\"");
+  EXPECT_EQ(rejection("gamma", with("integrator = \"newmark\"\nnewmark_gamma = 0.4")),
+            ": field 'simulation.newmark_gamma': expected a number >= 0.5, got number 0.4");
+  EXPECT_EQ(rejection("beta", with("integrator = \"newmark\"\nnewmark_beta = 0.2")),
+            ": field 'simulation.newmark_beta': expected a number >= (newmark_gamma + 1/2)^2 / 4 = 0.25, got "
+            "number 0.2");
+  EXPECT_EQ(
+      rejection("beta2", with("integrator = \"newmark\"\nnewmark_gamma = 0.75\nnewmark_beta = 0.3")),
+      ": field 'simulation.newmark_beta': expected a number >= (newmark_gamma + 1/2)^2 / 4 = 0.390625, got "
+      "number 0.3");
+  EXPECT_EQ(
+      rejection("eulerbeta", with("newmark_beta = 0.3")),
+      ": field 'simulation.newmark_beta': expected no value unless integrator = \"newmark\", got number "
+      "0.3");
+}
+
+TEST(Scene, NewmarkSceneLoadsAndRuns) {
+  const Scene euler = load_scene_file(write_scene("euler", kValid));
+  EXPECT_EQ(euler.simulation.integrator, Integrator::backward_euler);
+  const Scene s = load_scene_file(
+      write_scene("newmark", edited(kValid, "frame_dt = 0.02", "frame_dt = 0.02\nintegrator = \"newmark\"")));
+  EXPECT_EQ(s.simulation.integrator, Integrator::newmark);
+  EXPECT_DOUBLE_EQ(s.simulation.newmark_gamma, 0.5);
+  EXPECT_DOUBLE_EQ(s.simulation.newmark_beta, 0.25);
+  const auto run = [](const Scene& scene) {
+    auto sim = make_simulator(scene);
+    sim->impulse(scene.palette[0].alpha_impulse);
+    for (int i = 0; i < 25; ++i) sim->step(scene.palette[0].alpha_forcing);
+    return sim->state().x;
+  };
+  const Eigen::VectorXd x = run(s), x_euler = run(euler);
+  EXPECT_TRUE(x.allFinite());
+  EXPECT_GT((x - s.model.rest).cwiseAbs().maxCoeff(), 1e-3);  // it moved
+  EXPECT_GT((x - x_euler).cwiseAbs().maxCoeff(), 1e-6);       // and is not backward Euler
 }
 
 TEST(SceneErrors, EnergyOnTheWrongMesh) {

@@ -49,12 +49,18 @@ struct RodBendElement {
   double stiffness = 0;     // N*m
 };
 
-// Co-rotational linear tetrahedron (solids).
+// The energy of a solid's tetrahedra: co-rotational linear (`tet_fem`), or
+// Smith, de Goes & Kim 2018's stable neo-Hookean (`tet_neo_hookean`), a
+// hyperelastic rubber that stays defined and pushes back through inversion.
+enum class TetEnergy { corotational, stable_neo_hookean };
+
+// Tetrahedron of a solid.
 struct TetElement {
   std::array<int, 4> v{};
   Eigen::Matrix3d Dm_inv;  // inverse rest edge matrix [x1-x0, x2-x0, x3-x0]
   double volume = 0;       // rest volume, m^3
-  Lame lame;
+  Lame lame;               // of linear elasticity, which both energies match at small strain
+  TetEnergy energy = TetEnergy::corotational;
 };
 
 // Linear air drag on a triangle: f = -c A (n . v_rel) n, shared by its three vertices.
@@ -96,7 +102,8 @@ void add_membrane(DeformableModel& model, std::array<int, 3> v, Lame lame);
 void add_hinge(DeformableModel& model, std::array<int, 4> v, double bending_modulus);
 void add_rod_stretch(DeformableModel& model, int a, int b, double ea);
 void add_rod_bend(DeformableModel& model, int a, int b, int c, double ei);
-void add_tet(DeformableModel& model, std::array<int, 4> v, Lame lame);
+void add_tet(DeformableModel& model, std::array<int, 4> v, Lame lame,
+             TetEnergy energy = TetEnergy::corotational);
 
 // Lamé parameters of an isotropic material from Young's modulus and Poisson's ratio.
 Lame lame_from_young(double young, double poisson);

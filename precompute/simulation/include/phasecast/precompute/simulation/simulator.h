@@ -51,6 +51,13 @@ class Simulator {
 // supernodes), about twice as fast at the paper's cloth size (docs/performance.md).
 enum class LinearSolver { simplicial, supernodal };
 
+// The implicit step: backward Euler in velocities (first order, damps the
+// highest modes, the default), or Newmark's family, the integrator ABAQUS ran
+// for the paper's solids, by default its average-acceleration member
+// (gamma = 1/2, beta = 1/4: the trapezoidal rule, unconditionally stable with
+// no numerical damping).
+enum class Integrator { backward_euler, newmark };
+
 struct SimulationSettings {
   double frame_dt = 1.0 / 50;
   int substeps = 2;
@@ -62,11 +69,15 @@ struct SimulationSettings {
   double max_speed = 50;         // m/s: particle speeds are clamped here (large impulses stay finite)
   double friction = 0.3;         // fraction of tangential velocity removed at an obstacle contact
   LinearSolver linear_solver = LinearSolver::simplicial;
+  Integrator integrator = Integrator::backward_euler;
+  double newmark_gamma = 0.5;  // unconditionally stable when gamma >= 1/2 and beta >= (gamma + 1/2)^2 / 4
+  double newmark_beta = 0.25;
   double settle = 0;  // s of quasi-static relaxation before a recording starts (see orbit_recorder.h)
 };
 
-// Implicit backward Euler with Newton iterations on the velocities and a sparse
-// Cholesky (LDL^T) solve, in the frame of a moving support.
+// Implicit backward Euler or Newmark (settings.integrator) with Newton
+// iterations on the end-of-step velocities and a sparse Cholesky solve, in the
+// frame of a moving support.
 std::unique_ptr<Simulator> make_implicit_simulator(DeformableModel model, const SimulationSettings& settings,
                                                    const SupportSettings& support);
 
