@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <tuple>
 
 namespace phasecast::precompute {
 namespace {
@@ -180,46 +181,136 @@ std::optional<double> edge_edge_contact(const Points& start, const Points& end, 
   return first_contact(start, end, start, end, tolerance, edge_edge_distance);
 }
 
-ContinuousCollision::ContinuousCollision(Eigen::MatrixXi triangles, double separation, int passes)
+ContinuousCollision::ContinuousCollision(Eigen::MatrixXi triangles, double separation, int passes,
+                                         bool incremental)
     : triangles_(std::move(triangles)),
       edges_(surface_edges(triangles_)),
       separation_(separation),
-      passes_(passes) {
+      passes_(passes),
+      incremental_(incremental) {
   vertex_count_ = triangles_.size() ? triangles_.maxCoeff() + 1 : 0;
+}
+
+namespace {
+
+// The swept boxes of every surface vertex, triangle and edge over a step, and their hashes.
+struct SweptPrimitives {
+  std::vector<Eigen::AlignedBox3d> vertices, triangles, edges;
+
+  SweptPrimitives(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1, int vertex_count,
+                  const Eigen::MatrixXi& tris, const std::vector<std::array<int, 2>>& edge_list) {
+    for (int p = 0; p < vertex_count; ++p) vertices.push_back(swept(x0, x1, {p}));
+    for (Eigen::Index f = 0; f < tris.rows(); ++f)
+      triangles.push_back(swept(x0, x1, {tris(f, 0), tris(f, 1), tris(f, 2)}));
+    for (const auto& e : edge_list) edges.push_back(swept(x0, x1, {e[0], e[1]}));
+  }
+};
+
+bool before(const ContinuousCollision::Collision& a, const ContinuousCollision::Collision& b) {
+  return std::tie(a.edge_edge, a.pair) < std::tie(b.edge_edge, b.pair);
+}
+
+}  // namespace
+
+// Vertex p against triangle f, and edge i against edge g (g > i), as detect() tests them.
+std::optional<ContinuousCollision::Collision> ContinuousCollision::test_vertex_triangle(
+    const Eigen::VectorXd& x0, const Eigen::VectorXd& x1, int p, int f) const {
+  const std::array<int, 4> v = {p, triangles_(f, 0), triangles_(f, 1), triangles_(f, 2)};
+  if (v[1] == p || v[2] == p || v[3] == p) return std::nullopt;
+  const Points s = corners(x0, v), e = corners(x1, v);
+  const auto t = vertex_triangle_contact(s, e, kTouch);
+  if (!t) return std::nullopt;
+  Collision c = vertex_triangle_collision(v, s, at(s, e, *t));
+  c.pair = {p, f};
+  return c;
+}
+
+std::optional<ContinuousCollision::Collision> ContinuousCollision::test_edge_edge(const Eigen::VectorXd& x0,
+                                                                                  const Eigen::VectorXd& x1,
+                                                                                  int i, int g) const {
+  const auto& a = edges_[static_cast<size_t>(i)];
+  const auto& b = edges_[static_cast<size_t>(g)];
+  if (a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1]) return std::nullopt;
+  const std::array<int, 4> v = {a[0], a[1], b[0], b[1]};
+  const Points s = corners(x0, v), e = corners(x1, v);
+  const auto t = edge_edge_contact(s, e, kTouch);
+  if (!t) return std::nullopt;
+  Collision c = edge_edge_collision(v, s, at(s, e, *t));
+  c.edge_edge = true;
+  c.pair = {i, g};
+  return c;
 }
 
 std::vector<ContinuousCollision::Collision> ContinuousCollision::detect(const Eigen::VectorXd& x0,
                                                                         const Eigen::VectorXd& x1) const {
   std::vector<Collision> out;
-  std::vector<Eigen::AlignedBox3d> tri_boxes, edge_boxes;
-  for (Eigen::Index f = 0; f < triangles_.rows(); ++f)
-    tri_boxes.push_back(swept(x0, x1, {triangles_(f, 0), triangles_(f, 1), triangles_(f, 2)}));
-  for (const auto& e : edges_) edge_boxes.push_back(swept(x0, x1, {e[0], e[1]}));
-  const BoxHash tri_hash(tri_boxes), edge_hash(edge_boxes);
+  const SweptPrimitives box(x0, x1, vertex_count_, triangles_, edges_);
+  const BoxHash tri_hash(box.triangles), edge_hash(box.edges);
   std::vector<int> near;
   for (int p = 0; p < vertex_count_; ++p) {
-    tri_hash.overlapping(swept(x0, x1, {p}), near);
-    for (int f : near) {
-      const std::array<int, 4> v = {p, triangles_(f, 0), triangles_(f, 1), triangles_(f, 2)};
-      if (v[1] == p || v[2] == p || v[3] == p) continue;
-      const Points s = corners(x0, v), e = corners(x1, v);
-      if (const auto t = vertex_triangle_contact(s, e, kTouch))
-        out.push_back(vertex_triangle_collision(v, s, at(s, e, *t)));
+    tri_hash.overlapping(box.vertices[static_cast<size_t>(p)], near);
+    for (int f : near)
+      if (auto c = test_vertex_triangle(x0, x1, p, f)) out.push_back(*c);
+  }
+  for (int i = 0; i < static_cast<int>(edges_.size()); ++i) {
+    edge_hash.overlapping(box.edges[static_cast<size_t>(i)], near);
+    for (int g : near)
+      if (g > i)
+        if (auto c = test_edge_edge(x0, x1, i, g)) out.push_back(*c);
+  }
+  return out;
+}
+
+std::vector<ContinuousCollision::Collision> ContinuousCollision::detect_moved(
+    const Eigen::VectorXd& x0, const Eigen::VectorXd& x1, const std::vector<Collision>& previous,
+    const std::vector<std::uint8_t>& moved) const {
+  const auto has_moved = [&moved](std::initializer_list<int> vs) {
+    return std::any_of(vs.begin(), vs.end(), [&moved](int v) { return moved[static_cast<size_t>(v)] != 0; });
+  };
+  std::vector<Collision> out;
+  for (const auto& c : previous)  // unmoved pairs keep their result
+    if (!has_moved({c.vertex[0], c.vertex[1], c.vertex[2], c.vertex[3]})) out.push_back(c);
+  // Every overlapping pair with a moved vertex, found from its moved side.
+  const SweptPrimitives box(x0, x1, vertex_count_, triangles_, edges_);
+  const BoxHash tri_hash(box.triangles), edge_hash(box.edges);
+  std::vector<std::array<int, 2>> vertex_triangle, edge_edge;
+  std::vector<int> near;
+  for (int p = 0; p < vertex_count_; ++p) {
+    if (!moved[static_cast<size_t>(p)]) continue;
+    tri_hash.overlapping(box.vertices[static_cast<size_t>(p)], near);
+    for (int f : near) vertex_triangle.push_back({p, f});
+  }
+  // Still vertices against moved triangles: a hash of the moved triangles
+  // only, queried by every still vertex's small box (a hash of the vertices,
+  // sized to their boxes, would make a triangle's query visit far too many cells).
+  std::vector<int> moved_triangles;
+  std::vector<Eigen::AlignedBox3d> moved_boxes;
+  for (int f = 0; f < static_cast<int>(triangles_.rows()); ++f) {
+    if (!has_moved({triangles_(f, 0), triangles_(f, 1), triangles_(f, 2)})) continue;
+    moved_triangles.push_back(f);
+    moved_boxes.push_back(box.triangles[static_cast<size_t>(f)]);
+  }
+  if (!moved_triangles.empty()) {
+    const BoxHash moved_hash(moved_boxes);
+    for (int p = 0; p < vertex_count_; ++p) {
+      if (moved[static_cast<size_t>(p)]) continue;
+      moved_hash.overlapping(box.vertices[static_cast<size_t>(p)], near);
+      for (int k : near) vertex_triangle.push_back({p, moved_triangles[static_cast<size_t>(k)]});
     }
   }
-  for (size_t i = 0; i < edges_.size(); ++i) {
-    edge_hash.overlapping(edge_boxes[i], near);
-    for (int g : near) {
-      const auto& a = edges_[i];
-      const auto& b = edges_[static_cast<size_t>(g)];
-      if (static_cast<size_t>(g) <= i || a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1])
-        continue;
-      const std::array<int, 4> v = {a[0], a[1], b[0], b[1]};
-      const Points s = corners(x0, v), e = corners(x1, v);
-      if (const auto t = edge_edge_contact(s, e, kTouch))
-        out.push_back(edge_edge_collision(v, s, at(s, e, *t)));
-    }
+  for (int i = 0; i < static_cast<int>(edges_.size()); ++i) {
+    if (!has_moved({edges_[static_cast<size_t>(i)][0], edges_[static_cast<size_t>(i)][1]})) continue;
+    edge_hash.overlapping(box.edges[static_cast<size_t>(i)], near);
+    for (int g : near)
+      if (g != i) edge_edge.push_back({std::min(i, g), std::max(i, g)});
   }
+  std::sort(edge_edge.begin(), edge_edge.end());
+  edge_edge.erase(std::unique(edge_edge.begin(), edge_edge.end()), edge_edge.end());
+  for (const auto& [p, f] : vertex_triangle)
+    if (auto c = test_vertex_triangle(x0, x1, p, f)) out.push_back(*c);
+  for (const auto& [i, g] : edge_edge)
+    if (auto c = test_edge_edge(x0, x1, i, g)) out.push_back(*c);
+  std::sort(out.begin(), out.end(), before);  // detect()'s order: impulses apply in it
   return out;
 }
 
@@ -275,9 +366,25 @@ CcdReport ContinuousCollision::resolve(const Eigen::VectorXd& x0, Eigen::VectorX
   CcdReport report;
   if (triangles_.rows() == 0) return report;
   const double target = separation_ / h;
+  // Each detection after the first tests again only the pairs of vertices whose velocity changed.
+  std::vector<Collision> found;
+  Eigen::VectorXd v_detected;
+  const auto detect_step = [&]() -> const std::vector<Collision>& {
+    const Eigen::VectorXd x1 = x0 + h * v;
+    if (!incremental_ || v_detected.size() == 0) {
+      found = detect(x0, x1);
+    } else {
+      std::vector<std::uint8_t> moved(static_cast<size_t>(vertex_count_), 0);
+      for (int i = 0; i < vertex_count_; ++i)
+        moved[static_cast<size_t>(i)] = point(v, i) != point(v_detected, i);
+      found = detect_moved(x0, x1, found, moved);
+    }
+    v_detected = v;
+    return found;
+  };
   bool clean = false;  // the last detection found nothing: the fail-safe needs no second one
   for (int pass = 0; pass < passes_ && !clean; ++pass) {
-    const auto found = detect(x0, x0 + h * v);
+    detect_step();
     clean = found.empty();
     report.collisions += static_cast<int>(found.size());
     for (const auto& c : found) apply_impulse(c, v, target, inverse_mass);
@@ -289,7 +396,7 @@ CcdReport ContinuousCollision::resolve(const Eigen::VectorXd& x0, Eigen::VectorX
   for (int round = 0; round <= vertex_count_; ++round) {
     const Eigen::VectorXd x1 = x0 + h * v;
     bool changed = false;
-    for (const auto& c : detect(x0, x1)) {
+    for (const auto& c : detect_step()) {
       const int r = zones.root(c.vertex[0]);
       bool one_zone = in_zone[static_cast<size_t>(c.vertex[0])] != 0;
       for (int k : c.vertex) one_zone &= in_zone[static_cast<size_t>(k)] && zones.root(k) == r;

@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <random>
 
 namespace phasecast::precompute {
 namespace {
@@ -200,6 +201,80 @@ TEST(ContinuousCollision, PressedLayersNeverIntersectWhileInContact) {
   const ContactSummary c = summarize_contact(orbit.positions, scene.model.surface, 2 * scene.model.thickness);
   EXPECT_EQ(c.frames_intersecting, 0) << "worst frame: " << c.worst_intersecting << " pairs";
   EXPECT_GE(c.frames_close, 0.3 * c.frames) << "the layers must stay in contact range for the check to bite";
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
+
+namespace phasecast::precompute {
+namespace {
+
+// Steps of the pressed towel with a random jitter of up to 6 mm (the layers'
+// gap) on top of the simulator's own motion, so that the layers cross and
+// need several impulse passes and impact zones.
+struct ContactSteps {
+  Scene scene = two_layer_towel();
+  OrbitStore orbit = simulate_schedule(scene, parse_schedule("open 0.6; stop 0.3", scene));
+  Eigen::VectorXd inverse_mass = Eigen::VectorXd::Zero(scene.model.vertices());
+  double h = scene.simulation.frame_dt;
+
+  ContactSteps() {
+    for (int i = 0; i < scene.model.vertices(); ++i)
+      inverse_mass[i] = scene.model.pinned[static_cast<size_t>(i)] ? 0 : 1 / scene.model.mass[i];
+  }
+  Eigen::VectorXd x(int frame) const { return orbit.positions.row(frame).transpose().cast<double>(); }
+  Eigen::VectorXd v(int frame) const {
+    std::mt19937 rng(static_cast<unsigned>(frame));
+    std::uniform_real_distribution<double> jitter(-0.3, 0.3);  // m/s: 6 mm over h = 20 ms
+    Eigen::VectorXd v = (x(frame + 1) - x(frame)) / h;
+    for (Eigen::Index i = 0; i < v.size(); ++i)
+      if (inverse_mass[i / 3] > 0) v[i] += jitter(rng);
+    return v;
+  }
+};
+
+// The incremental detection (only pairs of moved vertices tested again) gives
+// the whole detection's velocities bit for bit, on steps where the layers collide.
+TEST(ContinuousCollision, IncrementalDetectionGivesTheWholeDetectionsVelocities) {
+  const ContactSteps steps;
+  const ContinuousCollision whole(steps.scene.model.surface, 1e-4, 6, /*incremental=*/false);
+  const ContinuousCollision incremental(steps.scene.model.surface, 1e-4, 6, /*incremental=*/true);
+  const auto anywhere = [](int, const Vector3d&) { return true; };
+  int colliding_steps = 0;
+  for (int f = 0; f + 1 < steps.orbit.frames(); f += 2) {
+    Eigen::VectorXd a = steps.v(f), b = a;
+    const CcdReport ra = whole.resolve(steps.x(f), a, steps.h, steps.inverse_mass, anywhere);
+    const CcdReport rb = incremental.resolve(steps.x(f), b, steps.h, steps.inverse_mass, anywhere);
+    ASSERT_TRUE(a == b) << "frame " << f << ": velocities differ by " << (a - b).lpNorm<Eigen::Infinity>();
+    EXPECT_EQ(ra.collisions, rb.collisions) << "frame " << f;
+    EXPECT_EQ(ra.zone_vertices, rb.zone_vertices) << "frame " << f;
+    colliding_steps += ra.collisions > 0;
+  }
+  EXPECT_GE(colliding_steps, 5) << "too few colliding steps for the comparison to bite";
+}
+
+// detect_moved after moving some vertices lists exactly what detect lists, in its order.
+TEST(ContinuousCollision, DetectMovedListsWhatDetectListsInItsOrder) {
+  const ContactSteps steps;
+  const ContinuousCollision ccd(steps.scene.model.surface, 1e-4);
+  const int f = 10;
+  const Eigen::VectorXd x0 = steps.x(f), x1 = x0 + steps.h * steps.v(f);
+  const auto before = ccd.detect(x0, x1);
+  ASSERT_FALSE(before.empty());
+  // Undo the motion of every third vertex: their pairs change, the rest do not.
+  Eigen::VectorXd x1b = x1;
+  std::vector<std::uint8_t> moved(static_cast<size_t>(steps.scene.model.vertices()), 0);
+  for (int i = 0; i < steps.scene.model.vertices(); i += 3)
+    x1b.segment<3>(3 * i) = x0.segment<3>(3 * i), moved[i] = 1;
+  const auto truth = ccd.detect(x0, x1b);
+  const auto again = ccd.detect_moved(x0, x1b, before, moved);
+  ASSERT_EQ(again.size(), truth.size());
+  EXPECT_NE(truth.size(), before.size()) << "the moved vertices changed nothing: the check does not bite";
+  for (size_t k = 0; k < truth.size(); ++k) {
+    EXPECT_EQ(again[k].vertex, truth[k].vertex) << k;
+    EXPECT_EQ(again[k].weight, truth[k].weight) << k;
+    EXPECT_TRUE(again[k].normal == truth[k].normal) << k;
+  }
 }
 
 }  // namespace
