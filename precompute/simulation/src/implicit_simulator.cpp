@@ -27,6 +27,7 @@ using Eigen::VectorXd;
 // Relative normal speed, times the step, that a collision impulse leaves between
 // a pair, as a fraction of the thickness: enough to part it, too little to bounce.
 constexpr double kSeparation = 0.1;
+constexpr int kCcdPasses = 6;  // impulse passes before the impact-zone fail-safe
 
 Vector3d to_vector3(const VectorXd& alpha, int expected, const char* what) {
   if (alpha.size() != expected) {
@@ -108,7 +109,7 @@ class ImplicitSimulator final : public Simulator {
         factorization_(settings.linear_solver),
         self_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3), model_.thickness),
         continuous_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3),
-                              kSeparation * model_.thickness) {
+                              kSeparation * model_.thickness, kCcdPasses, model_.incremental_ccd) {
     if (!(settings_.frame_dt > 0) || settings_.substeps < 1 || settings_.newton_iterations < 1) {
       throw SimulationError(
           fmt::format("simulation settings: expected frame_dt > 0, substeps >= 1, "

@@ -486,6 +486,7 @@ Scene load_scene_file(const std::filesystem::path& path) {
     Fields contact = top.table("contact");
     scene.model.thickness = contact.positive("thickness", scene.model.thickness);
     scene.model.self_collision = contact.flag("self_collision", scene.model.self_collision);
+    scene.model.incremental_ccd = contact.flag("incremental_ccd", scene.model.incremental_ccd);
     contact.finish();
   }
   auto bodies = top.tables("body");

@@ -253,6 +253,17 @@ TEST(ContinuousCollision, IncrementalDetectionGivesTheWholeDetectionsVelocities)
   EXPECT_GE(colliding_steps, 5) << "too few colliding steps for the comparison to bite";
 }
 
+// The simulator with [contact] incremental_ccd = false (every detection whole)
+// records the same orbit, bit for bit, as with the default incremental one.
+TEST(ContinuousCollision, WholeDetectionScenesRecordTheSameOrbit) {
+  const ContactSteps steps;  // its orbit: the default, incremental detection
+  Scene whole = steps.scene;
+  whole.model.incremental_ccd = false;
+  const OrbitStore orbit = simulate_schedule(whole, parse_schedule("open 0.6; stop 0.3", whole));
+  EXPECT_TRUE(orbit.positions == steps.orbit.positions);
+  EXPECT_TRUE(orbit.velocities == steps.orbit.velocities);
+}
+
 // detect_moved after moving some vertices lists exactly what detect lists, in its order.
 TEST(ContinuousCollision, DetectMovedListsWhatDetectListsInItsOrder) {
   const ContactSteps steps;
