@@ -2,6 +2,7 @@
 
 #include "commands.h"
 #include "phasecast/core/progress.h"
+#include "phasecast/precompute/distributed/ranks.h"
 #include "phasecast/precompute/sampling/orbit_import.h"
 
 #include <fmt/format.h>
@@ -36,7 +37,10 @@ void add_import_command(CLI::App& app) {
       "Import orbits from another simulator (a TOML manifest of IRFs, each a folder of OBJ frames).");
   cmd->add_option("manifest", options->manifest, "manifest (.toml), see docs/simulator.md")->required();
   cmd->add_option("-o,--output", options->output, "orbit store to write (.h5)")->required();
-  cmd->callback([options] { run_import(*options); });
+  cmd->callback([options] {
+    Ranks::world().require_one_process("import");
+    run_import(*options);
+  });
 }
 
 }  // namespace phasecast::precompute::tools

@@ -3,6 +3,7 @@
 #include "commands.h"
 #include "contact_report.h"
 #include "phasecast/core/progress.h"
+#include "phasecast/precompute/distributed/ranks.h"
 #include "phasecast/precompute/sampling/obj_frames.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "phasecast/precompute/simulation/scene.h"
@@ -62,7 +63,10 @@ void add_simulate_command(CLI::App& app) {
       ->required();
   cmd->add_option("-o,--output", options->output, "orbit store to write (.h5)")->required();
   cmd->add_option("--obj-dir", options->obj_dir, "also write one world-space OBJ per frame into this folder");
-  cmd->callback([options] { run_simulate(*options); });
+  cmd->callback([options] {
+    Ranks::world().require_one_process("simulate");
+    run_simulate(*options);
+  });
 }
 
 }  // namespace phasecast::precompute::tools

@@ -5,6 +5,7 @@
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_file.h"
+#include "phasecast/precompute/distributed/ranks.h"
 
 #include <fmt/format.h>
 
@@ -108,7 +109,10 @@ void add_transfer_command(CLI::App& app) {
   cmd->add_flag("--double-sided", args->double_sided,
                 "also make the back side of every face scene points (thin surfaces)");
   cmd->add_flag("-q,--quiet", args->quiet, "no progress output");
-  cmd->callback([args] { run_transfer(*args); });
+  cmd->callback([args] {
+    Ranks::world().require_one_process("transfer");
+    run_transfer(*args);
+  });
 }
 
 }  // namespace phasecast::precompute::tools

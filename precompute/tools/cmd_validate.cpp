@@ -3,6 +3,7 @@
 
 #include "commands.h"
 #include "phasecast/core/progress.h"
+#include "phasecast/precompute/distributed/ranks.h"
 #include "phasecast/precompute/sampling/palette_rules.h"
 #include "phasecast/precompute/validation/playback.h"
 
@@ -128,7 +129,10 @@ void add_validate_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--json", o->json, "write every figure to this JSON file");
   cmd->add_flag("--no-intersections", o->no_intersections, "skip the exact self-intersection count");
-  cmd->callback([o] { run_validate(*o); });
+  cmd->callback([o] {
+    Ranks::world().require_one_process("validate");
+    run_validate(*o);
+  });
 }
 
 }  // namespace phasecast::precompute::tools

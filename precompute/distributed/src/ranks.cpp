@@ -20,14 +20,32 @@ bool started_by_mpi_launcher() {
   return false;
 }
 
+void check_not_unwired_slurm_task() {
+  const char* tasks = std::getenv("SLURM_STEP_NUM_TASKS");
+  if (!tasks || std::atoi(tasks) <= 1 || started_by_mpi_launcher()) return;
+  throw std::runtime_error(fmt::format(
+      "one of {} tasks of a Slurm step, but no MPI launcher connected them (no PMI/PMIx variables): each "
+      "would run the whole job; start it with srun --mpi=pmix or mpirun (docs/distributed.md)",
+      tasks));
+}
+
 Ranks& Ranks::world() {
   static Ranks w;
   return w;
 }
 
+void Ranks::require_one_process(const std::string& command) const {
+  if (distributed()) {
+    throw std::runtime_error(fmt::format(
+        "{} runs in one process: start it without mpirun (sample, reduce and run spread over ranks)",
+        command));
+  }
+}
+
 #ifdef PHASECAST_HAVE_MPI
 
 Ranks::Ranks() {
+  check_not_unwired_slurm_task();
   if (!started_by_mpi_launcher()) return;
   int ready = 0;
   MPI_Initialized(&ready);
@@ -63,6 +81,7 @@ void Ranks::abort_all(int code) const {
 #else
 
 Ranks::Ranks() {
+  check_not_unwired_slurm_task();
   if (started_by_mpi_launcher()) {
     throw std::runtime_error(
         "started by an MPI launcher, but this phasecast-precompute was built without MPI (install "

@@ -34,6 +34,9 @@ class Ranks {
   void barrier() const;
   // Row j of `rows` (all ranks: same shape) from the rank that owns j, to every rank.
   void share_rows(MatrixXfR& rows) const;
+  // Throws std::runtime_error naming `command` in a world of more than one
+  // (only sample, reduce and run share their work; the others would each do all of it).
+  void require_one_process(const std::string& command) const;
   // Ends every process of the run with `code` (MPI_Abort) once this one has
   // printed why; returns only in a world of one.
   void abort_all(int code) const;
@@ -47,5 +50,11 @@ class Ranks {
 
 // Whether a launcher started this process (Open MPI, MPICH/PMI, PMIx/Slurm).
 bool started_by_mpi_launcher();
+
+// Throws std::runtime_error when this process is one of several tasks of a
+// Slurm step that no MPI launcher wired together (srun without --mpi=pmix on
+// a site whose default is none): each task would run the whole job into the
+// same work folder.
+void check_not_unwired_slurm_task();
 
 }  // namespace phasecast::precompute
