@@ -218,8 +218,6 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
       appearance.skip ? precompute::AppearanceStageOptions{} : appearance_stage_options(scene, appearance);
   const auto rules = precompute::make_palette_rules(scene);
   const auto index = precompute::read_orbit_index(orbits);
-  // The stage's own peak (a `run` has sampled before), as the benchmarks report it.
-  core::reset_peak_resident_memory();
   const Stopwatch svd_time;
   core::ProgressBar mean_bar("mean shape");
   const precompute::OrbitDisplacementSource A(orbits);
@@ -231,7 +229,7 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
   const auto basis = precompute::reduce_displacements(A, options);
   bar.finish();
   if (Ranks::world().rank() == 0) {
-    fmt::print(stderr, "randomized SVD of A_u ({} x {}): {:.1f} s, peak resident memory {:.0f} MiB\n",
+    fmt::print(stderr, "randomized SVD of A_u ({} x {}): {:.1f} s, peak resident memory so far {:.0f} MiB\n",
                A.rows(), A.cols(), svd_time.seconds(), core::resident_memory().peak_mib);
   }
   auto built = precompute::build_package(scene, rules, index, basis, a.package);
@@ -253,7 +251,7 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
         });
     transfer_bar.finish();
     if (Ranks::world().rank() == 0) {
-      fmt::print(stderr, "appearance stage: {:.1f} s, peak resident memory of the reduce stage {:.0f} MiB\n",
+      fmt::print(stderr, "appearance stage: {:.1f} s, peak resident memory so far {:.0f} MiB\n",
                  appearance_time.seconds(), core::resident_memory().peak_mib);
     }
     core::validate_package(p, scene.name);
