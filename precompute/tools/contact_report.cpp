@@ -15,22 +15,30 @@ double close_distance(const Scene& scene) {
   return 2 * scene.model.thickness;
 }
 
-ContactSummary store_contact(const Scene& scene, const std::filesystem::path& orbits) {
-  const OrbitStoreReader reader(orbits);
-  const int irfs = static_cast<int>(reader.irfs().start.size());
+ContactSummary combined(const ContactSummary& a, const ContactSummary& b) {
+  ContactSummary c;
+  c.frames = a.frames + b.frames;
+  c.frames_intersecting = a.frames_intersecting + b.frames_intersecting;
+  c.worst_intersecting = std::max(a.worst_intersecting, b.worst_intersecting);
+  c.frames_close = a.frames_close + b.frames_close;
+  c.closest = std::min(a.closest, b.closest);
+  return c;
+}
+
+ContactSummary store_contact(const Scene& scene, const std::vector<std::filesystem::path>& stores) {
+  int irfs = 0, done = 0;
+  for (const auto& path : stores) irfs += static_cast<int>(OrbitStoreReader(path).irfs().start.size());
   ContactSummary total;
   total.closest = std::numeric_limits<double>::infinity();
   core::ProgressBar bar("contact check");
   IrfFrames irf;
-  for (int i = 0; i < irfs; ++i) {
-    reader.read(i, irf);
-    const ContactSummary c = summarize_contact(irf.positions, scene.model.surface, close_distance(scene));
-    total.frames += c.frames;
-    total.frames_intersecting += c.frames_intersecting;
-    total.worst_intersecting = std::max(total.worst_intersecting, c.worst_intersecting);
-    total.frames_close += c.frames_close;
-    total.closest = std::min(total.closest, c.closest);
-    bar.update(i + 1, irfs);
+  for (const auto& path : stores) {
+    const OrbitStoreReader reader(path);
+    for (int i = 0; i < static_cast<int>(reader.irfs().start.size()); ++i) {
+      reader.read(i, irf);
+      total = combined(total, summarize_contact(irf.positions, scene.model.surface, close_distance(scene)));
+      bar.update(++done, irfs);
+    }
   }
   bar.finish();
   return total;

@@ -9,14 +9,18 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace phasecast::precompute::tools {
 
 // Pairs closer than this count as close: twice the contact thickness.
 double close_distance(const Scene& scene);
 
-// Every frame of an orbit store, read one IRF at a time (constant memory).
-ContactSummary store_contact(const Scene& scene, const std::filesystem::path& orbits);
+// Every frame of orbit stores, read one IRF at a time (constant memory).
+ContactSummary store_contact(const Scene& scene, const std::vector<std::filesystem::path>& stores);
+
+// Of the frames of two disjoint sets of frames together.
+ContactSummary combined(const ContactSummary& a, const ContactSummary& b);
 
 // "contact: 0 of N frames with intersecting triangle pairs (worst 0); ..."
 std::string contact_line(const ContactSummary& c, double close);

@@ -42,6 +42,25 @@ class SamplingDisplay {
   core::ProgressBar bar_{"sample IRFs"};
 };
 
+// The self-contact of every sampled frame: each rank reads its own chains'
+// stores (the merged store holds the same frames), then the counts are
+// summed and the extremes combined over the ranks: exact, for any N.
+ContactSummary sampled_contact(const precompute::Scene& scene, const precompute::SamplingOptions& o) {
+  const auto& ranks = Ranks::world();
+  std::vector<std::filesystem::path> mine;
+  for (int k = ranks.rank(); k < o.chains; k += ranks.size())
+    mine.push_back(precompute::chain_store_path(o.work_dir, k));
+  ContactSummary c = store_contact(scene, mine);
+  std::vector<long long> counts{c.frames, c.frames_intersecting, c.frames_close};
+  ranks.sum(counts);
+  c.frames = static_cast<int>(counts[0]);
+  c.frames_intersecting = static_cast<int>(counts[1]);
+  c.frames_close = static_cast<int>(counts[2]);
+  c.worst_intersecting = static_cast<int>(ranks.max(c.worst_intersecting));
+  c.closest = ranks.min(c.closest);
+  return c;
+}
+
 void print_appearance_report(const core::ScenePackage& p, const precompute::AppearanceStageReport& report) {
   const auto& a = *p.appearance;
   fmt::print(
@@ -204,8 +223,10 @@ void run_sample_stage(const precompute::Scene& scene, SampleArgs a, const std::f
   if (ranks.rank() == 0) {
     fmt::print("wrote {} ({} IRFs, {} state nodes; chain stores merged in {:.1f} s)\n", orbits.string(),
                merged.irfs, merged.frames, merge_seconds);
-    if (scene.model.self_collision)
-      fmt::print("{}\n", contact_line(store_contact(scene, orbits), close_distance(scene)));
+  }
+  if (scene.model.self_collision) {
+    const ContactSummary c = sampled_contact(scene, a.sampling);
+    if (ranks.rank() == 0) fmt::print("{}\n", contact_line(c, close_distance(scene)));
   }
   ranks.barrier();  // the store is complete before any rank reads it
 }

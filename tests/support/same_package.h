@@ -1,6 +1,7 @@
 #pragma once
 // Every dataset and attribute of two scene packages is equal, bit for bit
-// (gtest expectations; the file bytes may differ: HDF5 stamps times).
+// (gtest expectations that name what differs; packages carry no times, so
+// equal content also means equal file bytes, which tests may compare too).
 
 #include "phasecast/core/package.h"
 

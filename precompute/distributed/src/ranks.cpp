@@ -72,6 +72,22 @@ void Ranks::share_rows(MatrixXfR& rows) const {
   }
 }
 
+void Ranks::sum(std::vector<long long>& values) const {
+  if (distributed())
+    MPI_Allreduce(MPI_IN_PLACE, values.data(), static_cast<int>(values.size()), MPI_LONG_LONG, MPI_SUM,
+                  MPI_COMM_WORLD);
+}
+
+long long Ranks::max(long long value) const {
+  if (distributed()) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_LONG_LONG, MPI_MAX, MPI_COMM_WORLD);
+  return value;
+}
+
+double Ranks::min(double value) const {
+  if (distributed()) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_DOUBLE, MPI_MIN, MPI_COMM_WORLD);
+  return value;
+}
+
 void Ranks::abort_all(int code) const {
   std::fflush(stdout);
   std::fflush(stderr);
@@ -92,6 +108,13 @@ Ranks::Ranks() {
 Ranks::~Ranks() = default;
 void Ranks::barrier() const {}
 void Ranks::share_rows(MatrixXfR&) const {}
+void Ranks::sum(std::vector<long long>&) const {}
+long long Ranks::max(long long value) const {
+  return value;
+}
+double Ranks::min(double value) const {
+  return value;
+}
 void Ranks::abort_all(int) const {}
 
 #endif

@@ -34,7 +34,7 @@ std::uint64_t splitmix(std::uint64_t x) {
 constexpr std::uint64_t kMergedChunkBytes = std::uint64_t{64} << 10;
 
 std::filesystem::path chain_store(const std::filesystem::path& dir, int chain) {
-  return dir / fmt::format("chain-{:03d}.h5", chain);
+  return chain_store_path(dir, chain);
 }
 
 std::filesystem::path chain_state(const std::filesystem::path& dir, int chain) {
@@ -223,6 +223,10 @@ int run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptio
 }
 
 }  // namespace
+
+std::filesystem::path chain_store_path(const std::filesystem::path& work_dir, int chain) {
+  return work_dir / fmt::format("chain-{:03d}.h5", chain);
+}
 
 IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
                  const std::vector<int>& history, double at) {

@@ -62,21 +62,32 @@ std::vector<std::string> concat(std::vector<std::string> a, const std::vector<st
 }
 
 // The single-process package, the truth every run is compared with.
-core::ScenePackage single_process(const std::filesystem::path& dir) {
+core::ScenePackage single_process(const std::filesystem::path& dir, std::string* out = nullptr) {
   const auto r = run_command(precompute_run(dir / "np1.h5"));
   if (r.exit_code != 0) throw std::runtime_error("single-process run failed: " + r.err);
+  if (out) *out = r.out;
   return core::read_package(dir / "np1.h5");
+}
+
+// The "contact: ..." line a run printed for its sampled frames.
+std::string contact_line(const std::string& out) {
+  const auto at = out.find("contact: ");
+  return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
 }
 
 TEST(MpiRun, AnyNumberOfRanksWritesTheSinglePackage) {
   const auto dir = scratch_dir("mpi_any_n");
-  const auto truth = single_process(dir);
+  std::string truth_out;
+  const auto truth = single_process(dir, &truth_out);
+  ASSERT_NE(contact_line(truth_out), "") << truth_out;
   for (const char* n : {"2", "3"}) {
     const auto pkg = dir / (std::string("np") + n + ".h5");
     const auto r = run_command(concat(mpirun_argv({"-np", n}), precompute_run(pkg)));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find(std::string(", ") + n + " MPI ranks"), std::string::npos) << r.err;
     EXPECT_NE(r.out.find("wrote " + pkg.string() + ": N = "), std::string::npos) << r.out;
+    // Each rank checks its own chains' frames; the combined count is the single process's.
+    EXPECT_EQ(contact_line(r.out), contact_line(truth_out));
     SCOPED_TRACE(std::string("np ") + n);
     expect_same_package(truth, core::read_package(pkg));
     // The file itself too: packages carry no times, so same content is same bytes (same hash).

@@ -12,6 +12,7 @@
 #include "phasecast/core/eigen_types.h"
 
 #include <string>
+#include <vector>
 
 namespace phasecast::precompute {
 
@@ -34,6 +35,10 @@ class Ranks {
   void barrier() const;
   // Row j of `rows` (all ranks: same shape) from the rank that owns j, to every rank.
   void share_rows(MatrixXfR& rows) const;
+  // Over every rank, for every rank: element-wise sums, the largest, the smallest.
+  void sum(std::vector<long long>& values) const;
+  long long max(long long value) const;
+  double min(double value) const;
   // Throws std::runtime_error naming `command` in a world of more than one
   // (only sample, reduce and run share their work; the others would each do all of it).
   void require_one_process(const std::string& command) const;

@@ -74,6 +74,9 @@ struct IrfDraw {
 IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
                  const std::vector<int>& history, double at = 0);
 
+// Chain k's orbit store in the work folder (chain-<k>.h5).
+std::filesystem::path chain_store_path(const std::filesystem::path& work_dir, int chain);
+
 // Throws SamplingError naming the bad option (chains, IRFs per chain, jobs >= 1).
 void check_sampling_options(const SamplingOptions& options);
 
