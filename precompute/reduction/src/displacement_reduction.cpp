@@ -59,7 +59,8 @@ void OrbitDisplacementSource::read_frames(Eigen::Index first, Eigen::Index count
 // frames as the columns of a column-major 3V x count block.
 void OrbitDisplacementSource::read_into(Eigen::Index first, Eigen::Index count, float* out) const {
   try {
-    h5_->file.read_rows(kPositions, static_cast<std::uint64_t>(first), static_cast<std::uint64_t>(count), out);
+    h5_->file.read_rows(kPositions, static_cast<std::uint64_t>(first), static_cast<std::uint64_t>(count),
+                        out);
   } catch (const h5::Failure& e) {
     throw OrbitStoreError(fmt::format("{}: {}: cannot read frames {}..{}: {}", path_.string(), kPositions,
                                       first, first + count - 1, e.what()));
