@@ -193,7 +193,7 @@ ContinuousCollision::ContinuousCollision(Eigen::MatrixXi triangles, double separ
 
 namespace {
 
-// The swept boxes of every surface vertex, triangle and edge over a step, and their hashes.
+// The swept boxes of every surface vertex, triangle and edge over a step.
 struct SweptPrimitives {
   std::vector<Eigen::AlignedBox3d> vertices, triangles, edges;
 
