@@ -121,6 +121,7 @@ def measure(scene, args):
         "peak_mib_dynamics": mem_dyn, "peak_mib_transfer": mem_transfer, "reduce_s": t_reduce,
         "peak_mib_reduce": mem_reduce, **stages,
         "N_a": s.get("N_a", 0), "r_a": s["r_a"], "rel_error_a": s["rel_error_a"], "N": s["N"], "n_irf": s["n_irf"],
+        "sigma_ratio_a": s.get("sigma_ratio_a"), "held_out": s.get("held_out"),
         "dynamics_s": t_dyn, "transfer_s": t_transfer,
         "fps_defo": render_fps(args.bin, defo, args.size, irfs),
         "fps_defo_transfer": render_fps(args.bin, full, args.size, irfs),
@@ -152,14 +153,28 @@ def sampling_text(args):
     return "the paper's #IRF, r_u and r_a" if args.paper else "phasecast-precompute defaults"
 
 
+def relerr_a(r):
+    """The appearance's relErr as the paper defines it (sigma_{r+1}/sigma_1 of A_a), then the Frobenius figure."""
+    sigma = r.get("sigma_ratio_a")
+    return f"{pct(sigma) if sigma is not None else 'n/a'} ({pct(r['rel_error_a'])})"
+
+
+def held_out_text(r):
+    h = r.get("held_out")
+    if not h:
+        return "n/a"
+    l2 = f"{pct(h['l2_total'])}, truncation {pct(h['l2_truncation'])}" if h.get("l2_total") is not None else "n/a"
+    return f"{l2} / {pct(h['total'])}"
+
+
 def table(rows, args):
-    print(f"| scene (paper) | F | V | r_u | relErr_u | N_a | r_a | relErr_a | N | #IRF | dynamics | transfer "
+    print(f"| scene (paper) | F | V | r_u | relErr_u | N_a | r_a | relErr_a (Frobenius) | N | #IRF | dynamics | transfer "
           f"| fps Defo | fps Defo+Trnsfr | bytes/frame vs full vertices |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         p = PAPER[r["scene"]]
         print(f"| {r['scene']} | {r['F']} | {r['S']} | {r['r_u']} | {pct(r['rel_error_u'])} | {r['N_a']} | {r['r_a']} "
-              f"| {pct(r['rel_error_a'])} | {r['N']} | {r['n_irf']} | {r['dynamics_s']:.0f} s | {r['transfer_s']:.0f} s "
+              f"| {relerr_a(r)} | {r['N']} | {r['n_irf']} | {r['dynamics_s']:.0f} s | {r['transfer_s']:.0f} s "
               f"| {r['fps_defo']:.0f} | {r['fps_defo_transfer']:.0f} "
               f"| {r['frame_state_bytes']} B vs {r['full_vertex_frame_bytes']} B |")
         print(f"| *{p[0]} (paper)* | {p[1]} | {p[2]} | {p[3]} | {p[4]} | {p[5]} | {p[6]} | {p[7]} | {p[8]} | {p[9]} "
@@ -168,13 +183,15 @@ def table(rows, args):
           f"{sampling_text(args)}.")
     if args.paper:
         print("\n| scene | V (simulated) | DOF | relErr = sigma_{r+1}/sigma_1 at the paper's r_u (§2.3.1) "
-              "| Frobenius error at r_u | peak memory: dynamics run / reduce alone / transfer run |")
-        print("|---|---|---|---|---|---|")
+              "| Frobenius error at r_u | peak memory: dynamics run / reduce alone / transfer run "
+              "| appearance held out: relErr (relative l2) / Frobenius |")
+        print("|---|---|---|---|---|---|---|")
         for r in rows:
             ratio = r["sigma_ratio_at_paper_r_u"]
             reduce = f"{r['peak_mib_reduce']:.0f}" if r.get("peak_mib_reduce") is not None else "n/a"
             print(f"| {r['scene']} | {r['V']} | {r['DOF']} | {pct(ratio) if ratio is not None else 'n/a'} "
-                  f"| {pct(r['rel_error_u'])} | {r['peak_mib_dynamics']:.0f} / {reduce} / {r['peak_mib_transfer']:.0f} MiB |")
+                  f"| {pct(r['rel_error_u'])} | {r['peak_mib_dynamics']:.0f} / {reduce} / {r['peak_mib_transfer']:.0f} MiB "
+                  f"| {held_out_text(r)} |")
         print("\n| scene | chain: IRFs, state nodes, wall s | merge | SVD of A_u |")
         print("|---|---|---|---|")
         for r in rows:

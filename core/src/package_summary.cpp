@@ -23,12 +23,20 @@ nlohmann::json number_or_null(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
 }
 
+// sigma_{r+1}/sigma_1, or NaN where sigma_{r+1} was not computed.
+double sigma_ratio(const Eigen::VectorXf& sigma, int r) {
+  return r >= 1 && r < sigma.size() && sigma[0] > 0 ? static_cast<double>(sigma[r] / sigma[0]) : std::nan("");
+}
+
 void summarize_appearance(const Appearance& a, PackageSummary& s) {
   for (Eigen::Index i = 0; i < a.rel_error.size(); ++i) s.error_a_curve.push_back(a.rel_error[i]);
   s.paper_rank_a = a.paper_rank;
   s.error_a_at_paper_rank = a.paper_rank > 0 && a.paper_rank <= a.rel_error.size()
                                 ? static_cast<double>(a.rel_error[a.paper_rank - 1])
                                 : std::nan("");
+  s.sigma_ratio_a_at_rank = sigma_ratio(a.singular_values, s.rank_a);
+  s.sigma_ratio_a_at_paper_rank = sigma_ratio(a.singular_values, a.paper_rank);
+  s.singular_values_a.assign(a.singular_values.data(), a.singular_values.data() + a.singular_values.size());
   const auto& v = a.interpolant_parameters;
   if (a.interpolant == "knn" && v.size() >= 1) {
     s.interpolant = fmt::format("knn (k = {})", v[0]);
@@ -37,13 +45,21 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   } else {
     s.interpolant = a.interpolant;
   }
-  if (a.held_out_error.size() == 4) {
+  if (a.held_out_error.size() >= 4) {
     s.held_out_nodes = static_cast<int>(a.held_out_nodes.size());
     s.held_out_total = a.held_out_error[0];
     s.held_out_truncation = a.held_out_error[1];
     s.held_out_interpolation = a.held_out_error[2];
     s.held_out_of_transfer = a.held_out_error[3];
   }
+  const bool l2 = a.held_out_error.size() >= 6;  // packages before the l2 figures hold 4
+  s.held_out_l2_total = l2 ? a.held_out_error[4] : std::nan("");
+  s.held_out_l2_truncation = l2 ? a.held_out_error[5] : std::nan("");
+}
+
+std::string percent_or_na(double ratio) {
+  return std::isfinite(ratio) ? fmt::format("{:.3g}%", 100 * ratio)
+                              : std::string("n/a (no sigma_{r+1} computed)");
 }
 
 // The error curve at a few ranks: 1, 2, 4, 8, ... and the paper's r_a.
@@ -83,9 +99,7 @@ PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& fil
   s.error_u_at_rank = displacement_error_at_rank(p, s.chosen_rank);
   const auto& sigma = p.reduction.singular_values;
   s.singular_values_u.assign(sigma.data(), sigma.data() + sigma.size());
-  s.sigma_ratio_u_at_rank = s.chosen_rank >= 1 && s.chosen_rank < sigma.size() && sigma[0] > 0
-                                ? sigma[s.chosen_rank] / sigma[0]
-                                : std::nan("");
+  s.sigma_ratio_u_at_rank = sigma_ratio(sigma, s.chosen_rank);
   s.error_a_at_rank = std::nan("");
   if (p.appearance && s.rank_a > 0 && s.rank_a <= p.appearance->rel_error.size()) {
     s.error_a_at_rank = p.appearance->rel_error[s.rank_a - 1];
@@ -116,16 +130,16 @@ std::string to_text(const PackageSummary& s) {
   line(
       "displacement r_u = {}, at rank {}: relative l2 error sigma_{{r+1}}/sigma_1 = {} (the paper's "
       "relErr, §2.3.1), Frobenius error = {:.3g}%",
-      s.rank_u, s.chosen_rank,
-      std::isfinite(s.sigma_ratio_u_at_rank) ? fmt::format("{:.3g}%", 100 * s.sigma_ratio_u_at_rank)
-                                             : std::string("n/a (no sigma_{r+1} computed)"),
-      100 * s.error_u_at_rank);
+      s.rank_u, s.chosen_rank, percent_or_na(s.sigma_ratio_u_at_rank), 100 * s.error_u_at_rank);
   if (s.rank_a > 0) {
-    line("appearance   r_a = {}, N_a = {} clusters, truncation error at r_a = {:.3g}% (on the clusters)",
-         s.rank_a, s.clusters, 100 * s.error_a_at_rank);
-    line("             error curve (Fig. 12, red) at rank {}", curve_text(s));
+    line(
+        "appearance   r_a = {}, N_a = {} clusters, at r_a: relative l2 error sigma_{{r+1}}/sigma_1 = {} (the "
+        "paper's relErr), Frobenius truncation error = {:.3g}% (on the clusters)",
+        s.rank_a, s.clusters, percent_or_na(s.sigma_ratio_a_at_rank), 100 * s.error_a_at_rank);
+    line("             Frobenius error curve (Fig. 12, red) at rank {}", curve_text(s));
     if (std::isfinite(s.error_a_at_paper_rank))
-      line("             at the paper's r_a = {}: {:.3g}%", s.paper_rank_a, 100 * s.error_a_at_paper_rank);
+      line("             at the paper's r_a = {}: sigma_{{r+1}}/sigma_1 = {}, Frobenius {:.3g}%",
+           s.paper_rank_a, percent_or_na(s.sigma_ratio_a_at_paper_rank), 100 * s.error_a_at_paper_rank);
     line("             interpolant {}", s.interpolant);
     if (s.held_out_nodes > 0) {
       line(
@@ -134,6 +148,12 @@ std::string to_text(const PackageSummary& s) {
           "(in quadrature, of |M - M-bar|); {:.3g}% of |M|",
           s.held_out_nodes, 100 * s.held_out_total, 100 * s.held_out_truncation,
           100 * s.held_out_interpolation, 100 * s.held_out_of_transfer);
+      if (std::isfinite(s.held_out_l2_total))
+        line(
+            "             held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, of "
+            "which "
+            "truncation {:.3g}%",
+            100 * s.held_out_l2_total, 100 * s.held_out_l2_truncation);
     }
   } else {
     line("appearance   none");
@@ -171,13 +191,19 @@ nlohmann::json to_json(const PackageSummary& s) {
       {"rel_error_a_curve", s.error_a_curve},
       {"paper_rank_a", s.paper_rank_a},
       {"rel_error_a_at_paper_rank", number_or_null(s.error_a_at_paper_rank)},
+      {"sigma_ratio_a", number_or_null(s.sigma_ratio_a_at_rank)},
+      {"sigma_ratio_a_at_paper_rank", number_or_null(s.sigma_ratio_a_at_paper_rank)},
+      {"singular_values_a", s.singular_values_a},
       {"interpolant", s.interpolant},
-      {"held_out", s.held_out_nodes > 0 ? nlohmann::json{{"nodes", s.held_out_nodes},
-                                                         {"total", s.held_out_total},
-                                                         {"truncation", s.held_out_truncation},
-                                                         {"interpolation", s.held_out_interpolation},
-                                                         {"of_transfer", s.held_out_of_transfer}}
-                                        : nlohmann::json()},
+      {"held_out", s.held_out_nodes > 0
+                       ? nlohmann::json{{"nodes", s.held_out_nodes},
+                                        {"total", s.held_out_total},
+                                        {"truncation", s.held_out_truncation},
+                                        {"interpolation", s.held_out_interpolation},
+                                        {"of_transfer", s.held_out_of_transfer},
+                                        {"l2_total", number_or_null(s.held_out_l2_total)},
+                                        {"l2_truncation", number_or_null(s.held_out_l2_truncation)}}
+                       : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},
       {"full_vertex_frame_bytes", s.full_vertex_frame_bytes},

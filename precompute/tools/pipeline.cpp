@@ -63,9 +63,14 @@ ContactSummary sampled_contact(const precompute::Scene& scene, const precompute:
 
 void print_appearance_report(const core::ScenePackage& p, const precompute::AppearanceStageReport& report) {
   const auto& a = *p.appearance;
+  const auto r = p.rank_a();
   fmt::print(
-      "appearance: N_a = {} clusters, {} scene points, r_a = {} (truncation error {:.4f} on the clusters)\n",
-      a.clusters(), p.mesh.points(), p.rank_a(), p.rank_a() > 0 ? a.rel_error[p.rank_a() - 1] : 0.0f);
+      "appearance: N_a = {} clusters, {} scene points, r_a = {} (truncation error {:.4f} on the clusters; "
+      "sigma_{{r+1}}/sigma_1 {:.4f}, the paper's relErr)\n",
+      a.clusters(), p.mesh.points(), r, r > 0 ? a.rel_error[r - 1] : 0.0f,
+      r > 0 && r < a.singular_values.size() && a.singular_values[0] > 0
+          ? a.singular_values[r] / a.singular_values[0]
+          : 0.0f);
   for (const auto& c : report.candidates) {
     const auto& f = c.interpolant;
     const std::string params =
@@ -79,12 +84,13 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
                  c.test.total);
     fmt::print("{}\n", &c == &report.candidates.front() ? "  <- kept" : "");
   }
-  if (a.held_out_error.size() == 4) {
+  if (a.held_out_error.size() == 6) {
     fmt::print(
         "appearance: held-out error over {} nodes {:.4f} = truncation {:.4f} + interpolation {:.4f} (in "
-        "quadrature, relative to |M - M-bar|); {:.4f} of |M|\n",
+        "quadrature, relative to |M - M-bar|); {:.4f} of |M|; relative l2 norm (the paper's relErr) {:.4f}, "
+        "truncation alone {:.4f}\n",
         a.held_out_nodes.size(), a.held_out_error[0], a.held_out_error[1], a.held_out_error[2],
-        a.held_out_error[3]);
+        a.held_out_error[3], a.held_out_error[4], a.held_out_error[5]);
   }
 }
 

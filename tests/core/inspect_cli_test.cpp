@@ -57,6 +57,11 @@ TEST_F(InspectCli, ValidPackageJson) {
   const auto& sigma = package_.reduction.singular_values;
   EXPECT_NEAR(j["sigma_ratio_u"].get<double>(), sigma[2] / sigma[0], 1e-7);
   EXPECT_EQ(j["singular_values_u"].size(), static_cast<size_t>(sigma.size()));
+  // The same figure for the appearance (Table 1's second relErr), at r_a.
+  const auto& sigma_a = package_.appearance->singular_values;
+  ASSERT_LT(package_.rank_a(), sigma_a.size());
+  EXPECT_NEAR(j["sigma_ratio_a"].get<double>(), sigma_a[package_.rank_a()] / sigma_a[0], 1e-6);
+  EXPECT_EQ(j["singular_values_a"].size(), static_cast<size_t>(sigma_a.size()));
   EXPECT_EQ(j["frame_state_bytes"], 4 * (4 + package_.rank_a() + 12));
   EXPECT_EQ(j["file_bytes"], std::filesystem::file_size(dir_ / "plate.h5"));
 }

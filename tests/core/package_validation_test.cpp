@@ -242,6 +242,17 @@ TEST_F(PackageRule, NrbfWidthsPositive) {
   EXPECT_THAT(invalid(p), HasSubstr("/appearance/nrbf_widths: expected positive finite widths, got 0 at 2"));
 }
 
+// Packages written before the paper's relErr figures hold 4 and still load.
+TEST_F(PackageRule, HeldOutErrorHoldsSixFiguresOrTheOlderFour) {
+  p.appearance->held_out_nodes = {1, 2};
+  p.appearance->held_out_error = VectorXf::Constant(6, 0.1f);
+  EXPECT_EQ(invalid(p), "");
+  p.appearance->held_out_error = VectorXf::Constant(4, 0.1f);
+  EXPECT_EQ(invalid(p), "");
+  p.appearance->held_out_error = VectorXf::Constant(5, 0.1f);
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out_error: expected length 6 (total, truncation"));
+}
+
 TEST_F(PackageRule, AppearanceCoordinatesMatchRank) {
   p.portrait.q_a.conservativeResize(Eigen::NoChange, p.portrait.q_a.cols() + 1);
   EXPECT_THAT(invalid(p), HasSubstr("/portrait/q_a: expected shape N x r_a"));

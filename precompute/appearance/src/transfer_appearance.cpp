@@ -1,6 +1,7 @@
 #include "phasecast/precompute/appearance/transfer_appearance.h"
 
 #include <fmt/format.h>
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -73,9 +74,29 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
   a.nrbf_regularization = f.nrbf.regularization;
   if (test.nodes.empty()) return;
   a.held_out_nodes = test.nodes;
-  a.held_out_error.resize(4);
+  a.held_out_error.resize(6);
   a.held_out_error << static_cast<float>(c.test.total), static_cast<float>(c.test.truncation),
-      static_cast<float>(c.test.interpolation), static_cast<float>(c.test.of_transfer);
+      static_cast<float>(c.test.interpolation), static_cast<float>(c.test.of_transfer),
+      static_cast<float>(c.test.l2_total), static_cast<float>(c.test.l2_truncation);
+}
+
+// Largest eigenvalue of a symmetric positive semi-definite Gram matrix: |X|_2^2 for G = X^T X.
+double largest_eigenvalue(const Eigen::MatrixXd& gram) {
+  if (gram.size() == 0) return 0;
+  return std::max(
+      0.0,
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(gram, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
+}
+
+// X^T X of a tall float matrix, summed in double over row blocks.
+Eigen::MatrixXd gram(const Eigen::MatrixXf& X) {
+  constexpr Eigen::Index kRows = 4096;
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(X.cols(), X.cols());
+  for (Eigen::Index i = 0; i < X.rows(); i += kRows) {
+    const Eigen::MatrixXd block = X.middleRows(i, std::min(kRows, X.rows() - i)).cast<double>();
+    g.noalias() += block.transpose() * block;
+  }
+  return g;
 }
 
 }  // namespace
@@ -88,23 +109,36 @@ TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
   }
   const Eigen::MatrixXd U = r.U_a.cast<double>();
   const Eigen::VectorXd mean = r.mean_transfer.cast<double>();
+  const Eigen::Index H = truth.fields.rows();
+  // Columns per node: T the truncation residual (orthogonal to U_a), P the
+  // best coordinates, S the served ones. Then M - M-bar = T + U P and the
+  // error is T + U (P - S), so both Gram matrices follow from T's alone.
+  Eigen::MatrixXf T(mean.size(), H);
+  Eigen::MatrixXd P(r.rank(), H), S(r.rank(), H);
   double centred2 = 0, truth2 = 0, total2 = 0, truncation2 = 0, interpolation2 = 0;
-  for (Eigen::Index h = 0; h < truth.fields.rows(); ++h) {
+  for (Eigen::Index h = 0; h < H; ++h) {
     const Eigen::VectorXd m = truth.fields.row(h).transpose().cast<double>();
     const Eigen::VectorXd d = m - mean;
-    const Eigen::VectorXd p = U.transpose() * d;  // the best coordinates rank r_a has
-    const Eigen::VectorXd s = served.row(h).transpose().cast<double>();
+    P.col(h) = U.transpose() * d;  // the best coordinates rank r_a has
+    S.col(h) = served.row(h).transpose().cast<double>();
+    const Eigen::VectorXd t = d - U * P.col(h);
+    T.col(h) = t.cast<float>();
     truth2 += m.squaredNorm();
     centred2 += d.squaredNorm();
-    truncation2 += (d - U * p).squaredNorm();
-    interpolation2 += (p - s).squaredNorm();
-    total2 += (d - U * s).squaredNorm();
+    truncation2 += t.squaredNorm();
+    interpolation2 += (P.col(h) - S.col(h)).squaredNorm();
+    total2 += (d - U * S.col(h)).squaredNorm();
   }
   TruthError e;
   if (centred2 > 0) {
     e.total = std::sqrt(total2 / centred2);
     e.truncation = std::sqrt(truncation2 / centred2);
     e.interpolation = std::sqrt(interpolation2 / centred2);
+    const Eigen::MatrixXd TT = gram(T);
+    const Eigen::MatrixXd D = P - S;
+    const double centred_l2 = largest_eigenvalue(TT + P.transpose() * P);
+    e.l2_total = std::sqrt(largest_eigenvalue(TT + D.transpose() * D) / centred_l2);
+    e.l2_truncation = std::sqrt(largest_eigenvalue(TT) / centred_l2);
   }
   if (truth2 > 0) e.of_transfer = std::sqrt(total2 / truth2);
   return e;

@@ -100,12 +100,16 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   const auto inspect = run_tool("phasecast-inspect", {pkg});
   ASSERT_EQ(inspect.exit_code, 0) << inspect.err;
   EXPECT_NE(inspect.out.find(fmt::format(
-                "appearance   r_a = {}, N_a = 4 clusters, truncation error at r_a = ", p.rank_a())),
+                "appearance   r_a = {}, N_a = 4 clusters, at r_a: relative l2 error sigma_{{r+1}}/sigma_1 = ",
+                p.rank_a())),
             std::string::npos)
       << inspect.out;
   EXPECT_NE(inspect.out.find("held-out truth (3 other nodes): error "), std::string::npos) << inspect.out;
+  EXPECT_NE(inspect.out.find("held-out in the paper's relErr (relative l2 norm over those nodes): "),
+            std::string::npos)
+      << inspect.out;
   EXPECT_EQ(p.appearance->paper_rank, 12);  // stored; printed only when r_a = 12 is within N_a
-  ASSERT_EQ(p.appearance->held_out_error.size(), 4);
+  ASSERT_EQ(p.appearance->held_out_error.size(), 6);
   EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
 }
 

@@ -10,6 +10,7 @@
 #include "synthetic_package.h"
 
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 
 #include <algorithm>
 #include <cmath>
@@ -103,20 +104,29 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
                                           {.reduction = {.rank = 3}}, truth);
   const auto& a = model.appearance;
-  ASSERT_EQ(a.held_out_error.size(), 4);
+  ASSERT_EQ(a.held_out_error.size(), 6);
   ASSERT_EQ(a.held_out_nodes.size(), 6u);  // the second half: the first picked the interpolant
   EXPECT_TRUE(std::equal(a.held_out_nodes.begin(), a.held_out_nodes.end(), truth.nodes.begin() + 6));
   // A second reader: plain sums over the served fields.
   double err2 = 0, centred2 = 0, truth2 = 0;
+  Eigen::MatrixXd E(a.mean_transfer.size(), 6), D(a.mean_transfer.size(), 6);  // columns: nodes
   for (size_t i = 0; i < 6; ++i) {
     const auto node = a.held_out_nodes[i];
     const Eigen::VectorXd served = (a.mean_transfer + a.U_a * model.q_a.row(node).transpose()).cast<double>();
     const Eigen::VectorXd m = truth.fields.row(static_cast<Eigen::Index>(6 + i)).transpose().cast<double>();
+    E.col(static_cast<Eigen::Index>(i)) = m - served;
+    D.col(static_cast<Eigen::Index>(i)) = m - a.mean_transfer.cast<double>();
     err2 += (m - served).squaredNorm();
     centred2 += (m - a.mean_transfer.cast<double>()).squaredNorm();
     truth2 += m.squaredNorm();
   }
   EXPECT_NEAR(a.held_out_error[0], std::sqrt(err2 / centred2), 1e-4);
+  // The paper's relErr: the relative l2 (spectral) norm, by a full SVD here.
+  const auto l2 = [](const Eigen::MatrixXd& X) {
+    return Eigen::JacobiSVD<Eigen::MatrixXd>(X).singularValues()[0];
+  };
+  EXPECT_NEAR(a.held_out_error[4], l2(E) / l2(D), 1e-4);
+  EXPECT_LE(a.held_out_error[5], a.held_out_error[4] + 1e-6);  // the truncation is part of the error
   EXPECT_NEAR(a.held_out_error[3], std::sqrt(err2 / truth2), 1e-5);
   EXPECT_GT(a.held_out_error[0], 1e-3);  // not vacuous: these nodes are not samples
   EXPECT_NEAR(a.held_out_error[0] * a.held_out_error[0],
@@ -135,6 +145,46 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   EXPECT_EQ(back.appearance->held_out_error, a.held_out_error);
   EXPECT_EQ(back.appearance->held_out_nodes, a.held_out_nodes);
   EXPECT_EQ(back.appearance->interpolant, a.interpolant);
+}
+
+// A_a with singular values chosen by hand: rows mean + L diag(sigma) R^T,
+// L's columns orthonormal and of zero sum (so the rows' mean is `mean`).
+MatrixXfR fields_with_spectrum(const std::vector<double>& sigma, Eigen::Index Na, Eigen::Index width) {
+  const auto k = static_cast<Eigen::Index>(sigma.size());
+  std::srand(7);
+  Eigen::MatrixXd L = Eigen::MatrixXd::Random(Na, k);
+  L.rowwise() -= L.colwise().mean();
+  L = Eigen::HouseholderQR<Eigen::MatrixXd>(L).householderQ() * Eigen::MatrixXd::Identity(Na, k);
+  const Eigen::MatrixXd R =
+      Eigen::HouseholderQR<Eigen::MatrixXd>(Eigen::MatrixXd::Random(width, k)).householderQ() *
+      Eigen::MatrixXd::Identity(width, k);
+  const Eigen::RowVectorXd mean = Eigen::RowVectorXd::Random(width);
+  const Eigen::VectorXd s = Eigen::Map<const Eigen::VectorXd>(sigma.data(), k);
+  return ((L * s.asDiagonal() * R.transpose()).rowwise() + mean).cast<float>();
+}
+
+// The paper's relErr (§2.3.1) of the held-out figure: on the clusters
+// themselves, served exactly, it must be sigma_{r+1}/sigma_1, which differs
+// from the Frobenius ratio the other figures use.
+TEST(Appearance, HeldOutErrorInThePapersMetricIsTheSpectralRatio) {
+  const std::vector<double> sigma{10, 5, 3, 1, 0.5};
+  const MatrixXfR fields = fields_with_spectrum(sigma, 8, 48 * 5);
+  const auto r = reduce_transfer(fields, {.rank = 2});
+  ASSERT_EQ(r.rank(), 2);
+  ASSERT_NEAR(r.singular_values[2] / r.singular_values[0], 0.3, 1e-5);
+  HeldOutTruth truth;
+  truth.fields = fields;
+  for (int j = 0; j < 8; ++j) truth.nodes.push_back(j);
+  const MatrixXfR best = r.Q_a.transpose();
+  const auto exact = truth_error(r, truth, best);
+  EXPECT_NEAR(exact.l2_truncation, 0.3, 1e-4);
+  EXPECT_NEAR(exact.l2_total, 0.3, 1e-4);
+  EXPECT_NEAR(exact.truncation, std::sqrt((9 + 1 + 0.25) / (100 + 25 + 9 + 1 + 0.25)), 1e-4);
+  EXPECT_NEAR(exact.interpolation, 0, 1e-5);
+  // Serving the mean alone leaves all of M - M-bar: the error is the whole of it.
+  const auto mean_only = truth_error(r, truth, MatrixXfR::Zero(8, 2));
+  EXPECT_NEAR(mean_only.l2_total, 1, 1e-5);
+  EXPECT_NEAR(mean_only.l2_truncation, 0.3, 1e-4);
 }
 
 TEST(Appearance, HeldOutNodesAreDrawnDeterministicallyAndCapped) {

@@ -31,9 +31,15 @@ struct PackageSummary {
   std::vector<double> error_a_curve;         // Fig. 12, red: relative error at rank 1..N_a
   int paper_rank_a = 0;                      // the paper's r_a for this scene (0: unknown)
   double error_a_at_paper_rank = 0;          // NaN when unknown or above N_a
-  std::string interpolant;                   // "nrbf" or "knn", with its parameters
-  int held_out_nodes = 0;                    // 0: no held-out truth in the package
+  // The paper's relErr of the appearance (§2.3.1, Table 1): sigma_{r+1}/sigma_1
+  // of A_a, at r_a and at the paper's r_a; NaN when not computed.
+  double sigma_ratio_a_at_rank = 0, sigma_ratio_a_at_paper_rank = 0;
+  std::vector<double> singular_values_a;  // every sigma of A_a (N_a)
+  std::string interpolant;                // "nrbf" or "knn", with its parameters
+  int held_out_nodes = 0;                 // 0: no held-out truth in the package
   double held_out_total = 0, held_out_truncation = 0, held_out_interpolation = 0, held_out_of_transfer = 0;
+  // The same in the paper's relErr: relative l2 (spectral) norms; NaN in older packages.
+  double held_out_l2_total = 0, held_out_l2_truncation = 0;
   std::uint64_t client_download_bytes = 0;    // sum of basis parts
   std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
   std::uint64_t full_vertex_frame_bytes = 0;  // streaming vertices instead

@@ -42,6 +42,12 @@ struct TruthError {
   double truncation = 0;     // |M - M-bar - U_a U_a^T (M - M-bar)|: the best rank r_a can do
   double interpolation = 0;  // |U_a^T (M - M-bar) - q_a(q_u)|: what the interpolant adds
   double of_transfer = 0;    // total relative to |M| instead of |M - M-bar|
+  // The same errors in the paper's relErr (§2.3.1, Table 1): the relative l2
+  // (spectral) norm of the error matrix over the nodes, |E|_2 / |M - M-bar|_2,
+  // whose columns are the nodes. On the clusters themselves the truncation is
+  // exactly sigma_{r_a+1} / sigma_1, the figure the paper reports.
+  double l2_total = 0;
+  double l2_truncation = 0;
 };
 
 // Errors of the reduction's basis with q_a = served (H x r_a) at truth's nodes.
