@@ -9,8 +9,10 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -47,14 +49,23 @@ class BoxHash {
     return out;
   }
   // The same into `out` (cleared first), for callers that query in a loop.
+  // A box is listed only from the first cell it shares with the query, so a
+  // large box is not pushed once per shared cell (sorting those repeats was a
+  // fifth of a resting plant's frame); the sort and unique remain for boxes
+  // repeated in a slot by colliding cell keys.
   void overlapping(const Eigen::AlignedBox3d& query, std::vector<int>& out) const {
     out.clear();
-    visit(query, [&](std::int64_t key) {
+    const Cell low = cell_of(query.min());
+    visit(query, [&](std::int64_t key, const Cell& cell) {
       const size_t s = find(key);
       if (s == kMissing) return;
       for (size_t k = first_[s]; k < first_[s + 1]; ++k) {
         const int i = members_[k];
-        if (boxes_[static_cast<size_t>(i)].intersects(query)) out.push_back(i);
+        const auto& box = boxes_[static_cast<size_t>(i)];
+        if (!box.intersects(query)) continue;
+        const Cell own = cell_of(box.min());
+        const Cell first{std::max(low[0], own[0]), std::max(low[1], own[1]), std::max(low[2], own[2])};
+        if (cell == first) out.push_back(i);
       }
     });
     std::sort(out.begin(), out.end());
@@ -62,6 +73,7 @@ class BoxHash {
   }
 
  private:
+  using Cell = std::array<std::int64_t, 3>;
   static constexpr std::int64_t kEmpty = INT64_MIN;
   static constexpr size_t kMissing = SIZE_MAX;
 
@@ -85,12 +97,21 @@ class BoxHash {
       if (keys_[s] == kEmpty) return kMissing;
     }
   }
+  std::int64_t index(double c) const { return static_cast<std::int64_t>(std::floor(c / cell_)); }
+  Cell cell_of(const Eigen::Vector3d& p) const { return {index(p.x()), index(p.y()), index(p.z())}; }
+  // Calls f(key) or f(key, cell) for every cell the box touches.
   template <class F>
   void visit(const Eigen::AlignedBox3d& b, F&& f) const {
-    const auto index = [&](double c) { return static_cast<std::int64_t>(std::floor(c / cell_)); };
-    for (auto i = index(b.min().x()); i <= index(b.max().x()); ++i)
-      for (auto j = index(b.min().y()); j <= index(b.max().y()); ++j)
-        for (auto k = index(b.min().z()); k <= index(b.max().z()); ++k) f(cell_key(i, j, k));
+    const Cell lo = cell_of(b.min()), hi = cell_of(b.max());
+    for (auto i = lo[0]; i <= hi[0]; ++i)
+      for (auto j = lo[1]; j <= hi[1]; ++j)
+        for (auto k = lo[2]; k <= hi[2]; ++k) {
+          if constexpr (std::is_invocable_v<F, std::int64_t, const Cell&>) {
+            f(cell_key(i, j, k), Cell{i, j, k});
+          } else {
+            f(cell_key(i, j, k));
+          }
+        }
   }
 
   const std::vector<Eigen::AlignedBox3d>& boxes_;
