@@ -64,13 +64,12 @@ ContactSummary sampled_contact(const precompute::Scene& scene, const precompute:
 void print_appearance_report(const core::ScenePackage& p, const precompute::AppearanceStageReport& report) {
   const auto& a = *p.appearance;
   const auto r = p.rank_a();
+  const bool has_next = r > 0 && r < a.singular_values.size() && a.singular_values[0] > 0;
   fmt::print(
       "appearance: N_a = {} clusters, {} scene points, r_a = {} (truncation error {:.4f} on the clusters; "
-      "sigma_{{r+1}}/sigma_1 {:.4f}, the paper's relErr)\n",
+      "sigma_{{r+1}}/sigma_1 {}, the paper's relErr)\n",
       a.clusters(), p.mesh.points(), r, r > 0 ? a.rel_error[r - 1] : 0.0f,
-      r > 0 && r < a.singular_values.size() && a.singular_values[0] > 0
-          ? a.singular_values[r] / a.singular_values[0]
-          : 0.0f);
+      has_next ? fmt::format("{:.4f}", a.singular_values[r] / a.singular_values[0]) : std::string("n/a"));
   for (const auto& c : report.candidates) {
     const auto& f = c.interpolant;
     const std::string params =

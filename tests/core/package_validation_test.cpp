@@ -250,7 +250,10 @@ TEST_F(PackageRule, HeldOutErrorHoldsSixFiguresOrTheOlderFour) {
   p.appearance->held_out_error = VectorXf::Constant(4, 0.1f);
   EXPECT_EQ(invalid(p), "");
   p.appearance->held_out_error = VectorXf::Constant(5, 0.1f);
-  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out_error: expected length 6 (total, truncation"));
+  EXPECT_THAT(
+      invalid(p),
+      HasSubstr("/appearance/held_out_error: expected 6 values (total, truncation, interpolation, of |M|, "
+                "relative l2 total and truncation) or the older 4, got 5"));
 }
 
 TEST_F(PackageRule, AppearanceCoordinatesMatchRank) {

@@ -137,8 +137,10 @@ TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
     const Eigen::MatrixXd TT = gram(T);
     const Eigen::MatrixXd D = P - S;
     const double centred_l2 = largest_eigenvalue(TT + P.transpose() * P);
-    e.l2_total = std::sqrt(largest_eigenvalue(TT + D.transpose() * D) / centred_l2);
-    e.l2_truncation = std::sqrt(largest_eigenvalue(TT) / centred_l2);
+    if (centred_l2 > 0) {  // 0 only when the float residuals underflow
+      e.l2_total = std::sqrt(largest_eigenvalue(TT + D.transpose() * D) / centred_l2);
+      e.l2_truncation = std::sqrt(largest_eigenvalue(TT) / centred_l2);
+    }
   }
   if (truth2 > 0) e.of_transfer = std::sqrt(total2 / truth2);
   return e;

@@ -16,6 +16,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <string>
@@ -111,6 +112,12 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   EXPECT_EQ(p.appearance->paper_rank, 12);  // stored; printed only when r_a = 12 is within N_a
   ASSERT_EQ(p.appearance->held_out_error.size(), 6);
   EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
+  // The paper's-metric figures reach the JSON that bench/paper_tables.py reads.
+  const auto json = run_tool("phasecast-inspect", {pkg, "--json"});
+  ASSERT_EQ(json.exit_code, 0) << json.err;
+  const auto held_out = nlohmann::json::parse(json.out)["held_out"];
+  EXPECT_NEAR(held_out["l2_total"].get<double>(), p.appearance->held_out_error[4], 1e-6);
+  EXPECT_NEAR(held_out["l2_truncation"].get<double>(), p.appearance->held_out_error[5], 1e-6);
 }
 
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {

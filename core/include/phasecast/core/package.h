@@ -160,8 +160,9 @@ struct Appearance {
   // Held-out truth (empty when not measured): the served transfer against
   // the true transfer at state nodes that are not cluster nodes.
   std::vector<std::int32_t> held_out_nodes;  // the nodes the error is measured at
-  VectorXf held_out_error;                   // 4: total, truncation, interpolation, total relative to |M|
-  std::int32_t paper_rank = 0;               // the paper's r_a for this scene (Table 1; 0: none)
+  VectorXf held_out_error;      // 6: total, truncation, interpolation, total relative to |M|, then total and
+                                // truncation as relative l2 norms (older packages: the first 4)
+  std::int32_t paper_rank = 0;  // the paper's r_a for this scene (Table 1; 0: none)
 
   int rank() const { return static_cast<int>(U_a.cols()); }
   int clusters() const { return static_cast<int>(cluster_nodes.size()); }
