@@ -150,9 +150,8 @@ std::string to_text(const PackageSummary& s) {
           100 * s.held_out_interpolation, 100 * s.held_out_of_transfer);
       if (std::isfinite(s.held_out_l2_total))
         line(
-            "             held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, of "
-            "which "
-            "truncation {:.3g}%",
+            "             held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, "
+            "of which truncation {:.3g}%",
             100 * s.held_out_l2_total, 100 * s.held_out_l2_truncation);
     }
   } else {

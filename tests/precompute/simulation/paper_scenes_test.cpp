@@ -61,8 +61,9 @@ TEST(PaperScenes, PaperScalePlantHasThePapersShellsAndLeaves) {
 }
 
 // The paper-size plant stands at rest. Its woody stem (E = 3e8 Pa, r = 6 mm:
-// EI = 0.3 N m^2) carries some 40 g of branches and leaves: as a cantilever
-// that bends its 0.52 m by well under a millimetre, so its top must stay put.
+// EI = 0.3 N m^2) carries its branches and leaves mostly along its axis; a
+// sideways sway lowers the top only to second order (a 5 cm sway over 0.52 m:
+// about 2 mm), so the top's height must stay within a centimetre.
 // With one or two Newton steps per substep the stem folded under the leaves'
 // contact and the plant fell into a heap (top 0.64 -> 0.29 m within 2 s), the
 // state that made its frames ten times slower.
