@@ -67,12 +67,22 @@ void add_hinge(DeformableModel& model, std::array<int, 4> v, double bending_modu
   model.hinges.push_back({v, dihedral_angle(x(0), x(1), x(2), x(3)), stiffness});
 }
 
-void add_rod_stretch(DeformableModel& model, int a, int b, double ea) {
-  check_index(model, a, "rod");
-  check_index(model, b, "rod");
+namespace {
+RodStretchElement axial_spring(const DeformableModel& model, int a, int b, double ea, const char* what) {
+  check_index(model, a, what);
+  check_index(model, b, what);
   const double l0 = (rest_point(model, b) - rest_point(model, a)).norm();
-  if (!(l0 > 1e-9)) throw std::invalid_argument(fmt::format("rod edge ({}, {}) has zero length", a, b));
-  model.rod_stretch.push_back({a, b, l0, ea / l0});
+  if (!(l0 > 1e-9)) throw std::invalid_argument(fmt::format("{} edge ({}, {}) has zero length", what, a, b));
+  return {a, b, l0, ea / l0};
+}
+}  // namespace
+
+void add_rod_stretch(DeformableModel& model, int a, int b, double ea) {
+  model.rod_stretch.push_back(axial_spring(model, a, b, ea, "rod"));
+}
+
+void add_brace(DeformableModel& model, int a, int b, double ea) {
+  model.braces.push_back(axial_spring(model, a, b, ea, "brace"));
 }
 
 void add_rod_bend(DeformableModel& model, int a, int b, int c, double ei) {

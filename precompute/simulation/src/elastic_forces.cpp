@@ -332,6 +332,12 @@ ElasticEvaluation evaluate_elastic(const DeformableModel& model, const Eigen::Ve
       },
       rod_stretch);
   e.add(
+      model.braces, 2,
+      [](const RodStretchElement& r) {
+        return std::array<int, 2>{r.a, r.b};
+      },
+      rod_stretch);
+  e.add(
       model.rod_bend, 3,
       [](const RodBendElement& r) {
         return std::array<int, 3>{r.a, r.b, r.c};

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <map>
 #include <utility>
 
@@ -345,6 +346,40 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
   scene.bodies.push_back(std::move(info));
 }
 
+// The model vertex nearest to `p`, which must lie within `snap` of it.
+int snapped_vertex(const DeformableModel& m, Fields& brace, const std::string& key, const Eigen::Vector3d& p,
+                   double snap) {
+  int best = -1;
+  double best_distance = std::numeric_limits<double>::infinity();
+  for (int v = 0; v < m.vertices(); ++v) {
+    const double d = (m.rest.segment<3>(3 * v) - p).norm();
+    if (d < best_distance) best = v, best_distance = d;
+  }
+  if (!(best_distance <= snap)) {
+    brace.fail(key,
+               fmt::format("points within snap = {:g} m of a body's vertex ([{:g}, {:g}, {:g}] is {:.3g} m "
+                           "from the nearest)",
+                           snap, p.x(), p.y(), p.z(), best_distance));
+  }
+  return best;
+}
+
+// [[brace]]: axial springs from one vertex to others, anchoring a weld's joint
+// against turning (a rod carries no twist, and a weld alone is a ball joint).
+void add_braces(DeformableModel& m, Fields brace) {
+  const double snap = brace.positive("snap", 1e-4);
+  const int from = snapped_vertex(m, brace, "from", brace.vec3("from"), snap);
+  const auto to = brace.points("to");
+  if (to.empty()) brace.fail("to", "at least one point");
+  const double ea = brace.positive("ea");
+  for (const auto& p : to) {
+    const int v = snapped_vertex(m, brace, "to", p, snap);
+    if (v == from) brace.fail("to", "points at other vertices than 'from'");
+    add_brace(m, from, v, ea);
+  }
+  brace.finish();
+}
+
 // [simulation] integrator, and Newmark's gamma and beta, held to the
 // unconditionally stable part of the family.
 void read_integrator(Fields& sim, SimulationSettings& s) {
@@ -492,6 +527,7 @@ Scene load_scene_file(const std::filesystem::path& path) {
   auto bodies = top.tables("body");
   if (bodies.empty()) top.fail("body", "at least one [[body]]");
   for (auto& b : bodies) add_body(scene, b, path.parent_path());
+  for (auto& b : top.tables("brace")) add_braces(scene.model, b);
   for (auto& o : top.tables("obstacle")) {
     BoxObstacle box{o.string("name"), o.vec3("min"), o.vec3("max")};
     if (!(box.min.array() < box.max.array()).all()) o.fail("max", "a corner above min on every axis");

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <string>
 
@@ -211,6 +212,76 @@ TEST(Scene, NewmarkSceneLoadsAndRuns) {
   EXPECT_TRUE(x.allFinite());
   EXPECT_GT((x - s.model.rest).cwiseAbs().maxCoeff(), 1e-3);  // it moved
   EXPECT_GT((x - x_euler).cwiseAbs().maxCoeff(), 1e-6);       // and is not backward Euler
+}
+
+// A rod welded to a clamped post at one shared vertex: a ball joint.
+const std::string kArmOnPost = R"(name = "arm"
+[simulation]
+frame_dt = 0.02
+settle = 0
+[support]
+motion = "translational"
+axis = [1, 0, 0]
+[[body]]
+name = "post"
+energies = ["rod"]
+density = 0.05
+young = 3e8
+radius = 0.006
+polyline = { points = [[0, 0, 0], [0, 0.2, 0]], subdivisions = 4 }
+pin = { min = [-0.01, -0.01, -0.01], max = [0.01, 0.06, 0.01] }
+[[body]]
+name = "arm"
+energies = ["rod"]
+density = 0.05
+young = 3e8
+radius = 0.006
+polyline = { points = [[0, 0.2, 0], [0.2, 0.2, 0]], subdivisions = 4 }
+weld_to = "post"
+weld_radius = 1e-4
+[[palette]]
+name = "still"
+alpha_impulse = [0, 0, 0]
+alpha_forcing = [0, 0, 0]
+)";
+
+// The lowest height the arm's tip reaches in 1 s under gravity.
+double lowest_arm_tip(const Scene& scene) {
+  auto sim = make_simulator(scene);
+  const int tip = scene.bodies[1].vertices.back();
+  double lowest = scene.model.rest[3 * tip + 1];
+  for (int i = 0; i < 50; ++i) {
+    sim->step(Eigen::Vector3d::Zero());
+    lowest = std::min(lowest, sim->state().x[3 * tip + 1]);
+  }
+  return lowest;
+}
+
+// A weld alone is a ball joint: the horizontal arm swings down as a pendulum.
+// One brace from the arm's second vertex to the post below the joint makes
+// the joint stiff, and the arm is a cantilever again: its tip sinks w L^4 / 8EI
+// = 0.3 mm under its own weight (w = 0.49 N/m, L = 0.2 m, EI = 0.31 N m^2),
+// up to twice that as gravity comes on at once, plus the post's and the brace's give.
+TEST(Scene, BraceMakesAWeldAStiffJoint) {
+  const double ball = lowest_arm_tip(load_scene_file(write_scene("ball_joint", kArmOnPost)));
+  EXPECT_LT(ball, 0.2 - 0.1) << "without a brace the arm hangs from its weld";
+  const Scene braced = load_scene_file(write_scene(
+      "braced_joint", kArmOnPost + "[[brace]]\nfrom = [0.05, 0.2, 0]\nto = [[0, 0.15, 0]]\nea = 1e4\n"));
+  ASSERT_EQ(braced.model.braces.size(), 1u);
+  EXPECT_EQ(braced.model.rod_stretch.size(), 8u) << "a brace is not a rod edge: never drawn or exported";
+  EXPECT_GT(lowest_arm_tip(braced), 0.2 - 0.002);
+}
+
+TEST(SceneErrors, BracesMustEndOnVertices) {
+  const std::string braced = kValid + "[[brace]]\nfrom = [0, 0, 0]\nto = [[1, -1, 0]]\nea = 10\n";
+  EXPECT_NO_THROW(load_scene_file(write_scene("brace_ok", braced)));
+  EXPECT_EQ(rejection("brace_off", edited(braced, "to = [[1, -1, 0]]", "to = [[0.2, -1, 0]]")),
+            ": field 'brace[0].to': expected points within snap = 0.0001 m of a body's vertex "
+            "([0.2, -1, 0] is 0.2 m from the nearest), got array of 1");
+  EXPECT_EQ(rejection("brace_self", edited(braced, "to = [[1, -1, 0]]", "to = [[0, 0, 0]]")),
+            ": field 'brace[0].to': expected points at other vertices than 'from', got array of 1");
+  EXPECT_EQ(rejection("brace_ea", edited(braced, "ea = 10", "ea = -1")),
+            ": field 'brace[0].ea': expected a positive number, got integer -1");
 }
 
 TEST(SceneErrors, EnergyOnTheWrongMesh) {

@@ -85,6 +85,9 @@ struct DeformableModel {
   std::vector<HingeElement> hinges;
   std::vector<RodStretchElement> rod_stretch;
   std::vector<RodBendElement> rod_bend;
+  // Braces: axial springs between two vertices of any bodies, never drawn or
+  // exported; with a non-collinear anchor they make a weld's joint stiff.
+  std::vector<RodStretchElement> braces;
   std::vector<TetElement> tets;
   std::vector<DragTriangle> drag;
   std::vector<BoxObstacle> obstacles;
@@ -105,6 +108,8 @@ void add_membrane(DeformableModel& model, std::array<int, 3> v, Lame lame);
 void add_hinge(DeformableModel& model, std::array<int, 4> v, double bending_modulus);
 void add_rod_stretch(DeformableModel& model, int a, int b, double ea);
 void add_rod_bend(DeformableModel& model, int a, int b, int c, double ei);
+// A brace between vertices a and b: energy EA / (2 l0) (l - l0)^2, as a rod edge's.
+void add_brace(DeformableModel& model, int a, int b, double ea);
 void add_tet(DeformableModel& model, std::array<int, 4> v, Lame lame,
              TetEnergy energy = TetEnergy::corotational);
 
