@@ -26,11 +26,17 @@ BRANCH_SEGMENTS, BRANCH_STEP = 5, 0.02                 # 10 cm branches
 PETIOLE_SEGMENTS, PETIOLE_STEP = 6, 0.01               # 6 cm petioles, the last cm inside the leaf
 LEAF_CELLS = (6, 12)                                   # across, along: 72 quads per leaf
 LEAF_WIDTH = 0.06                                      # the leaf is 12 x 1 cm long
+BRANCH_YOUNG, PETIOLE_YOUNG = 1.5e8, 5e7               # Pa
+STEM_FRAME_RADIUS = 0.02                               # m: the stem's frame points, see stem_frame
+STEM_FRAME_YOUNG = 4e7                                 # Pa on a 1 mm radius: EA = 126 N, twist springs
+STEM_FRAME_EA = 2e4                                    # N: frame points held to the stem's axis
+JOINT_BRACE = 0.05                                     # a joint brace's EA, as a fraction of the child rod's
+LEAF_BRACE = 5.0                                       # N: a leaf's corners against rolling on its petiole
 LEAF = """energies = ["membrane", "bending"]
 density = 0.25            # kg/m^2
 young = 800               # N/m
 poisson = 0.3
-bending = 2e-4            # N m, stiff leaf blade
+bending = 2e-3            # N m: the blade droops ~20 degrees at its tip (q L^3 / 6D)
 drag = 0.8
 render = {{ subdivide = 1 }}
 weld_to = "{parent}"
@@ -60,7 +66,9 @@ def fmt(v):
 
 
 def rod(name, parent, start, direction, segments, step, radius, young):
+    """A rod body and its vertex positions, start first."""
     end = add(start, direction, segments * step)
+    points = [add(start, direction, i * step) for i in range(segments + 1)]
     return f"""[[body]]
 name = "{name}"
 albedo = [0.35, 0.45, 0.15]
@@ -71,12 +79,54 @@ radius = {radius}
 polyline = {{ points = [{fmt(start)}, {fmt(end)}], subdivisions = {segments} }}
 weld_to = "{parent}"
 weld_radius = 1e-4
-""", end
+""", points
+
+
+def brace(start, ends, ea, why=""):
+    comment = f"   # {why}" if why else ""
+    return f"""[[brace]]
+from = {fmt(start)}{comment}
+to = [{", ".join(fmt(e) for e in ends)}]
+ea = {ea:g}
+"""
+
+
+def stem_frame(stem):
+    """A rod carries no twist, and a weld is a ball joint: alone, the crown
+    could spin about the stem and every branch turn about its root. These
+    'frame' points, one per stem vertex at STEM_FRAME_RADIUS on a helix of
+    quarter turns, are each braced to three stem vertices; the chain joining
+    them resists the stem's twist to first order (a quarter turn between
+    neighbours), and branches and petioles brace to them."""
+    frame = []
+    for i, p in enumerate(stem):
+        a = math.radians(90.0 * i + 45.0)
+        frame.append(add(p, [math.cos(a), 0.0, math.sin(a)], STEM_FRAME_RADIUS))
+    body = f"""[[body]]
+name = "stem_frame"
+albedo = [0.35, 0.45, 0.15]
+energies = ["rod"]        # its segments are the twist springs; never drawn
+density = 0.005           # kg/m
+young = {STEM_FRAME_YOUNG:g}
+radius = 0.001
+polyline = {{ points = [{", ".join(fmt(p) for p in frame)}] }}
+pin = {{ min = [-0.03, 0.11, -0.03], max = [0.03, {stem[1][1] + 0.005:.4f}, 0.03] }}   # in the soil, as the stem
+"""
+    braces = [brace(frame[i], [stem[j] for j in (i - 1, i, i + 1) if 0 <= j < len(stem)], STEM_FRAME_EA)
+              for i in range(len(stem))]
+    return body + "\n" + "\n".join(braces), frame
+
+
+def joint(child, child_ea, anchors, why):
+    """Braces the child's second vertex to anchors off its axis, so that the
+    weld at its first vertex holds its direction (and the turn about it)."""
+    return brace(child[1], anchors, JOINT_BRACE * child_ea, why)
 
 
 def leaf(name, parent, petiole_last, direction):
     """A leaf whose midrib starts at the petiole's last-but-one vertex and runs
-    along `direction`, its rows PETIOLE_STEP apart so the first segment is shared."""
+    along `direction`, its rows PETIOLE_STEP apart so the first segment is shared.
+    Returns the body and its first row's two corners."""
     across = unit(cross(direction, [0.0, 1.0, 0.0]))
     along = [c * PETIOLE_STEP * LEAF_CELLS[1] for c in direction]
     u = [c * LEAF_WIDTH for c in across]
@@ -86,17 +136,25 @@ name = "{name}"
 albedo = [0.18, 0.55, 0.12]
 {LEAF.format(parent=parent)}
 grid = {{ origin = {fmt(origin)}, u = {fmt(u)}, v = {fmt(along)}, cells = [{LEAF_CELLS[0]}, {LEAF_CELLS[1]}] }}
-"""
+""", [origin, add(origin, u)]
 
 
-def petiole_and_leaf(index, parent, start, direction):
-    body, end = rod(f"petiole{index}", parent, start, direction, PETIOLE_SEGMENTS, PETIOLE_STEP, 0.002, 5e7)
-    last_but_one = add(end, direction, -PETIOLE_STEP)
-    return body + "\n" + leaf(f"leaf{index}", f"petiole{index}", last_but_one, direction)
+def petiole_and_leaf(index, parent, start, direction, anchors):
+    """A petiole from `start` on its parent and its leaf; `anchors` are points
+    off the petiole's axis, fixed to the parent, that its joint and the leaf's
+    blade are braced to."""
+    body, petiole = rod(f"petiole{index}", parent, start, direction, PETIOLE_SEGMENTS, PETIOLE_STEP, 0.002,
+                        PETIOLE_YOUNG)
+    blade, corners = leaf(f"leaf{index}", f"petiole{index}", petiole[-2], direction)
+    ea = PETIOLE_YOUNG * math.pi * 0.002 ** 2
+    parts = [body, joint(petiole, ea, anchors, f"petiole{index}'s joint"), blade]
+    parts += [brace(c, [petiole[-3], anchors[0]], LEAF_BRACE, f"leaf{index} against rolling") for c in corners]
+    return "\n".join(parts)
 
 
 def plant():
     step = (STEM_TOP - STEM_BASE) / STEM_SEGMENTS
+    stem = [[0.0, STEM_BASE + i * step, 0.0] for i in range(STEM_SEGMENTS + 1)]
     parts = [f"""[[body]]
 name = "stem"
 albedo = [0.35, 0.45, 0.15]
@@ -107,21 +165,27 @@ radius = 0.006            # m
 polyline = {{ points = [[0, {STEM_BASE}, 0], [0, {STEM_TOP}, 0]], subdivisions = {STEM_SEGMENTS} }}
 pin = {{ min = [-0.01, 0.11, -0.01], max = [0.01, {STEM_BASE + 1.5 * step:.4f}, 0.01] }}   # clamped in the soil
 """]
+    frame_body, frame = stem_frame(stem)
+    parts.append(frame_body)
     leaves = 0
     for b, (height, azimuth, rise) in enumerate(BRANCHES):
         k = round((height - STEM_BASE) / step)  # on a stem vertex, where the weld finds it
-        start = [0.0, STEM_BASE + k * step, 0.0]
         direction = heading(azimuth, rise)
-        body, _ = rod(f"branch{b}", "stem", start, direction, BRANCH_SEGMENTS, BRANCH_STEP, 0.003, 1.5e8)
+        body, branch = rod(f"branch{b}", "stem", stem[k], direction, BRANCH_SEGMENTS, BRANCH_STEP, 0.003,
+                           BRANCH_YOUNG)
         parts.append(body)
+        parts.append(joint(branch, BRANCH_YOUNG * math.pi * 0.003 ** 2, [stem[k - 1], stem[k + 1], frame[k]],
+                           f"branch{b}'s joint"))
         # Petioles from the branch's 3rd and 5th vertices: to either side, and on along the tip.
         for at, turn, lift in ((3, -55.0, 0.2), (3, 55.0, 0.2), (5, 0.0, 0.1)):
-            base = add(start, direction, at * BRANCH_STEP)
-            parts.append(petiole_and_leaf(leaves, f"branch{b}", base, heading(azimuth + turn, rise * 0.5 + lift)))
+            anchors = [branch[at - 1], stem[k + 1]] + ([branch[at + 1]] if at + 1 < len(branch) else [])
+            parts.append(petiole_and_leaf(leaves, f"branch{b}", branch[at], heading(azimuth + turn,
+                                                                                      rise * 0.5 + lift),
+                                          anchors))
             leaves += 1
-    top = [0.0, STEM_TOP, 0.0]
     for azimuth in (60.0, 190.0):
-        parts.append(petiole_and_leaf(leaves, "stem", top, heading(azimuth, 0.9)))
+        anchors = [stem[-2], stem[-3], frame[-1], frame[-2]]
+        parts.append(petiole_and_leaf(leaves, "stem", stem[-1], heading(azimuth, 0.9), anchors))
         leaves += 1
     return "\n".join(parts), leaves
 
