@@ -107,7 +107,8 @@ class ImplicitSimulator final : public Simulator {
         settings_(settings),
         support_(support),
         factorization_(settings.linear_solver),
-        self_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3), model_.thickness),
+        self_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3), model_.thickness,
+                        model_.self_friction),
         continuous_collision_(model_.self_collision ? model_.surface : Eigen::MatrixXi(0, 3),
                               kSeparation * model_.thickness, kCcdPasses, model_.incremental_ccd) {
     if (!(settings_.frame_dt > 0) || settings_.substeps < 1 || settings_.newton_iterations < 1) {

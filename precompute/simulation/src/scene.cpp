@@ -521,6 +521,8 @@ Scene load_scene_file(const std::filesystem::path& path) {
     Fields contact = top.table("contact");
     scene.model.thickness = contact.positive("thickness", scene.model.thickness);
     scene.model.self_collision = contact.flag("self_collision", scene.model.self_collision);
+    scene.model.self_friction = contact.number("friction", scene.model.self_friction);
+    if (!(scene.model.self_friction >= 0)) contact.fail("friction", "a Coulomb coefficient >= 0");
     scene.model.incremental_ccd = contact.flag("incremental_ccd", scene.model.incremental_ccd);
     contact.finish();
   }

@@ -179,8 +179,8 @@ ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::Matrix
   return s;
 }
 
-SelfCollision::SelfCollision(Eigen::MatrixXi triangles, double thickness, int sweeps)
-    : triangles_(std::move(triangles)), thickness_(thickness), sweeps_(sweeps) {
+SelfCollision::SelfCollision(Eigen::MatrixXi triangles, double thickness, double friction, int sweeps)
+    : triangles_(std::move(triangles)), thickness_(thickness), friction_(friction), sweeps_(sweeps) {
   vertex_count_ = triangles_.size() ? triangles_.maxCoeff() + 1 : 0;
   edges_ = surface_edges(triangles_);
 }
@@ -230,23 +230,33 @@ SelfCollision::Pairs SelfCollision::candidates(const Eigen::VectorXd& x0, const 
 
 // Inelastic impulse between two points given as weighted vertex sets, along n
 // (pointing from the second to the first), so that their predicted distance after
-// h stays at least `thickness`. Returns whether velocities changed.
+// h stays at least `thickness`; with friction, a tangential one too. Returns
+// whether velocities changed.
 bool SelfCollision::repel(const std::array<int, 4>& idx, const std::array<double, 4>& weight,
                           const Vector3d& n, double d0, Eigen::VectorXd& v, double h,
                           const Eigen::VectorXd& inverse_mass) const {
+  Vector3d relative = Vector3d::Zero();
   double vn = 0, inv = 0;
-  for (int k = 0; k < 4; ++k) {
-    if (weight[static_cast<size_t>(k)] == 0) continue;
-    vn += weight[static_cast<size_t>(k)] * point(v, idx[static_cast<size_t>(k)]).dot(n);
-    inv += weight[static_cast<size_t>(k)] * weight[static_cast<size_t>(k)] *
-           inverse_mass[idx[static_cast<size_t>(k)]];
+  for (size_t k = 0; k < 4; ++k) {
+    if (weight[k] == 0) continue;
+    relative += weight[k] * point(v, idx[k]);
+    vn += weight[k] * point(v, idx[k]).dot(n);
+    inv += weight[k] * weight[k] * inverse_mass[idx[k]];
   }
   const double target = std::max(0.0, thickness_ - d0) / h;
   if (d0 + h * vn >= thickness_ || vn >= target || inv <= 0) return false;
   const double impulse = (target - vn) / inv;
-  for (int k = 0; k < 4; ++k) {
-    const int i = idx[static_cast<size_t>(k)];
-    v.segment<3>(3 * i) += impulse * weight[static_cast<size_t>(k)] * inverse_mass[i] * n;
+  // Coulomb's cone: the tangential relative velocity loses at most friction x
+  // the normal change, and stops rather than reverses.
+  const Vector3d tangential = relative - vn * n;
+  const double slide = tangential.norm();
+  Vector3d tangential_impulse = Vector3d::Zero();
+  if (friction_ > 0 && slide > 0)
+    tangential_impulse = -std::min(1.0, friction_ * (target - vn) / slide) / inv * tangential;
+  for (size_t k = 0; k < 4; ++k) {
+    const int i = idx[k];
+    v.segment<3>(3 * i) += impulse * weight[k] * inverse_mass[i] * n;
+    if (friction_ > 0) v.segment<3>(3 * i) += weight[k] * inverse_mass[i] * tangential_impulse;
   }
   return true;
 }

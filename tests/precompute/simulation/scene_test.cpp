@@ -272,6 +272,13 @@ TEST(Scene, BraceMakesAWeldAStiffJoint) {
   EXPECT_GT(lowest_arm_tip(braced), 0.2 - 0.002);
 }
 
+TEST(SceneErrors, SelfContactFrictionIsACoulombCoefficient) {
+  const std::string with_contact = kValid + "[contact]\nself_collision = true\nfriction = 0.4\n";
+  EXPECT_DOUBLE_EQ(load_scene_file(write_scene("friction_ok", with_contact)).model.self_friction, 0.4);
+  EXPECT_EQ(rejection("friction_bad", edited(with_contact, "friction = 0.4", "friction = -0.1")),
+            ": field 'contact.friction': expected a Coulomb coefficient >= 0, got number -0.1");
+}
+
 TEST(SceneErrors, BracesMustEndOnVertices) {
   const std::string braced = kValid + "[[brace]]\nfrom = [0, 0, 0]\nto = [[1, -1, 0]]\nea = 10\n";
   EXPECT_NO_THROW(load_scene_file(write_scene("brace_ok", braced)));

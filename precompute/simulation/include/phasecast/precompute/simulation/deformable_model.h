@@ -94,6 +94,7 @@ struct DeformableModel {
   double thickness =
       0.005;  // contact distance kept from obstacles and, with self_collision, between surfaces, m
   bool self_collision = false;  // proximity repulsion between the surface triangles and vertices
+  double self_friction = 0;     // Coulomb's coefficient between surfaces in self-contact
   // CCD's later detections of a step test only pairs with a moved vertex; false:
   // every detection is whole (the same result, slower: the reference to measure against).
   bool incremental_ccd = true;

@@ -50,7 +50,10 @@ std::vector<std::array<int, 2>> surface_edges(const Eigen::MatrixXi& triangles);
 
 class SelfCollision {
  public:
-  SelfCollision(Eigen::MatrixXi triangles, double thickness, int sweeps = 4);
+  // friction: Coulomb's coefficient between surfaces in contact (Bridson et al.
+  // 2002): each repulsion impulse also takes up to friction x its normal velocity
+  // change off the pair's relative tangential velocity, never reversing it.
+  SelfCollision(Eigen::MatrixXi triangles, double thickness, double friction = 0, int sweeps = 4);
 
   // Changes the step velocities v (3V) so that moving from x0 for h seconds
   // keeps every vertex `thickness` away from the triangles not incident to it.
@@ -69,6 +72,7 @@ class SelfCollision {
   Eigen::MatrixXi triangles_;
   std::vector<std::array<int, 2>> edges_;
   double thickness_;
+  double friction_;
   int sweeps_;
   int vertex_count_ = 0;
 };
