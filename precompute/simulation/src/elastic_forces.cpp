@@ -325,18 +325,9 @@ ElasticEvaluation evaluate_elastic(const DeformableModel& model, const Eigen::Ve
       });
   e.add(
       model.hinges, 4, [](const HingeElement& h) { return h.v; }, hinge);
-  e.add(
-      model.rod_stretch, 2,
-      [](const RodStretchElement& r) {
-        return std::array<int, 2>{r.a, r.b};
-      },
-      rod_stretch);
-  e.add(
-      model.braces, 2,
-      [](const RodStretchElement& r) {
-        return std::array<int, 2>{r.a, r.b};
-      },
-      rod_stretch);
+  const auto ends = [](const RodStretchElement& r) { return std::array<int, 2>{r.a, r.b}; };
+  e.add(model.rod_stretch, 2, ends, rod_stretch);
+  e.add(model.braces, 2, ends, rod_stretch);  // a brace's energy is a rod edge's
   e.add(
       model.rod_bend, 3,
       [](const RodBendElement& r) {

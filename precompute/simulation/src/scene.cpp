@@ -346,22 +346,28 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
   scene.bodies.push_back(std::move(info));
 }
 
-// The model vertex nearest to `p`, which must lie within `snap` of it.
+// The one model vertex within `snap` of `p`: none, or two (bodies that touch
+// without a weld), is an error naming the point.
 int snapped_vertex(const DeformableModel& m, Fields& brace, const std::string& key, const Eigen::Vector3d& p,
                    double snap) {
-  int best = -1;
-  double best_distance = std::numeric_limits<double>::infinity();
+  const auto point = fmt::format("[{:g}, {:g}, {:g}]", p.x(), p.y(), p.z());
+  int found = -1;
+  double nearest = std::numeric_limits<double>::infinity();
   for (int v = 0; v < m.vertices(); ++v) {
     const double d = (m.rest.segment<3>(3 * v) - p).norm();
-    if (d < best_distance) best = v, best_distance = d;
+    nearest = std::min(nearest, d);
+    if (d > snap) continue;
+    if (found >= 0)
+      brace.fail(key,
+                 fmt::format("a point near one vertex ({} is within snap = {:g} m of vertices {} and {})",
+                             point, snap, found, v));
+    found = v;
   }
-  if (!(best_distance <= snap)) {
+  if (found < 0)
     brace.fail(key,
-               fmt::format("points within snap = {:g} m of a body's vertex ([{:g}, {:g}, {:g}] is {:.3g} m "
-                           "from the nearest)",
-                           snap, p.x(), p.y(), p.z(), best_distance));
-  }
-  return best;
+               fmt::format("points within snap = {:g} m of a body's vertex ({} is {:.3g} m from the nearest)",
+                           snap, point, nearest));
+  return found;
 }
 
 // [[brace]]: axial springs from one vertex to others, anchoring a weld's joint
@@ -372,9 +378,12 @@ void add_braces(DeformableModel& m, Fields brace) {
   const auto to = brace.points("to");
   if (to.empty()) brace.fail("to", "at least one point");
   const double ea = brace.positive("ea");
+  std::vector<int> ends;
   for (const auto& p : to) {
     const int v = snapped_vertex(m, brace, "to", p, snap);
     if (v == from) brace.fail("to", "points at other vertices than 'from'");
+    if (std::find(ends.begin(), ends.end(), v) != ends.end()) brace.fail("to", "points at distinct vertices");
+    ends.push_back(v);
     add_brace(m, from, v, ea);
   }
   brace.finish();

@@ -112,7 +112,6 @@ TEST(SelfCollision, ProximityRepulsionKeepsSheetsApart) {
   EXPECT_EQ(o.worst_intersections, 0);
 }
 
-// cloth_door at 10 x 14 cells through a long schedule of every palette entry.
 // A small free triangle 5 mm over a large pinned one (thickness 10 mm, h =
 // 10 ms), sliding at 1 m/s and closing at 0.5 m/s. Repulsion (Bridson et al.
 // 2002) turns the normal velocity to the 0.5 m/s that restores the thickness
@@ -142,6 +141,45 @@ TEST(SelfCollision, FrictionTakesCoulombsShareOffTheSlide) {
   }
 }
 
+// A vertex closing on a free triangle of unequal masses, at a point inside it
+// (barycentric weights 0.2, 0.3, 0.5): the same Coulomb share comes off the
+// relative slide, whatever the weights and masses, and the impulses are
+// internal, so momentum is conserved.
+TEST(SelfCollision, FrictionActsOnTheRelativeSlideAndConservesMomentum) {
+  Eigen::MatrixXi triangles(2, 3);
+  triangles << 0, 1, 2, 3, 4, 5;
+  const Vector3d a(0, 0, 0), b(1, 0, 0), c(0, 1, 0), w(0.2, 0.3, 0.5);
+  const double d0 = 0.004, mu = 0.25;
+  Eigen::VectorXd x0(18), v(18), inverse_mass(6);
+  const Vector3d p = w[0] * a + w[1] * b + w[2] * c + Vector3d(0, 0, d0);
+  x0 << a, b, c, p, p + Vector3d(0.2, 0, 0.1), p + Vector3d(0, 0.2, 0.1);  // a second, tilted triangle above
+  inverse_mass << 1 / 0.5, 1 / 2.0, 1 / 1.0, 1 / 0.7, 1 / 0.7, 1 / 0.7;
+  v << 0.1, 0, 0.2, -0.3, 0.1, 0.1, 0, 0.2, 0.3, 0.8, -0.4, -0.6, 0.8, -0.4, -0.6, 0.8, -0.4, -0.6;
+  const auto relative = [&](const Eigen::VectorXd& vel) {
+    return Vector3d(vel.segment<3>(9) - w[0] * vel.segment<3>(0) - w[1] * vel.segment<3>(3) -
+                    w[2] * vel.segment<3>(6));
+  };
+  const auto momentum = [&](const Eigen::VectorXd& vel) {
+    Vector3d sum = Vector3d::Zero();
+    for (int i = 0; i < 6; ++i) sum += vel.segment<3>(3 * i) / inverse_mass[i];
+    return sum;
+  };
+  const Vector3d before = relative(v), n = Vector3d::UnitZ();
+  const Vector3d p_before = momentum(v);
+  // One sweep and no other pair can act: the vertex's own triangle is incident to it.
+  SelfCollision(triangles, 0.01, mu, 1).filter(x0, v, 0.01, inverse_mass);
+  const Vector3d after = relative(v);
+  const double normal_change = after.dot(n) - before.dot(n);
+  EXPECT_NEAR(after.dot(n), (0.01 - d0) / 0.01, 1e-12)
+      << "the pair separates at the rate that restores the thickness";
+  const Vector3d slide_before = before - before.dot(n) * n, slide_after = after - after.dot(n) * n;
+  EXPECT_NEAR(slide_after.norm(), slide_before.norm() - mu * normal_change, 1e-12);
+  EXPECT_NEAR(slide_after.normalized().dot(slide_before.normalized()), 1, 1e-12)
+      << "the slide keeps its direction";
+  EXPECT_LT((momentum(v) - p_before).norm(), 1e-12);
+}
+
+// cloth_door at 10 x 14 cells through a long schedule of every palette entry.
 TEST(SelfCollision, ClothDoorLongRunHasNoIntersectingTrianglePairs) {
   std::ifstream in(kScenes / "tiny/cloth_door.toml");
   std::stringstream text;

@@ -259,7 +259,8 @@ double lowest_arm_tip(const Scene& scene) {
 
 // A weld alone is a ball joint: the horizontal arm swings down as a pendulum.
 // One brace from the arm's second vertex to the post below the joint makes
-// the joint stiff, and the arm is a cantilever again: its tip sinks w L^4 / 8EI
+// the joint stiff in the plane of post and arm (a hinge about the post's axis
+// remains, which gravity does not turn), and the arm is a cantilever again: its tip sinks w L^4 / 8EI
 // = 0.3 mm under its own weight (w = 0.49 N/m, L = 0.2 m, EI = 0.31 N m^2),
 // up to twice that as gravity comes on at once, plus the post's and the brace's give.
 TEST(Scene, BraceMakesAWeldAStiffJoint) {
@@ -289,6 +290,14 @@ TEST(SceneErrors, BracesMustEndOnVertices) {
             ": field 'brace[0].to': expected points at other vertices than 'from', got array of 1");
   EXPECT_EQ(rejection("brace_ea", edited(braced, "ea = 10", "ea = -1")),
             ": field 'brace[0].ea': expected a positive number, got integer -1");
+  EXPECT_EQ(rejection("brace_twice", edited(braced, "to = [[1, -1, 0]]", "to = [[1, -1, 0], [1, -1, 0]]")),
+            ": field 'brace[0].to': expected points at distinct vertices, got array of 2");
+  // The grid's vertices are 0.5 m apart: a 0.6 m snap reaches two of them.
+  EXPECT_EQ(
+      rejection("brace_ambiguous",
+                kValid + "[[brace]]\nfrom = [0.25, 0, 0]\nto = [[1, -1, 0]]\nea = 10\nsnap = 0.6\n"),
+      ": field 'brace[0].from': expected a point near one vertex ([0.25, 0, 0] is within snap = 0.6 m of "
+      "vertices 0 and 1), got array of 3");
 }
 
 TEST(SceneErrors, EnergyOnTheWrongMesh) {
