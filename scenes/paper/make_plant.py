@@ -27,6 +27,7 @@ PETIOLE_SEGMENTS, PETIOLE_STEP = 6, 0.01               # 6 cm petioles, the last
 LEAF_CELLS = (6, 12)                                   # across, along: 72 quads per leaf
 LEAF_WIDTH = 0.06                                      # the leaf is 12 x 1 cm long
 BRANCH_YOUNG, PETIOLE_YOUNG = 1.5e8, 5e7               # Pa
+BRANCH_RADIUS, PETIOLE_RADIUS = 0.003, 0.002           # m
 STEM_FRAME_RADIUS = 0.02                               # m: the stem's frame points, see stem_frame
 STEM_FRAME_YOUNG = 4e7                                 # Pa on a 1 mm radius: EA = 126 N, twist springs
 STEM_FRAME_EA = 2e4                                    # N: frame points held to the stem's axis
@@ -106,7 +107,7 @@ def stem_frame(stem):
     body = f"""[[body]]
 name = "stem_frame"
 albedo = [0.35, 0.45, 0.15]
-energies = ["rod"]        # its segments are the twist springs; never drawn
+energies = ["rod"]        # its segments are the twist springs (not drawn; exported as rod segments)
 density = 0.005           # kg/m
 young = {STEM_FRAME_YOUNG:g}
 radius = 0.001
@@ -142,12 +143,12 @@ grid = {{ origin = {fmt(origin)}, u = {fmt(u)}, v = {fmt(along)}, cells = [{LEAF
 
 def petiole_and_leaf(index, parent, start, direction, anchors):
     """A petiole from `start` on its parent and its leaf; `anchors` are points
-    off the petiole's axis, fixed to the parent, that its joint and the leaf's
-    blade are braced to."""
-    body, petiole = rod(f"petiole{index}", parent, start, direction, PETIOLE_SEGMENTS, PETIOLE_STEP, 0.002,
+    off the petiole's axis on the parent or the stem, which its joint and the
+    leaf's blade are braced to."""
+    body, petiole = rod(f"petiole{index}", parent, start, direction, PETIOLE_SEGMENTS, PETIOLE_STEP, PETIOLE_RADIUS,
                         PETIOLE_YOUNG)
     blade, corners = leaf(f"leaf{index}", f"petiole{index}", petiole[-2], direction)
-    ea = PETIOLE_YOUNG * math.pi * 0.002 ** 2
+    ea = PETIOLE_YOUNG * math.pi * PETIOLE_RADIUS ** 2
     parts = [body, joint(petiole, ea, anchors, f"petiole{index}'s joint"), blade]
     parts += [brace(c, [petiole[-3], anchors[0]], LEAF_BRACE, f"leaf{index} against rolling") for c in corners]
     return "\n".join(parts)
@@ -172,10 +173,10 @@ pin = {{ min = [-0.01, 0.11, -0.01], max = [0.01, {STEM_BASE + 1.5 * step:.4f}, 
     for b, (height, azimuth, rise) in enumerate(BRANCHES):
         k = round((height - STEM_BASE) / step)  # on a stem vertex, where the weld finds it
         direction = heading(azimuth, rise)
-        body, branch = rod(f"branch{b}", "stem", stem[k], direction, BRANCH_SEGMENTS, BRANCH_STEP, 0.003,
+        body, branch = rod(f"branch{b}", "stem", stem[k], direction, BRANCH_SEGMENTS, BRANCH_STEP, BRANCH_RADIUS,
                            BRANCH_YOUNG)
         parts.append(body)
-        parts.append(joint(branch, BRANCH_YOUNG * math.pi * 0.003 ** 2, [stem[k - 1], stem[k + 1], frame[k]],
+        parts.append(joint(branch, BRANCH_YOUNG * math.pi * BRANCH_RADIUS ** 2, [stem[k - 1], stem[k + 1], frame[k]],
                            f"branch{b}'s joint"))
         # Petioles from the branch's 3rd and 5th vertices: to either side, and on along the tip.
         for at, turn, lift in ((3, -55.0, 0.2), (3, 55.0, 0.2), (5, 0.0, 0.1)):
