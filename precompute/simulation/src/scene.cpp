@@ -532,6 +532,8 @@ Scene load_scene_file(const std::filesystem::path& path) {
     scene.model.self_collision = contact.flag("self_collision", scene.model.self_collision);
     scene.model.self_friction = contact.number("friction", scene.model.self_friction);
     if (!(scene.model.self_friction >= 0)) contact.fail("friction", "a Coulomb coefficient >= 0");
+    if (scene.model.self_friction > 0 && !scene.model.self_collision)
+      contact.fail("friction", "0 without self_collision = true (it acts between surfaces in self-contact)");
     scene.model.incremental_ccd = contact.flag("incremental_ccd", scene.model.incremental_ccd);
     contact.finish();
   }

@@ -278,6 +278,10 @@ TEST(SceneErrors, SelfContactFrictionIsACoulombCoefficient) {
   EXPECT_DOUBLE_EQ(load_scene_file(write_scene("friction_ok", with_contact)).model.self_friction, 0.4);
   EXPECT_EQ(rejection("friction_bad", edited(with_contact, "friction = 0.4", "friction = -0.1")),
             ": field 'contact.friction': expected a Coulomb coefficient >= 0, got number -0.1");
+  EXPECT_EQ(
+      rejection("friction_alone", edited(with_contact, "self_collision = true", "self_collision = false")),
+      ": field 'contact.friction': expected 0 without self_collision = true (it acts between surfaces in "
+      "self-contact), got number 0.4");
 }
 
 TEST(SceneErrors, BracesMustEndOnVertices) {
