@@ -294,6 +294,8 @@ TEST(SceneErrors, BracesMustEndOnVertices) {
             ": field 'brace[0].to': expected points at other vertices than 'from', got array of 1");
   EXPECT_EQ(rejection("brace_ea", edited(braced, "ea = 10", "ea = -1")),
             ": field 'brace[0].ea': expected a positive number, got integer -1");
+  EXPECT_EQ(rejection("brace_none", edited(braced, "to = [[1, -1, 0]]", "to = []")),
+            ": field 'brace[0].to': expected at least one point, got array of 0");
   EXPECT_EQ(rejection("brace_twice", edited(braced, "to = [[1, -1, 0]]", "to = [[1, -1, 0], [1, -1, 0]]")),
             ": field 'brace[0].to': expected points at distinct vertices, got array of 2");
   // The grid's vertices are 0.5 m apart: a 0.6 m snap reaches two of them.
