@@ -39,24 +39,25 @@ std::vector<std::int64_t> package_node_frames(const IrfList& irfs, const std::ve
   return frames;
 }
 
-MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const VertexEmbedding& embedding,
+MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const Embedding& embedding,
                                 const Eigen::Ref<const Eigen::RowVectorXf>& frame) {
-  if (embedding.rows() != mesh.points() || 3 * embedding.cols() != frame.size()) {
+  const VertexEmbedding& W = embedding.weights;
+  if (W.rows() != mesh.points() || 3 * W.cols() != frame.size()) {
     throw std::invalid_argument(
         fmt::format("appearance: embedding of {} points in {} vertices, but the mesh has {} points and a "
                     "frame {} vertices",
-                    embedding.rows(), embedding.cols(), mesh.points(), frame.size() / 3));
+                    W.rows(), W.cols(), mesh.points(), frame.size() / 3));
   }
-  const MatrixXfR moved = embed_rows(embedding, frame.transpose());
+  const MatrixXfR moved = embed_positions(embedding, frame.transpose());
   MatrixXfR x = mesh.rest_positions;
   for (Eigen::Index p = 0; p < x.rows(); ++p) {
-    if (!embeds(embedding, p) || !mesh.deformable[static_cast<size_t>(p)]) continue;
+    if (!embeds(W, p) || !mesh.deformable[static_cast<size_t>(p)]) continue;
     for (int k = 0; k < 3; ++k) x(p, k) = moved(3 * p + k, 0);
   }
   return x;
 }
 
-MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const VertexEmbedding& embedding,
+MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const Embedding& embedding,
                             const Eigen::Ref<const Eigen::RowVectorXf>& frame,
                             const TransferOptions& options) {
   const MatrixXfR x = deformed_scene_points(mesh, embedding, frame);
@@ -81,7 +82,7 @@ std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<
   return pool;
 }
 
-AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const VertexEmbedding& embedding,
+AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedding& embedding,
                                            const OrbitDisplacementSource& orbits,
                                            const std::vector<std::int64_t>& node_frames,
                                            const AppearanceStageOptions& o,

@@ -110,13 +110,14 @@ Eigen::Index prop_points(const Scene& scene) {
 }
 
 // x-bar and U_u of the scene points from those of the simulated vertices:
-// W x-bar and W U_u (a back side shares its front's rows); static points
+// W x-bar + d and W U_u (a back side shares its front's rows); static points
 // keep their rest position and zero rows. sigma and rel_error are those of
 // the simulated displacements the SVD saw.
-core::Reduction embedded_reduction(const core::SceneMesh& mesh, const VertexEmbedding& W,
+core::Reduction embedded_reduction(const core::SceneMesh& mesh, const Embedding& embedding,
                                    const DisplacementBasis& basis) {
+  const VertexEmbedding& W = embedding.weights;
   core::Reduction out;
-  const MatrixXfR mean = embed_rows(W, basis.mean_shape);
+  const MatrixXfR mean = embed_positions(embedding, basis.mean_shape);
   out.mean_shape = Eigen::Map<const VectorXf>(mesh.rest_positions.data(), 3 * mesh.points());
   for (Eigen::Index p = 0; p < mesh.points(); ++p)
     if (embeds(W, p)) out.mean_shape.segment(3 * p, 3) = mean.col(0).segment(3 * p, 3);
@@ -182,7 +183,7 @@ core::SceneMesh scene_mesh(const Scene& scene) {
   const auto& model = scene.model;
   const RenderSurface surface = render_surface(scene);
   core::SceneMesh m;
-  const MatrixXfR rest = embed_rows(surface.weights, model.rest.cast<float>());  // W X
+  const MatrixXfR rest = embed_positions(surface.embedding(), model.rest.cast<float>());  // W X + d
   m.rest_positions = Eigen::Map<const MatrixXfR>(rest.data(), surface.points(), 3);
   m.triangles = surface.triangles.cast<std::uint32_t>();
   m.normals = core::vertex_normals(m.rest_positions, m.triangles);  // front side
@@ -196,7 +197,7 @@ core::SceneMesh scene_mesh(const Scene& scene) {
   return m;
 }
 
-VertexEmbedding scene_point_embedding(const Scene& scene) {
+Embedding scene_point_embedding(const Scene& scene) {
   const RenderSurface surface = render_surface(scene);
   const auto back = back_side_points(surface);
   const Eigen::Index P = surface.points(), B = static_cast<Eigen::Index>(back.size());
@@ -206,9 +207,11 @@ VertexEmbedding scene_point_embedding(const Scene& scene) {
     for (VertexEmbedding::InnerIterator it(surface.weights, front); it; ++it)
       w.emplace_back(static_cast<int>(p), static_cast<int>(it.col()), it.value());
   }
-  VertexEmbedding W(P + B + prop_points(scene), scene.model.vertices());  // the props' rows stay empty
-  W.setFromTriplets(w.begin(), w.end());
-  return W;
+  Embedding e;
+  e.weights.resize(P + B + prop_points(scene), scene.model.vertices());  // the props' rows stay empty
+  e.weights.setFromTriplets(w.begin(), w.end());
+  e.offsets = surface.offsets;  // tubes are closed: no back side shares an offset
+  return e;
 }
 
 MatrixXfR scene_point_albedo(const Scene& scene) {

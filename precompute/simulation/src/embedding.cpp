@@ -38,4 +38,14 @@ MatrixXfR embed_rows(const VertexEmbedding& W, const Eigen::Ref<const MatrixXfR>
   return out;
 }
 
+MatrixXfR embed_positions(const VertexEmbedding& W, const PointOffsets& d,
+                          const Eigen::Ref<const MatrixXfR>& x) {
+  MatrixXfR out = embed_rows(W, x);
+  // Only where an offset is: adding +0 elsewhere would turn -0 into +0 and
+  // change packages without tubes.
+  for (const auto& [p, offset] : d)
+    for (int c = 0; c < 3; ++c) out.row(3 * p + c).array() += static_cast<float>(offset(c));
+  return out;
+}
+
 }  // namespace phasecast::precompute

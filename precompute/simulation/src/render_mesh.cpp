@@ -3,8 +3,10 @@
 #include "phasecast/precompute/simulation/obj_mesh.h"
 
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -14,6 +16,9 @@ namespace {
 
 // Each level has four times the triangles: 5 levels make 1024.
 constexpr int kMaxSubdivide = 5;
+// A tube's sides: a triangle at least; beyond 32 a thin stem looks no rounder.
+constexpr int kMinTubeSides = 3, kMaxTubeSides = 32;
+constexpr double kPi = 3.14159265358979323846;
 
 // How far outside the tets a render vertex may lie, in mean boundary edge
 // lengths: a finer surface of the same shape strays about a fraction of an
@@ -88,16 +93,102 @@ RenderMesh embedded_obj(Fields& render, const std::filesystem::path& dir, const 
   return r;
 }
 
+// A rod's tube: the first ring's frame, carried along the polyline by
+// parallel transport (no twist between rings).
+struct RingFrame {
+  Eigen::Vector3d tangent, e1, e2;
+};
+
+std::vector<RingFrame> ring_frames(const std::vector<Eigen::Vector3d>& axis) {
+  std::vector<RingFrame> frames;
+  const auto n = axis.size();
+  for (size_t i = 0; i < n; ++i) {
+    // The mean direction of the edges at the vertex: the ring bisects a bend.
+    const Eigen::Vector3d t = (axis[std::min(i + 1, n - 1)] - axis[i > 0 ? i - 1 : 0]).normalized();
+    Eigen::Vector3d e1;
+    if (frames.empty()) {
+      e1 = t.cross(std::abs(t.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY());
+    } else {
+      e1 = frames.back().e1 - frames.back().e1.dot(t) * t;
+    }
+    e1.normalize();
+    frames.push_back({t, e1, t.cross(e1)});
+  }
+  return frames;
+}
+
+// The polyline's vertices in order; a rod that branches or is not one chain is refused.
+std::vector<int> polyline_vertices(Fields& render, const SimulatedBody& body) {
+  if (body.segments.empty() || body.radius <= 0)
+    render.fail("tube", "a rod body (a polyline with 'rod' energy and a radius) to draw as a tube");
+  std::vector<int> chain{body.segments.front()[0]};
+  for (const auto& s : body.segments) {
+    if (s[0] != chain.back()) render.fail("tube", "a rod that is one polyline, its segments in order");
+    chain.push_back(s[1]);
+  }
+  return chain;
+}
+
+// `tube = k`: a ring of k points around each rod vertex at the rod's radius,
+// each moved by its vertex alone (weight 1 plus a rest offset), closed by a
+// cap at each end (a centre point and a fan), triangles facing out.
+RenderMesh tube(Fields& render, const SimulatedBody& body) {
+  const int k = render.positive_integer("tube", 0);
+  if (k < kMinTubeSides || k > kMaxTubeSides)
+    render.fail("tube", fmt::format("the sides of the tube's rings, {}..{}", kMinTubeSides, kMaxTubeSides));
+  const std::vector<int> chain = polyline_vertices(render, body);
+  std::vector<Eigen::Vector3d> axis;
+  for (int v : chain) axis.push_back(body.rest.segment<3>(3 * v));
+  const auto frames = ring_frames(axis);
+  const auto n = static_cast<int>(chain.size());
+  // Points: ring i is k * i .. k * i + k - 1, then the two cap centres.
+  const int start_cap = n * k, end_cap = start_cap + 1;
+  RenderMesh r;
+  r.tube = true;
+  std::vector<Eigen::Triplet<double>> w;
+  for (int i = 0; i < n; ++i) {
+    const auto& f = frames[static_cast<size_t>(i)];
+    for (int j = 0; j < k; ++j) {
+      const double angle = 2 * kPi * j / k;
+      w.emplace_back(k * i + j, chain[static_cast<size_t>(i)], 1.0);
+      r.offsets.push_back({k * i + j, body.radius * (std::cos(angle) * f.e1 + std::sin(angle) * f.e2)});
+    }
+  }
+  w.emplace_back(start_cap, chain.front(), 1.0);
+  w.emplace_back(end_cap, chain.back(), 1.0);
+  r.weights.resize(end_cap + 1, body.rest.size() / 3);
+  r.weights.setFromTriplets(w.begin(), w.end());
+  // Counter-clockwise seen from outside: e1, e2, tangent are right-handed.
+  std::vector<Eigen::Vector3i> triangles;
+  for (int i = 0; i + 1 < n; ++i)
+    for (int j = 0; j < k; ++j) {
+      const int a = k * i + j, b = k * i + (j + 1) % k, c = a + k, d = b + k;
+      triangles.emplace_back(a, b, d);
+      triangles.emplace_back(a, d, c);
+    }
+  for (int j = 0; j < k; ++j) {
+    triangles.emplace_back(start_cap, (j + 1) % k, j);
+    triangles.emplace_back(end_cap, k * (n - 1) + j, k * (n - 1) + (j + 1) % k);
+  }
+  r.triangles.resize(static_cast<Eigen::Index>(triangles.size()), 3);
+  for (size_t t = 0; t < triangles.size(); ++t) r.triangles.row(static_cast<Eigen::Index>(t)) = triangles[t];
+  return r;
+}
+
 }  // namespace
 
 RenderMesh read_render_mesh(Fields render, const std::filesystem::path& dir, const SimulatedBody& body) {
-  const bool subdivide = render.has("subdivide"), obj = render.has("obj");
-  if (subdivide == obj) {
-    render.fail(obj ? "obj" : "subdivide",
-                "either subdivide = n (Loop subdivision of the simulated surface) or obj = \"fine.obj\" (a "
-                "surface inside a tetgen body)");
+  const bool subdivide = render.has("subdivide"), obj = render.has("obj"), tubed = render.has("tube");
+  if (subdivide + obj + tubed != 1) {
+    render.fail(obj     ? "obj"
+                : tubed ? "tube"
+                        : "subdivide",
+                "one of subdivide = n (Loop subdivision of the simulated surface), obj = \"fine.obj\" (a "
+                "surface inside a tetgen body) or tube = k (a rod drawn as a tube of k sides)");
   }
-  RenderMesh r = subdivide ? subdivided(render, body) : embedded_obj(render, dir, body);
+  RenderMesh r = subdivide ? subdivided(render, body)
+                 : obj     ? embedded_obj(render, dir, body)
+                           : tube(render, body);
   render.finish();
   return r;
 }

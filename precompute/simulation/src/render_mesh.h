@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <filesystem>
 #include <vector>
 
@@ -20,9 +21,12 @@ struct SimulatedBody {
   Eigen::MatrixX4i tets;        // the body's tets, model vertex indices (solids)
   double scale = 1;             // placement of the body's tetgen OBJ, which a render OBJ shares
   Eigen::Vector3d translate = Eigen::Vector3d::Zero();
+  std::vector<std::array<int, 2>> segments;  // the body's rod segments in polyline order, model indices
+  double radius = 0;                         // m: a rod's radius, the tube's
 };
 
-// `render = { subdivide = n }` or, for a solid, `render = { obj = "fine.obj" }`.
+// `render = { subdivide = n }`, for a solid `render = { obj = "fine.obj" }`,
+// for a rod `render = { tube = k }`.
 // Throws SceneError naming the field.
 RenderMesh read_render_mesh(Fields render, const std::filesystem::path& dir, const SimulatedBody& body);
 

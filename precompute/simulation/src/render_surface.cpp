@@ -1,5 +1,7 @@
 #include "phasecast/precompute/simulation/render_surface.h"
 
+#include <algorithm>
+
 namespace phasecast::precompute {
 namespace {
 
@@ -38,6 +40,9 @@ void add_render_meshes(const Scene& scene, RenderSurface& s, std::vector<Eigen::
         w.emplace_back(first + static_cast<int>(p), static_cast<int>(it.col()), it.value());
       s.body.push_back(static_cast<int>(b));
     }
+    for (const auto& d : render->offsets) s.offsets.push_back({first + d.point, d.offset});
+    s.tube.resize(s.body.size(), 0);
+    std::fill(s.tube.begin() + first, s.tube.end(), render->tube ? 1 : 0);
     const Eigen::Index F = s.triangles.rows();
     s.triangles.conservativeResize(F + render->triangles.rows(), 3);
     s.triangles.bottomRows(render->triangles.rows()) = render->triangles.array() + first;
@@ -66,8 +71,20 @@ RenderSurface render_surface(const Scene& scene) {
   add_render_meshes(scene, s, w);
   s.weights.resize(static_cast<Eigen::Index>(s.body.size()), scene.model.vertices());
   s.weights.setFromTriplets(w.begin(), w.end());
+  s.tube.resize(s.body.size(), 0);
   s.solid = solid_points(scene.model, s.weights);
+  for (size_t p = 0; p < s.solid.size(); ++p) s.solid[p] |= s.tube[p];
   return s;
+}
+
+Eigen::MatrixXi contact_triangles(const RenderSurface& surface) {
+  std::vector<Eigen::Index> kept;
+  for (Eigen::Index t = 0; t < surface.triangles.rows(); ++t)
+    if (!surface.tube[static_cast<size_t>(surface.triangles(t, 0))]) kept.push_back(t);
+  Eigen::MatrixXi out(static_cast<Eigen::Index>(kept.size()), 3);
+  for (size_t i = 0; i < kept.size(); ++i)
+    out.row(static_cast<Eigen::Index>(i)) = surface.triangles.row(kept[i]);
+  return out;
 }
 
 }  // namespace phasecast::precompute

@@ -337,9 +337,11 @@ void add_body(Scene& scene, Fields body, const std::filesystem::path& dir) {
   for (Eigen::Index t = 0; t < g.triangles.rows(); ++t)
     for (int k = 0; k < 3; ++k) m.surface(info.first_surface_triangle + t, k) = gid(g.triangles(t, k));
   if (body.has("render")) {
-    detail::SimulatedBody simulated{m.rest, m.surface.bottomRows(g.triangles.rows()), g.tets, g.scale,
-                                    g.translate};
+    detail::SimulatedBody simulated{
+        m.rest, m.surface.bottomRows(g.triangles.rows()), g.tets, g.scale, g.translate, {}, 0};
     for (Eigen::Index i = 0; i < simulated.tets.size(); ++i) simulated.tets(i) = gid(simulated.tets(i));
+    for (const auto& s : g.segments) simulated.segments.push_back({gid(s[0]), gid(s[1])});
+    if (!g.segments.empty() && body.has("radius")) simulated.radius = body.positive("radius");
     info.render = detail::read_render_mesh(body.table("render"), dir, simulated);
   }
   body.finish();

@@ -126,12 +126,12 @@ std::vector<double> irf_end_speeds(const Served& served, double dt) {
 // The simulated frames (N x 3V) where the render surface shows them (N x 3P):
 // the frames themselves when no body has a render mesh.
 Eigen::MatrixXd embedded_frames(const RenderSurface& surface, const MatrixXfR& frames) {
-  return embed_rows(surface.weights, frames.transpose()).transpose().cast<double>();
+  return embed_positions(surface.embedding(), frames.transpose()).transpose().cast<double>();
 }
 
 // The package's first P scene points must be the scene's render surface at rest.
 void check_render_surface(const Scene& scene, const RenderSurface& surface, const core::SceneMesh& mesh) {
-  const MatrixXfR rest = embed_rows(surface.weights, scene.model.rest.cast<float>());
+  const MatrixXfR rest = embed_positions(surface.embedding(), scene.model.rest.cast<float>());
   const Eigen::Index P = surface.points();
   const bool same =
       mesh.points() >= P && (Eigen::Map<const MatrixXfR>(rest.data(), P, 3) - mesh.rest_positions.topRows(P))
@@ -241,8 +241,9 @@ ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core
   for (int f = 1; f < N; ++f) speeds.push_back(rms(motion(sim, f)) / dt);
   out.median_simulated_speed = median(speeds);
   if (o.intersections) {
+    const Eigen::MatrixXi contact = contact_triangles(surface);
     for (int f = 0; f < N; ++f) {
-      const int pairs = count_intersecting_pairs(served.x.row(f).transpose(), surface.triangles);
+      const int pairs = count_intersecting_pairs(served.x.row(f).transpose(), contact);
       out.frames_with_intersections += pairs > 0;
       out.max_intersecting_pairs = std::max(out.max_intersecting_pairs, pairs);
     }

@@ -176,7 +176,7 @@ TEST(AppearanceStage, DefaultScenesAreColouredWithTessellatedProps) {
   EXPECT_EQ(cloth.props.at(0).albedo, Eigen::Vector3d(0.62, 0.42, 0.24));
   EXPECT_EQ(cloth.appearance.clusters, 64);
   EXPECT_EQ(cloth.appearance.paper_rank_a, 12);
-  const auto W = precompute::scene_point_embedding(cloth);
+  const auto W = precompute::scene_point_embedding(cloth).weights;
   int door = 0;  // static points: moved by no vertex
   for (Eigen::Index p = 0; p < W.rows(); ++p) door += !precompute::embeds(W, p);
   EXPECT_GE(door, 2000);  // dense enough to receive the cloth's shadow
@@ -199,7 +199,7 @@ TEST(AppearanceStage, ClothHasTwoSidesSharingTheirVertexRows) {
     EXPECT_EQ(m.triangles(F + t, 1), m.triangles(t, 2) + V);
     EXPECT_EQ(m.triangles(F + t, 2), m.triangles(t, 1) + V);
   }
-  const auto W = precompute::scene_point_embedding(scene);  // the back of vertex 3 moves with vertex 3 alone
+  const auto W = precompute::scene_point_embedding(scene).weights;  // the back of vertex 3 moves with vertex 3 alone
   ASSERT_EQ(W.rows(), m.points());
   EXPECT_EQ(W.row(V + 3).nonZeros(), 1);
   EXPECT_EQ(W.coeff(V + 3, 3), 1.0);

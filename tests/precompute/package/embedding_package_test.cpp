@@ -15,7 +15,10 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
+#include <fstream>
+#include <string>
 
 namespace phasecast::precompute {
 namespace {
@@ -32,11 +35,12 @@ struct Built {
 
 // Simulates a short schedule of `scene_path` into an orbit store in `dir`,
 // reduces it at rank 6 and builds the package, every IRF kept (node n is frame n).
-Built build(const std::filesystem::path& scene_path, const std::filesystem::path& dir) {
+Built build(const std::filesystem::path& scene_path, const std::filesystem::path& dir,
+            const std::string& schedule = "open 0.4; stop 0.6") {
   Built b;
   b.store = dir / "orbits.h5";
-  const auto r = run_tool("phasecast-precompute", {"simulate", scene_path.string(), "--schedule",
-                                                   "open 0.4; stop 0.6", "-o", b.store.string()});
+  const auto r = run_tool("phasecast-precompute",
+                          {"simulate", scene_path.string(), "--schedule", schedule, "-o", b.store.string()});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   b.scene = load_scene_file(scene_path);
   const OrbitDisplacementSource A(b.store);
@@ -82,7 +86,7 @@ TEST(EmbeddedPackage, ServedRenderPointsAreTheEmbeddedRankRReconstruction) {
   const Built& b = subdivided_cloth();
   const auto& pkg = b.package;
   ASSERT_EQ(pkg.portrait.nodes(), b.frames.rows());  // nothing dropped: node n is frame n
-  const VertexEmbedding W = scene_point_embedding(b.scene);
+  const VertexEmbedding W = scene_point_embedding(b.scene).weights;
   for (Eigen::Index f : {Eigen::Index{0}, Eigen::Index{12}, Eigen::Index{25}, b.frames.rows() - 1}) {
     const Eigen::VectorXf q = pkg.portrait.q_u.row(f).transpose();
     const Eigen::VectorXf served = pkg.reduction.mean_shape + pkg.reduction.U_u * q;
@@ -126,6 +130,58 @@ TEST(EmbeddedPackage, InspectAcceptsTheReducedPackage) {
   ASSERT_EQ(inspect.exit_code, 0) << inspect.err;
   const int P = static_cast<int>(render_surface(b.scene).points());
   EXPECT_NE(inspect.out.find(fmt::format("({} deformable)", 2 * P)), std::string::npos) << inspect.out;
+}
+
+// The tiny plant with its stem drawn as a hexagonal tube (radius 4 mm).
+const Built& tubed_plant() {
+  static const auto dir = testing::scratch_dir("tubed_package");
+  static const Built b = [] {
+    std::string text =
+        testing::read_file(std::filesystem::path(PHASECAST_SCENES_DIR) / "tiny/plant_pot.toml");
+    text.replace(text.find("polyline = {"), 0, "render = { tube = 6 }\n");
+    std::ofstream(dir / "scene.toml") << text;
+    return build(dir / "scene.toml", dir, "right 0.4; stop 0.6");
+  }();
+  return b;
+}
+
+TEST(EmbeddedPackage, ATubeIsServedAroundTheServedStem) {
+  const Built& b = tubed_plant();
+  const auto& pkg = b.package;
+  const RenderSurface surface = render_surface(b.scene);
+  const Embedding E = scene_point_embedding(b.scene);
+  ASSERT_FALSE(surface.offsets.empty());
+  // At rest the package's rings are the stem's vertices plus their offsets, one-sided.
+  int deformable = 0;
+  for (auto d : pkg.mesh.deformable) deformable += d;
+  int tube = 0;
+  for (auto t : surface.tube) tube += t;
+  EXPECT_EQ(deformable, 2 * (surface.points() - tube) + tube);  // the leaves both sides, the tube one
+  for (const auto& [p, d] : surface.offsets) {
+    const Eigen::Index v = VertexEmbedding::InnerIterator(surface.weights, p).col();
+    const Eigen::Vector3d at = pkg.mesh.rest_positions.row(p).cast<double>().transpose();
+    EXPECT_LT((at - b.scene.model.rest.segment<3>(3 * v) - d).norm(), 1e-6);
+  }
+  // Served, a ring point is the served axis vertex plus its rest offset: x-bar + d, then U_u q.
+  for (Eigen::Index f : {Eigen::Index{0}, Eigen::Index{20}, b.frames.rows() - 1}) {
+    const Eigen::VectorXf q = pkg.portrait.q_u.row(f).transpose();
+    const Eigen::VectorXf served = pkg.reduction.mean_shape + pkg.reduction.U_u * q;
+    const Eigen::VectorXf reduced = b.basis.mean_shape + b.basis.U_u * q;
+    for (const auto& [p, d] : surface.offsets) {
+      const Eigen::Index v = VertexEmbedding::InnerIterator(surface.weights, p).col();
+      const Eigen::Vector3f axis = reduced.segment<3>(3 * v);
+      EXPECT_LT((served.segment<3>(3 * p) - axis - d.cast<float>()).cwiseAbs().maxCoeff(), 2e-6f)
+          << "frame " << f << " point " << p;
+    }
+  }
+  // The stem swayed: the check is not of a still scene.
+  const Eigen::Index v = VertexEmbedding::InnerIterator(surface.weights, surface.offsets.back().point).col();
+  double sway = 0;
+  for (Eigen::Index f = 0; f < b.frames.rows(); ++f)
+    sway = std::max(sway,
+                    double((b.frames.row(f).segment<3>(3 * v) - b.frames.row(0).segment<3>(3 * v)).norm()));
+  EXPECT_GT(sway, 0.01);
+  EXPECT_EQ(E.offsets.size(), surface.offsets.size());
 }
 
 // Bit for bit, -0 included: the package rows of a scene without render meshes.

@@ -12,7 +12,11 @@
 
 #include <Eigen/Dense>
 
+#include <fmt/format.h>
+
+#include <cmath>
 #include <fstream>
+#include <map>
 #include <string>
 
 namespace phasecast::precompute {
@@ -116,6 +120,78 @@ TEST(RenderSurface, RenderedLeavesKeepTheStemTheyAreWeldedTo) {
   EXPECT_TRUE(welded);
 }
 
+// The tiny plant's stem (a straight rod of radius 4 mm, 8 vertices up the
+// y axis) drawn as a tube of `sides`.
+Scene tubed_plant(int sides, const std::string& test) {
+  return load_scene_file(edited_scene("plant_pot", "polyline = {",
+                                      fmt::format("render = {{ tube = {} }}\npolyline = {{", sides), test));
+}
+
+TEST(RenderSurface, ATubeDrawsTheRodAtItsRadiusAroundEachVertex) {
+  const Scene plain = load_scene_file(kScenes / "tiny/plant_pot.toml");
+  const Scene s = tubed_plant(6, "tube");
+  EXPECT_EQ(s.model.rest, plain.model.rest);  // the simulation is left alone
+  EXPECT_EQ(s.model.mass, plain.model.mass);
+  const RenderSurface r = render_surface(s);
+  const auto& stem = s.bodies.at(0).vertices;
+  const auto n = static_cast<Eigen::Index>(stem.size());
+  // The stem's vertices the leaves are not welded to are no longer points of their own.
+  Eigen::Index tube_points = 0;
+  for (auto t : r.tube) tube_points += t;
+  ASSERT_EQ(tube_points, 6 * n + 2);  // a ring per vertex and two cap centres
+  ASSERT_EQ(static_cast<Eigen::Index>(r.offsets.size()), 6 * n);
+  const Eigen::MatrixX3d x = render_rest(s, r);  // W X, offsets not yet added
+  for (const auto& [p, d] : r.offsets) {
+    ASSERT_TRUE(r.tube[static_cast<size_t>(p)]);
+    EXPECT_EQ(r.solid[static_cast<size_t>(p)], 1);  // closed: no back side
+    // One weight, 1, on the axis vertex: the ring moves as its vertex does.
+    ASSERT_EQ(r.weights.row(p).nonZeros(), 1);
+    EXPECT_EQ(r.weights.row(p).sum(), 1.0);
+    EXPECT_NEAR(d.norm(), 0.004, 1e-12);  // at the rod's radius
+    EXPECT_NEAR(d.y(), 0.0, 1e-12);       // across the vertical stem
+    EXPECT_NEAR(x(p, 0), 0.0, 1e-12);     // around the stem's axis
+    EXPECT_NEAR(x(p, 2), 0.0, 1e-12);
+  }
+  // Closed and facing out: every edge is in two triangles, once each way,
+  // and the enclosed volume is a hexagonal prism's, (3 sqrt 3 / 2) r^2 L.
+  const Eigen::MatrixXi tubes = r.triangles.bottomRows(12 * n);
+  const MatrixXfR placed = embed_positions(r.embedding(), s.model.rest.cast<float>());
+  std::map<std::pair<int, int>, int> edges;
+  double volume = 0;
+  for (Eigen::Index t = 0; t < tubes.rows(); ++t) {
+    for (int k = 0; k < 3; ++k) ++edges[{tubes(t, k), tubes(t, (k + 1) % 3)}];
+    const auto corner = [&](int k) -> Eigen::Vector3d {
+      return placed.middleRows(3 * tubes(t, k), 3).col(0).cast<double>();
+    };
+    volume += corner(0).dot(corner(1).cross(corner(2))) / 6;
+  }
+  for (const auto& [edge, count] : edges) {
+    EXPECT_EQ(count, 1);
+    EXPECT_EQ(edges.count({edge.second, edge.first}), 1u);
+  }
+  EXPECT_NEAR(volume, 1.5 * std::sqrt(3.0) * 0.004 * 0.004 * 0.35, 1e-9);
+  // Self-contact sees the rod as a line: the tube stays out of the contact check.
+  EXPECT_EQ(contact_triangles(r).rows(), r.triangles.rows() - tubes.rows());
+  EXPECT_EQ(contact_triangles(r), r.triangles.topRows(r.triangles.rows() - tubes.rows()));
+}
+
+TEST(RenderSurface, ATubeRidesOnItsVerticesWithoutTurning) {
+  const Scene s = tubed_plant(5, "tube_moved");
+  const RenderSurface r = render_surface(s);
+  // The stem bent into an arc: each vertex moved on its own.
+  Eigen::VectorXd x = s.model.rest;
+  for (int v = 0; v < s.model.vertices(); ++v) {
+    const double y = x(3 * v + 1);
+    x.segment<3>(3 * v) += Eigen::Vector3d(0.3 * y * y, -0.05 * y, 0.1 * y);
+  }
+  const MatrixXfR placed = embed_positions(r.embedding(), x.cast<float>());
+  for (const auto& [p, d] : r.offsets) {
+    const Eigen::Index axis = VertexEmbedding::InnerIterator(r.weights, p).col();
+    const Eigen::Vector3d at = placed.middleRows(3 * p, 3).col(0).cast<double>();
+    EXPECT_LT((at - x.segment<3>(3 * axis) - d).norm(), 1e-6);  // the vertex plus the rest offset
+  }
+}
+
 // The message after the file name, checked to be one line naming the file.
 std::string rejection(const std::filesystem::path& path) {
   const std::string message = error_of([&] { load_scene_file(path); });
@@ -140,10 +216,11 @@ TEST(RenderErrors, BadValuesNameTheKeyAndWhatWasExpected) {
             ": field 'body[0].render': expected a table, got integer 2");
   EXPECT_EQ(
       cloth_rejection("render = {}", "empty"),
-      ": field 'body[0].render.subdivide': expected either subdivide = n (Loop subdivision of the "
-      "simulated surface) or obj = \"fine.obj\" (a surface inside a tetgen body), got nothing (missing)");
+      ": field 'body[0].render.subdivide': expected one of subdivide = n (Loop subdivision of the "
+      "simulated surface), obj = \"fine.obj\" (a surface inside a tetgen body) or tube = k (a rod drawn as a "
+      "tube of k sides), got nothing (missing)");
   EXPECT_NE(cloth_rejection("render = { subdivide = 1, obj = \"a.obj\" }", "both")
-                .find(": field 'body[0].render.obj': expected either subdivide = n"),
+                .find(": field 'body[0].render.obj': expected one of subdivide = n"),
             std::string::npos);
   EXPECT_EQ(cloth_rejection("render = { subdivide = 1, smooth = true }", "unknown"),
             ": field 'body[0].render.smooth': unknown field (misspelt?)");
@@ -158,6 +235,24 @@ TEST(RenderErrors, ARodHasNoSurfaceToSubdivide) {
       rejection(edited_scene("plant_pot", "polyline = {", "render = { subdivide = 1 }\npolyline = {", "rod")),
       ": field 'body[0].render.subdivide': expected a body with a triangle surface (grid, obj or tetgen) "
       "to subdivide, got integer 1");
+}
+
+TEST(RenderErrors, ATubeIsForARodOfOnePolyline) {
+  EXPECT_EQ(
+      cloth_rejection("render = { tube = 6 }", "tube_on_sheet"),
+      ": field 'body[0].render.tube': expected a rod body (a polyline with 'rod' energy and a radius) to "
+      "draw as a tube, got integer 6");
+  EXPECT_EQ(
+      rejection(edited_scene("plant_pot", "polyline = {", "render = { tube = 2 }\npolyline = {", "tube2")),
+      ": field 'body[0].render.tube': expected the sides of the tube's rings, 3..32, got integer 2");
+  EXPECT_EQ(
+      rejection(edited_scene("plant_pot", "polyline = {", "render = { tube = 33 }\npolyline = {", "tube33")),
+      ": field 'body[0].render.tube': expected the sides of the tube's rings, 3..32, got integer 33");
+  EXPECT_NE(
+      rejection(edited_scene("plant_pot", "polyline = {",
+                             "render = { tube = 6, subdivide = 1 }\npolyline = {", "tube_and_subdivide"))
+          .find(": field 'body[0].render.tube': expected one of subdivide = n"),
+      std::string::npos);
 }
 
 TEST(RenderErrors, AnObjOutsideTheTetsIsRefused) {

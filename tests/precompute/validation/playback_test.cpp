@@ -109,7 +109,7 @@ TEST(Playback, AStillPackageIsCaught) {
 std::shared_ptr<const core::ScenePackage> subdivided_package(const Scene& embedded) {
   auto p = std::make_shared<core::ScenePackage>(*package());
   const Eigen::Index rows = 3 * embedded.model.vertices();
-  const VertexEmbedding W = scene_point_embedding(embedded);
+  const VertexEmbedding W = scene_point_embedding(embedded).weights;
   p->mesh = scene_mesh(embedded);
   const MatrixXfR mean = embed_rows(W, package()->reduction.mean_shape.head(rows));
   p->reduction.mean_shape = Eigen::Map<const VectorXf>(p->mesh.rest_positions.data(), 3 * p->mesh.points());

@@ -56,15 +56,15 @@ std::vector<std::int64_t> package_node_frames(const IrfList& store_irfs, const s
 // Scene points of the package mesh at one orbit-store frame: deformable points
 // where the embedding puts them (`embedding`, S x V, from
 // scene_point_embedding: a vertex's own position, or a render point's
-// sum_i W_pi x_i), static points at rest. All in the support frame.
+// sum_i W_pi x_i + d_p), static points at rest. All in the support frame.
 //   @param[in] frame  3V positions of the frame, as stored
-MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const VertexEmbedding& embedding,
+MatrixXfR deformed_scene_points(const core::SceneMesh& mesh, const Embedding& embedding,
                                 const Eigen::Ref<const Eigen::RowVectorXf>& frame);
 
 // Transfer (S x 48) of the package's scene points at one orbit-store frame:
 // normals of the deformed mesh (angle-weighted; the back side of a sheet has
 // reversed triangles, hence flipped normals), then compute_transfer.
-MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const VertexEmbedding& embedding,
+MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const Embedding& embedding,
                             const Eigen::Ref<const Eigen::RowVectorXf>& frame,
                             const TransferOptions& options);
 
@@ -87,7 +87,7 @@ std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<
 //   @param[in] node_frames  package_node_frames(...) of that reduction
 // Throws std::invalid_argument for bad options (N_a above the node count
 // included) and OrbitStoreError when a frame cannot be read.
-AppearanceStageReport run_appearance_stage(core::ScenePackage& package, const VertexEmbedding& embedding,
+AppearanceStageReport run_appearance_stage(core::ScenePackage& package, const Embedding& embedding,
                                            const OrbitDisplacementSource& orbits,
                                            const std::vector<std::int64_t>& node_frames,
                                            const AppearanceStageOptions& options,

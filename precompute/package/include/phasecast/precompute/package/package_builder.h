@@ -56,10 +56,10 @@ struct PackageBuild {
 core::SceneMesh scene_mesh(const Scene& scene);
 
 // How the simulated vertices move each scene point of scene_mesh(scene):
-// S x V, point p at sum_i W_pi x_i. Back points have their front's row,
-// static points none. Without render meshes every front point is its own
-// vertex (one weight 1).
-VertexEmbedding scene_point_embedding(const Scene& scene);
+// S x V, point p at sum_i W_pi x_i + d_p (d: the rest offsets of tubes'
+// rings, zero elsewhere). Back points have their front's row, static points
+// none. Without render meshes every front point is its own vertex (one weight 1).
+Embedding scene_point_embedding(const Scene& scene);
 
 // Diffuse albedo (RGB) of each scene point of scene_mesh(scene): its body's
 // or prop's `albedo` in the scene file (docs/scenes.md). S x 3.

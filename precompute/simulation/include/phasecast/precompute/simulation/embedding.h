@@ -13,17 +13,39 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <vector>
+
 namespace phasecast::precompute {
 
 // P x V weights of P render points over V simulated vertices; row-major, so a
 // point's weights are contiguous. Rows of static points are empty.
 using VertexEmbedding = Eigen::SparseMatrix<double, Eigen::RowMajor>;
 
-// A body's render mesh (scene file `render`): its points are W X, W over the
+// Render points set off from where their weights put them by a fixed rest
+// offset d_p: a ring point of a rod's tube (`render = { tube = k }`) is its
+// axis vertex plus d_p. An embedding must stay linear in the vertices (the
+// package's rows are W U_u), so the offset translates with the point and
+// does not turn with the rod: a tube's ring stays parallel to its rest plane
+// (for a thin rod the bend only shears it). Only nonzero offsets, ascending p.
+struct PointOffset {
+  Eigen::Index point = 0;
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+};
+using PointOffsets = std::vector<PointOffset>;
+
+// Scene points over the simulated vertices: point p at sum_i W_pi x_i + d_p.
+struct Embedding {
+  VertexEmbedding weights;  // P x V
+  PointOffsets offsets;
+};
+
+// A body's render mesh (scene file `render`): its points are W X + d, W over the
 // scene's simulated vertices (columns: the vertices existing when the body was read).
 struct RenderMesh {
   VertexEmbedding weights;    // P x V
   Eigen::MatrixXi triangles;  // F x 3 over the P points, counter-clockwise like the simulated surface
+  PointOffsets offsets;       // a tube's rings around its rod's vertices
+  bool tube = false;          // drawn around a rod: closed, and outside the simulation's self-contact
 };
 
 // The same weights applied to each coordinate: rows 3p..3p+2 of the result
@@ -31,6 +53,15 @@ struct RenderMesh {
 // U_u. Rows of points with no weights are 0. Accumulates in double.
 // Throws std::invalid_argument when `rows` does not have 3V rows.
 MatrixXfR embed_rows(const VertexEmbedding& W, const Eigen::Ref<const MatrixXfR>& rows);
+
+// Positions of the points: embed_rows(W, x), each column a set of vertex
+// positions, plus each point's offset (positions, not displacements: U_u
+// rows take embed_rows alone).
+MatrixXfR embed_positions(const VertexEmbedding& W, const PointOffsets& d,
+                          const Eigen::Ref<const MatrixXfR>& x);
+inline MatrixXfR embed_positions(const Embedding& e, const Eigen::Ref<const MatrixXfR>& x) {
+  return embed_positions(e.weights, e.offsets, x);
+}
 
 // Whether point p of W moves with the simulated vertices (its row has weights).
 bool embeds(const VertexEmbedding& W, Eigen::Index p);

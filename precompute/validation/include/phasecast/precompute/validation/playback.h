@@ -50,7 +50,8 @@ struct ScheduleFigures {
   std::vector<SwitchFigures> switches;
   std::vector<double> irf_end_speeds;  // RMS vertex speed (m/s) where an IRF ended and the scene came to rest
   double median_simulated_speed = 0;   // RMS vertex speed (m/s), median over the simulated frames
-  int frames_with_intersections = 0;   // served frames with self-intersecting triangle pairs
+  int frames_with_intersections =
+      0;  // served frames with self-intersecting triangle pairs (contact_triangles: tubes left out)
   int max_intersecting_pairs = 0;
   // Per frame, RMS per-vertex distance (m) from the simulation's first frame
   // (the settled rest), served and simulated: what scripts/plot-validation draws.
