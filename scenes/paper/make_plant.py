@@ -12,7 +12,9 @@ of neighbouring branches overlap in plan, 2-4 cm apart, so a pushed pot
 makes them collide (self-collision, thickness 3 mm). The leaves are drawn
 through one Loop subdivision (`render = { subdivide = 1 }`): 6 336 triangles
 on the screen from 1 584 simulated ones, as the paper's shells were drawn
-finer than they were simulated.
+finer than they were simulated. Stem, branches and petioles are drawn as
+tubes of their radius (`render = { tube = k }`), so the leaves hang on
+something; the stem's twist frame is not drawn.
 
 Units are metres, in the pot's frame (soil at y = 0.115, stem on the y axis).
 Run:  python3 scenes/paper/make_plant.py > scenes/paper/plant_pot.toml
@@ -28,6 +30,7 @@ LEAF_CELLS = (6, 12)                                   # across, along: 72 quads
 LEAF_WIDTH = 0.06                                      # the leaf is 12 x 1 cm long
 BRANCH_YOUNG, PETIOLE_YOUNG = 1.5e8, 5e7               # Pa
 BRANCH_RADIUS, PETIOLE_RADIUS = 0.003, 0.002           # m
+TUBE_SIDES, STEM_TUBE_SIDES = 6, 8                      # rods are drawn as tubes of these sides
 STEM_FRAME_RADIUS = 0.02                               # m: the stem's frame points, see stem_frame
 STEM_FRAME_YOUNG = 4e7                                 # Pa on a 1 mm radius: EA = 126 N, twist springs
 STEM_FRAME_EA = 2e4                                    # N: frame points held to the stem's axis
@@ -78,6 +81,7 @@ energies = ["rod"]
 density = 0.03            # kg/m
 young = {young:g}
 radius = {radius}
+render = {{ tube = {TUBE_SIDES} }}   # drawn as a tube of the rod's radius
 polyline = {{ points = [{fmt(start)}, {fmt(end)}], subdivisions = {segments} }}
 weld_to = "{parent}"
 weld_radius = 1e-4
@@ -164,6 +168,7 @@ energies = ["rod"]
 density = 0.05            # kg/m
 young = 3e8               # Pa, a woody stem: it carries eleven leaves
 radius = 0.006            # m
+render = {{ tube = {STEM_TUBE_SIDES} }}   # drawn as a tube of the rod's radius
 polyline = {{ points = [[0, {STEM_BASE}, 0], [0, {STEM_TOP}, 0]], subdivisions = {STEM_SEGMENTS} }}
 pin = {{ min = [-0.01, 0.11, -0.01], max = [0.01, {STEM_BASE + 1.5 * step:.4f}, 0.01] }}   # clamped in the soil
 """]

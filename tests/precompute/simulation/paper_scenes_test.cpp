@@ -4,6 +4,7 @@
 #include "phasecast/precompute/sampling/obj_frames.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "phasecast/precompute/simulation/obj_mesh.h"
+#include "phasecast/precompute/simulation/render_surface.h"
 #include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
@@ -12,6 +13,7 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <iterator>
@@ -59,6 +61,45 @@ TEST(PaperScenes, PaperScalePlantHasThePapersShellsAndLeaves) {
   EXPECT_TRUE(scene.model.self_collision);
   MatrixXfR rest = scene.model.rest.cast<float>().transpose();
   EXPECT_EQ(summarize_contact(rest, scene.model.surface, 2 * scene.model.thickness).frames_intersecting, 0);
+}
+
+// What the user sees of the plant: its stem, branches and petioles are drawn
+// as tubes of their radius, and every leaf hangs on its petiole's tube (a
+// leaf's points come within the petiole's radius, 2 mm, of a ring point). The
+// twist frame is not drawn. Before tubes, rods were not drawn and the leaves
+// floated in the pictures.
+TEST(PaperScenes, PaperScalePlantDrawsItsRodsSoEveryLeafHangsOnATube) {
+  const Scene scene = load_scene_file(kScenes / "paper/plant_pot.toml");
+  const RenderSurface r = render_surface(scene);
+  const MatrixXfR x = embed_positions(r.embedding(), scene.model.rest.cast<float>());
+  const auto point = [&](Eigen::Index p) -> Eigen::Vector3d {
+    return x.middleRows(3 * p, 3).col(0).cast<double>();
+  };
+  int tubes = 0, leaves = 0;
+  for (size_t b = 0; b < scene.bodies.size(); ++b) {
+    const auto& body = scene.bodies[b];
+    if (body.name.rfind("petiole", 0) == 0 || body.name.rfind("branch", 0) == 0 || body.name == "stem") {
+      ASSERT_TRUE(body.render && body.render->tube) << body.name;
+      ++tubes;
+    }
+    if (body.name == "stem_frame") {
+      EXPECT_FALSE(body.render.has_value());
+    }
+    if (body.name.rfind("leaf", 0) != 0) continue;
+    ++leaves;
+    const std::string petiole = "petiole" + body.name.substr(4);
+    double nearest = 1;
+    for (Eigen::Index p = 0; p < r.points(); ++p) {
+      if (r.body[static_cast<size_t>(p)] != static_cast<int>(b)) continue;
+      for (Eigen::Index q = 0; q < r.points(); ++q)
+        if (r.tube[static_cast<size_t>(q)] &&
+            scene.bodies[static_cast<size_t>(r.body[static_cast<size_t>(q)])].name == petiole)
+          nearest = std::min(nearest, (point(p) - point(q)).norm());
+    }
+    EXPECT_LE(nearest, 0.002 + 1e-6) << body.name << " floats " << nearest << " m from its petiole's tube";
+  }
+  EXPECT_EQ(tubes, 1 + 3 + leaves);  // the stem, three branches, a petiole per leaf
+  EXPECT_GE(leaves, 10);
 }
 
 // The paper-size plant stands at rest. Its woody stem (E = 3e8 Pa, r = 6 mm:
