@@ -99,19 +99,19 @@ struct RingFrame {
   Eigen::Vector3d tangent, e1, e2;
 };
 
+// Some unit vector across `t`.
+Eigen::Vector3d across(const Eigen::Vector3d& t) {
+  return t.cross(std::abs(t.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).normalized();
+}
+
 std::vector<RingFrame> ring_frames(const std::vector<Eigen::Vector3d>& axis) {
   std::vector<RingFrame> frames;
   const auto n = axis.size();
   for (size_t i = 0; i < n; ++i) {
     // The mean direction of the edges at the vertex: the ring bisects a bend.
     const Eigen::Vector3d t = (axis[std::min(i + 1, n - 1)] - axis[i > 0 ? i - 1 : 0]).normalized();
-    Eigen::Vector3d e1;
-    if (frames.empty()) {
-      e1 = t.cross(std::abs(t.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY());
-    } else {
-      e1 = frames.back().e1 - frames.back().e1.dot(t) * t;
-    }
-    e1.normalize();
+    Eigen::Vector3d e1 = frames.empty() ? across(t) : frames.back().e1 - frames.back().e1.dot(t) * t;
+    e1 = e1.norm() > 1e-6 ? e1.normalized() : across(t);  // a right-angle turn: start afresh
     frames.push_back({t, e1, t.cross(e1)});
   }
   return frames;
@@ -129,9 +129,30 @@ std::vector<int> polyline_vertices(Fields& render, const SimulatedBody& body) {
   return chain;
 }
 
+// Triangles of a tube of n rings of k points (ring i: k i .. k i + k - 1),
+// then the two cap centres k n and k n + 1, counter-clockwise seen from
+// outside (e1, e2 and the tangent are right-handed).
+Eigen::MatrixXi tube_triangles(int n, int k) {
+  const int start_cap = n * k, end_cap = start_cap + 1, last = k * (n - 1);
+  std::vector<Eigen::Vector3i> triangles;
+  for (int i = 0; i + 1 < n; ++i)
+    for (int j = 0; j < k; ++j) {
+      const int a = k * i + j, b = k * i + (j + 1) % k, c = a + k, d = b + k;
+      triangles.emplace_back(a, b, d);
+      triangles.emplace_back(a, d, c);
+    }
+  for (int j = 0; j < k; ++j) {
+    triangles.emplace_back(start_cap, (j + 1) % k, j);
+    triangles.emplace_back(end_cap, last + j, last + (j + 1) % k);
+  }
+  Eigen::MatrixXi out(static_cast<Eigen::Index>(triangles.size()), 3);
+  for (size_t t = 0; t < triangles.size(); ++t) out.row(static_cast<Eigen::Index>(t)) = triangles[t];
+  return out;
+}
+
 // `tube = k`: a ring of k points around each rod vertex at the rod's radius,
 // each moved by its vertex alone (weight 1 plus a rest offset), closed by a
-// cap at each end (a centre point and a fan), triangles facing out.
+// cap at each end (a centre point on the end vertex and a fan).
 RenderMesh tube(Fields& render, const SimulatedBody& body) {
   const int k = render.positive_integer("tube", 0);
   if (k < kMinTubeSides || k > kMaxTubeSides)
@@ -141,8 +162,6 @@ RenderMesh tube(Fields& render, const SimulatedBody& body) {
   for (int v : chain) axis.push_back(body.rest.segment<3>(3 * v));
   const auto frames = ring_frames(axis);
   const auto n = static_cast<int>(chain.size());
-  // Points: ring i is k * i .. k * i + k - 1, then the two cap centres.
-  const int start_cap = n * k, end_cap = start_cap + 1;
   RenderMesh r;
   r.tube = true;
   std::vector<Eigen::Triplet<double>> w;
@@ -154,24 +173,11 @@ RenderMesh tube(Fields& render, const SimulatedBody& body) {
       r.offsets.push_back({k * i + j, body.radius * (std::cos(angle) * f.e1 + std::sin(angle) * f.e2)});
     }
   }
-  w.emplace_back(start_cap, chain.front(), 1.0);
-  w.emplace_back(end_cap, chain.back(), 1.0);
-  r.weights.resize(end_cap + 1, body.rest.size() / 3);
+  w.emplace_back(n * k, chain.front(), 1.0);
+  w.emplace_back(n * k + 1, chain.back(), 1.0);
+  r.weights.resize(n * k + 2, body.rest.size() / 3);
   r.weights.setFromTriplets(w.begin(), w.end());
-  // Counter-clockwise seen from outside: e1, e2, tangent are right-handed.
-  std::vector<Eigen::Vector3i> triangles;
-  for (int i = 0; i + 1 < n; ++i)
-    for (int j = 0; j < k; ++j) {
-      const int a = k * i + j, b = k * i + (j + 1) % k, c = a + k, d = b + k;
-      triangles.emplace_back(a, b, d);
-      triangles.emplace_back(a, d, c);
-    }
-  for (int j = 0; j < k; ++j) {
-    triangles.emplace_back(start_cap, (j + 1) % k, j);
-    triangles.emplace_back(end_cap, k * (n - 1) + j, k * (n - 1) + (j + 1) % k);
-  }
-  r.triangles.resize(static_cast<Eigen::Index>(triangles.size()), 3);
-  for (size_t t = 0; t < triangles.size(); ++t) r.triangles.row(static_cast<Eigen::Index>(t)) = triangles[t];
+  r.triangles = tube_triangles(n, k);
   return r;
 }
 
