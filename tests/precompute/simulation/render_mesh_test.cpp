@@ -39,6 +39,7 @@ std::filesystem::path edited_scene(const std::string& name, const std::string& f
 }
 
 const std::string kClothGrid = "grid = { origin";
+const std::string kStemTube = "render = { tube = 8 }";  // the tiny plant's stem
 const std::string kToyMesh = "tetgen = { path = \"../meshes/bunny_tiny.obj\"";
 std::string toy_mesh() {
   return "tetgen = { path = \"" + (kScenes / "meshes/bunny_tiny.obj").string() + "\"";
@@ -99,6 +100,7 @@ TEST(RenderSurface, ObjInsideTheToyMovesWithItsTets) {
 
 TEST(RenderSurface, RenderedLeavesKeepTheStemTheyAreWeldedTo) {
   std::string text = testing::read_file(kScenes / "tiny/plant_pot.toml");
+  text.erase(text.find(kStemTube), kStemTube.size());  // the stem shown as simulated
   const std::string weld = "weld_to = \"stem\"", render = "render = { subdivide = 1 }\n";
   for (size_t at = 0; (at = text.find(weld, at)) != std::string::npos; at += render.size() + weld.size())
     text.insert(at, render);
@@ -123,12 +125,12 @@ TEST(RenderSurface, RenderedLeavesKeepTheStemTheyAreWeldedTo) {
 // The tiny plant's stem (a straight rod of radius 4 mm, 8 vertices up the
 // y axis) drawn as a tube of `sides`.
 Scene tubed_plant(int sides, const std::string& test) {
-  return load_scene_file(edited_scene("plant_pot", "polyline = {",
-                                      fmt::format("render = {{ tube = {} }}\npolyline = {{", sides), test));
+  return load_scene_file(
+      edited_scene("plant_pot", kStemTube, fmt::format("render = {{ tube = {} }}", sides), test));
 }
 
 TEST(RenderSurface, ATubeDrawsTheRodAtItsRadiusAroundEachVertex) {
-  const Scene plain = load_scene_file(kScenes / "tiny/plant_pot.toml");
+  const Scene plain = load_scene_file(edited_scene("plant_pot", kStemTube, "", "untubed"));
   const Scene s = tubed_plant(6, "tube");
   EXPECT_EQ(s.model.rest, plain.model.rest);  // the simulation is left alone
   EXPECT_EQ(s.model.mass, plain.model.mass);
@@ -232,7 +234,7 @@ TEST(RenderErrors, BadValuesNameTheKeyAndWhatWasExpected) {
 
 TEST(RenderErrors, ARodHasNoSurfaceToSubdivide) {
   EXPECT_EQ(
-      rejection(edited_scene("plant_pot", "polyline = {", "render = { subdivide = 1 }\npolyline = {", "rod")),
+      rejection(edited_scene("plant_pot", kStemTube, "render = { subdivide = 1 }", "rod")),
       ": field 'body[0].render.subdivide': expected a body with a triangle surface (grid, obj or tetgen) "
       "to subdivide, got integer 1");
 }
@@ -242,17 +244,14 @@ TEST(RenderErrors, ATubeIsForARodOfOnePolyline) {
       cloth_rejection("render = { tube = 6 }", "tube_on_sheet"),
       ": field 'body[0].render.tube': expected a rod body (a polyline with 'rod' energy and a radius) to "
       "draw as a tube, got integer 6");
-  EXPECT_EQ(
-      rejection(edited_scene("plant_pot", "polyline = {", "render = { tube = 2 }\npolyline = {", "tube2")),
-      ": field 'body[0].render.tube': expected the sides of the tube's rings, 3..32, got integer 2");
-  EXPECT_EQ(
-      rejection(edited_scene("plant_pot", "polyline = {", "render = { tube = 33 }\npolyline = {", "tube33")),
-      ": field 'body[0].render.tube': expected the sides of the tube's rings, 3..32, got integer 33");
-  EXPECT_NE(
-      rejection(edited_scene("plant_pot", "polyline = {",
-                             "render = { tube = 6, subdivide = 1 }\npolyline = {", "tube_and_subdivide"))
-          .find(": field 'body[0].render.tube': expected one of subdivide = n"),
-      std::string::npos);
+  EXPECT_EQ(rejection(edited_scene("plant_pot", kStemTube, "render = { tube = 2 }", "tube2")),
+            ": field 'body[0].render.tube': expected the sides of the tube's rings, 3..32, got integer 2");
+  EXPECT_EQ(rejection(edited_scene("plant_pot", kStemTube, "render = { tube = 33 }", "tube33")),
+            ": field 'body[0].render.tube': expected the sides of the tube's rings, 3..32, got integer 33");
+  EXPECT_NE(rejection(edited_scene("plant_pot", kStemTube, "render = { tube = 6, subdivide = 1 }",
+                                   "tube_and_subdivide"))
+                .find(": field 'body[0].render.tube': expected one of subdivide = n"),
+            std::string::npos);
 }
 
 TEST(RenderErrors, AnObjOutsideTheTetsIsRefused) {
