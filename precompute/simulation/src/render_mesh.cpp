@@ -93,8 +93,9 @@ RenderMesh embedded_obj(Fields& render, const std::filesystem::path& dir, const 
   return r;
 }
 
-// A rod's tube: the first ring's frame, carried along the polyline by
-// parallel transport (no twist between rings).
+// A rod's tube: the first ring's frame, carried from ring to ring by the
+// least rotation that turns one tangent into the next (parallel transport: no
+// twist between rings, and no flip at a sharp bend).
 struct RingFrame {
   Eigen::Vector3d tangent, e1, e2;
 };
@@ -104,14 +105,26 @@ Eigen::Vector3d across(const Eigen::Vector3d& t) {
   return t.cross(std::abs(t.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).normalized();
 }
 
+// The ring's normal at vertex i: the bisector of its two edges' directions
+// (an end vertex: its one edge), so a ring halves the angle of a bend.
+Eigen::Vector3d ring_tangent(const std::vector<Eigen::Vector3d>& axis, size_t i) {
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  if (i > 0) t += (axis[i] - axis[i - 1]).normalized();
+  if (i + 1 < axis.size()) t += (axis[i + 1] - axis[i]).normalized();
+  // A rod that folds straight back on itself: the incoming edge's direction.
+  return t.norm() > 1e-9 ? t.normalized() : (axis[i] - axis[i - 1]).normalized();
+}
+
 std::vector<RingFrame> ring_frames(const std::vector<Eigen::Vector3d>& axis) {
   std::vector<RingFrame> frames;
-  const auto n = axis.size();
-  for (size_t i = 0; i < n; ++i) {
-    // The mean direction of the edges at the vertex: the ring bisects a bend.
-    const Eigen::Vector3d t = (axis[std::min(i + 1, n - 1)] - axis[i > 0 ? i - 1 : 0]).normalized();
-    Eigen::Vector3d e1 = frames.empty() ? across(t) : frames.back().e1 - frames.back().e1.dot(t) * t;
-    e1 = e1.norm() > 1e-6 ? e1.normalized() : across(t);  // a right-angle turn: start afresh
+  for (size_t i = 0; i < axis.size(); ++i) {
+    const Eigen::Vector3d t = ring_tangent(axis, i);
+    Eigen::Vector3d e1 = across(t);
+    if (!frames.empty()) {
+      const Eigen::Vector3d carried =
+          Eigen::Quaterniond::FromTwoVectors(frames.back().tangent, t) * frames.back().e1;
+      e1 = (carried - carried.dot(t) * t).normalized();
+    }
     frames.push_back({t, e1, t.cross(e1)});
   }
   return frames;

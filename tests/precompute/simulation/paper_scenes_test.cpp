@@ -17,6 +17,9 @@
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <string>
+#include <vector>
 
 namespace phasecast::precompute {
 namespace {
@@ -64,39 +67,49 @@ TEST(PaperScenes, PaperScalePlantHasThePapersShellsAndLeaves) {
 }
 
 // What the user sees of the plant: its stem, branches and petioles are drawn
-// as tubes of their radius, and every leaf hangs on its petiole's tube (a
-// leaf's points come within the petiole's radius, 2 mm, of a ring point). The
-// twist frame is not drawn. Before tubes, rods were not drawn and the leaves
-// floated in the pictures.
+// as tubes of their radius, and every leaf reaches into its petiole's tube (a
+// leaf point comes within the petiole's radius, 2 mm, of the axis vertex a
+// ring of that tube is drawn around). The twist frame is not drawn. Before
+// tubes, rods were not drawn and the leaves floated in the pictures.
 TEST(PaperScenes, PaperScalePlantDrawsItsRodsSoEveryLeafHangsOnATube) {
   const Scene scene = load_scene_file(kScenes / "paper/plant_pot.toml");
   const RenderSurface r = render_surface(scene);
-  const MatrixXfR x = embed_positions(r.embedding(), scene.model.rest.cast<float>());
-  const auto point = [&](Eigen::Index p) -> Eigen::Vector3d {
+  const MatrixXfR drawn = embed_positions(r.embedding(), scene.model.rest.cast<float>());
+  const MatrixXfR axis = embed_rows(r.weights, scene.model.rest.cast<float>());  // without the offsets
+  const auto at = [](const MatrixXfR& x, Eigen::Index p) -> Eigen::Vector3d {
     return x.middleRows(3 * p, 3).col(0).cast<double>();
   };
+  std::map<int, std::vector<Eigen::Index>> points_of;  // body -> its render points
+  for (Eigen::Index p = 0; p < r.points(); ++p) points_of[r.body[static_cast<size_t>(p)]].push_back(p);
+  const auto body_named = [&](const std::string& name) {
+    for (size_t b = 0; b < scene.bodies.size(); ++b)
+      if (scene.bodies[b].name == name) return static_cast<int>(b);
+    return -1;
+  };
+  const int frame = body_named("stem_frame");
+  ASSERT_GE(frame, 0);
+  EXPECT_FALSE(scene.bodies[static_cast<size_t>(frame)].render.has_value());
   int tubes = 0, leaves = 0;
   for (size_t b = 0; b < scene.bodies.size(); ++b) {
-    const auto& body = scene.bodies[b];
-    if (body.name.rfind("petiole", 0) == 0 || body.name.rfind("branch", 0) == 0 || body.name == "stem") {
-      ASSERT_TRUE(body.render && body.render->tube) << body.name;
+    const auto& name = scene.bodies[b].name;
+    if (name.rfind("petiole", 0) == 0 || name.rfind("branch", 0) == 0 || name == "stem") {
+      ASSERT_TRUE(scene.bodies[b].render && scene.bodies[b].render->tube) << name;
       ++tubes;
     }
-    if (body.name == "stem_frame") {
-      EXPECT_FALSE(body.render.has_value());
-    }
-    if (body.name.rfind("leaf", 0) != 0) continue;
+    if (name.rfind("leaf", 0) != 0) continue;
     ++leaves;
-    const std::string petiole = "petiole" + body.name.substr(4);
+    const int petiole = body_named("petiole" + name.substr(4));
+    ASSERT_GE(petiole, 0) << name;
     double nearest = 1;
-    for (Eigen::Index p = 0; p < r.points(); ++p) {
-      if (r.body[static_cast<size_t>(p)] != static_cast<int>(b)) continue;
-      for (Eigen::Index q = 0; q < r.points(); ++q)
-        if (r.tube[static_cast<size_t>(q)] &&
-            scene.bodies[static_cast<size_t>(r.body[static_cast<size_t>(q)])].name == petiole)
-          nearest = std::min(nearest, (point(p) - point(q)).norm());
+    for (Eigen::Index q : points_of[petiole]) {
+      if (!r.tube[static_cast<size_t>(q)]) continue;
+      const double ring = (at(drawn, q) - at(axis, q)).norm();
+      if (ring == 0) continue;                                  // a cap's centre
+      EXPECT_NEAR(ring, 0.002, 1e-6) << "petiole of " << name;  // drawn at the petiole's radius
+      for (Eigen::Index p : points_of[static_cast<int>(b)])
+        nearest = std::min(nearest, (at(drawn, p) - at(axis, q)).norm());
     }
-    EXPECT_LE(nearest, 0.002 + 1e-6) << body.name << " floats " << nearest << " m from its petiole's tube";
+    EXPECT_LE(nearest, 0.002) << name << " is " << nearest << " m from its petiole's axis: outside its tube";
   }
   EXPECT_EQ(tubes, 1 + 3 + leaves);  // the stem, three branches, a petiole per leaf
   EXPECT_GE(leaves, 10);
