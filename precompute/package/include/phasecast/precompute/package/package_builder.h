@@ -45,7 +45,7 @@ struct PackageBuild {
 
 // Scene points: the render surface first (front side; render_surface.h: the
 // simulated vertices of bodies without a render mesh, then the render
-// meshes, at rest W X), then the back side of the thin sheets (a copy of
+// meshes, at rest W X + d), then the back side of the thin sheets (a copy of
 // every point of a sheet triangle, flipped normal, reversed triangles, moved
 // by the same U_u rows), then every box obstacle as static points: each face
 // a grid of quads of about the prop's `cell` edge (one quad when 0),

@@ -2,11 +2,13 @@
 // Render meshes driven by the simulation mesh, as the paper's dinosaur
 // ("displacements were interpolated onto a finer surface"): a sparse linear
 // embedding W puts render point p at sum_i W_pi x_i over the simulated
-// vertices x. Every row sums to 1, so W reproduces affine motions exactly, the
-// render rest is W X, and a render point moves by W (x - X). The orbit store
-// and the SVD stay on the simulated vertices; a package's rows are W x-bar and
-// W U_u (docs/package-format.md). A simulated vertex shown as it is is the row
-// with one weight 1.
+// vertices x, plus a fixed offset d_p for a rod tube's rings (PointOffset).
+// Every row sums to 1, so W reproduces affine motions exactly (translations
+// only, where a point has an offset), the render rest is W X + d, and a render
+// point moves by W (x - X). The orbit store and the SVD stay on the simulated
+// vertices; a package's rows are W x-bar + d and W U_u
+// (docs/package-format.md). A simulated vertex shown as it is is the row with
+// one weight 1.
 
 #include "phasecast/core/eigen_types.h"
 
