@@ -164,7 +164,10 @@ def held_out_text(r):
     if not h:
         return "n/a"
     l2 = f"{pct(h['l2_total'])}, truncation {pct(h['l2_truncation'])}" if h.get("l2_total") is not None else "n/a"
-    return f"{l2} / {pct(h['total'])}"
+    # The clusters' own truncation over as many columns: what the held-out truncation compares with.
+    if h.get("clusters_l2_truncation") is not None:
+        l2 += f" (clusters alike: {pct(h['clusters_l2_truncation'])})"
+    return f"{h['nodes']} nodes: {l2} / {pct(h['total'])}"
 
 
 def table(rows, args):

@@ -55,6 +55,8 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   const bool l2 = a.held_out_error.size() >= 6;  // packages before the l2 figures hold 4
   s.held_out_l2_total = l2 ? a.held_out_error[4] : std::nan("");
   s.held_out_l2_truncation = l2 ? a.held_out_error[5] : std::nan("");
+  s.clusters_l2_truncation_at_held_out_size =
+      a.held_out_error.size() >= 7 ? a.held_out_error[6] : std::nan("");
 }
 
 std::string percent_or_na(double ratio) {
@@ -153,6 +155,11 @@ std::string to_text(const PackageSummary& s) {
             "             held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, "
             "of which truncation {:.3g}%",
             100 * s.held_out_l2_total, 100 * s.held_out_l2_truncation);
+      if (std::isfinite(s.clusters_l2_truncation_at_held_out_size))
+        line(
+            "             the clusters' own truncation measured alike (relative l2 over {} of them, median "
+            "of random draws): {:.3g}%",
+            s.held_out_nodes, 100 * s.clusters_l2_truncation_at_held_out_size);
     }
   } else {
     line("appearance   none");
@@ -201,7 +208,9 @@ nlohmann::json to_json(const PackageSummary& s) {
                                         {"interpolation", s.held_out_interpolation},
                                         {"of_transfer", s.held_out_of_transfer},
                                         {"l2_total", number_or_null(s.held_out_l2_total)},
-                                        {"l2_truncation", number_or_null(s.held_out_l2_truncation)}}
+                                        {"l2_truncation", number_or_null(s.held_out_l2_truncation)},
+                                        {"clusters_l2_truncation",
+                                         number_or_null(s.clusters_l2_truncation_at_held_out_size)}}
                        : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},

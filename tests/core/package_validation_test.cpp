@@ -242,18 +242,24 @@ TEST_F(PackageRule, NrbfWidthsPositive) {
   EXPECT_THAT(invalid(p), HasSubstr("/appearance/nrbf_widths: expected positive finite widths, got 0 at 2"));
 }
 
-// Packages written before the paper's relErr figures hold 4 and still load.
-TEST_F(PackageRule, HeldOutErrorHoldsSixFiguresOrTheOlderFour) {
+// Packages written before the paper's relErr figures hold 4, before the
+// clusters' figure at the held-out size 6; both still load.
+TEST_F(PackageRule, HeldOutErrorHoldsSevenFiguresOrTheOlderFourOrSix) {
   p.appearance->held_out_nodes = {1, 2};
-  p.appearance->held_out_error = VectorXf::Constant(6, 0.1f);
-  EXPECT_EQ(invalid(p), "");
-  p.appearance->held_out_error = VectorXf::Constant(4, 0.1f);
-  EXPECT_EQ(invalid(p), "");
-  p.appearance->held_out_error = VectorXf::Constant(5, 0.1f);
-  EXPECT_THAT(
-      invalid(p),
-      HasSubstr("/appearance/held_out_error: expected 6 values (total, truncation, interpolation, of |M|, "
-                "relative l2 total and truncation) or the older 4, got 5"));
+  for (int figures : {7, 6, 4}) {
+    p.appearance->held_out_error = VectorXf::Constant(figures, 0.1f);
+    EXPECT_EQ(invalid(p), "") << figures;
+  }
+  for (int figures : {5, 8}) {
+    p.appearance->held_out_error = VectorXf::Constant(figures, 0.1f);
+    EXPECT_THAT(
+        invalid(p),
+        HasSubstr(fmt::format(
+            "/appearance/held_out_error: expected 7 values (total, truncation, interpolation, of |M|, "
+            "relative l2 total and truncation, the clusters' relative l2 truncation) or the older 4 "
+            "or 6, got {}",
+            figures)));
+  }
 }
 
 TEST_F(PackageRule, AppearanceCoordinatesMatchRank) {

@@ -62,7 +62,8 @@ std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, cons
   return out;
 }
 
-void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTruth& test) {
+void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTruth& test,
+                  const TransferReduction& reduction) {
   const Interpolant& f = c.interpolant;
   a.interpolant = interpolant_name(f.kind);
   a.interpolant_parameters = f.kind == InterpolantKind::knn
@@ -74,10 +75,14 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
   a.nrbf_regularization = f.nrbf.regularization;
   if (test.nodes.empty()) return;
   a.held_out_nodes = test.nodes;
-  a.held_out_error.resize(6);
+  // The clusters' own truncation over as many columns as the reported half:
+  // the figure its l2 truncation compares with (transfer_reduction.h).
+  const double clusters_l2 = cluster_truncation_l2(reduction, static_cast<int>(test.nodes.size()));
+  a.held_out_error.resize(7);
   a.held_out_error << static_cast<float>(c.test.total), static_cast<float>(c.test.truncation),
       static_cast<float>(c.test.interpolation), static_cast<float>(c.test.of_transfer),
-      static_cast<float>(c.test.l2_total), static_cast<float>(c.test.l2_truncation);
+      static_cast<float>(c.test.l2_total), static_cast<float>(c.test.l2_truncation),
+      static_cast<float>(clusters_l2);
 }
 
 // Largest eigenvalue of a symmetric positive semi-definite Gram matrix: |X|_2^2 for G = X^T X.
@@ -192,7 +197,7 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
   a.singular_values = reduction.singular_values;
   a.rel_error = reduction.rel_error;
   a.cluster_nodes = clusters.representatives;
-  store_choice(a, chosen, test);
+  store_choice(a, chosen, test, reduction);
   return m;
 }
 

@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
+#include <random>
 #include <stdexcept>
 
 namespace phasecast::precompute {
@@ -107,7 +109,59 @@ TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& X, const Tr
   });
   r.U_a = U.cast<float>();
   r.Q_a = Q.cast<float>();
+  r.right_vectors = V;
   return r;
+}
+
+double cluster_truncation_l2(const TransferReduction& r, const std::vector<int>& subset) {
+  const Eigen::Index Na = r.right_vectors.rows(), rank = r.rank();
+  if (subset.empty() || r.singular_values.size() != Na) {
+    throw std::invalid_argument(fmt::format(
+        "cluster_truncation_l2: expected a non-empty subset of the {} clusters and their right vectors", Na));
+  }
+  // Rows S of V Sigma: the coordinates of the chosen columns of A_a.
+  Eigen::MatrixXd coordinates(static_cast<Eigen::Index>(subset.size()), Na);
+  for (size_t i = 0; i < subset.size(); ++i) {
+    if (subset[i] < 0 || subset[i] >= Na) {
+      throw std::invalid_argument(
+          fmt::format("cluster_truncation_l2: cluster {} is not in 0..{}", subset[i], Na - 1));
+    }
+    coordinates.row(static_cast<Eigen::Index>(i)) =
+        r.right_vectors.row(subset[i]).cwiseProduct(r.singular_values.cast<double>().transpose());
+  }
+  const auto largest = [](const Eigen::MatrixXd& X) {  // |X|_2^2 from the smaller Gram matrix
+    const Eigen::MatrixXd g =
+        X.rows() <= X.cols() ? Eigen::MatrixXd(X * X.transpose()) : Eigen::MatrixXd(X.transpose() * X);
+    return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+  };
+  const double data = largest(coordinates);
+  if (!(data > 0)) return 0;
+  return std::sqrt(std::max(0.0, largest(coordinates.rightCols(Na - rank))) / data);
+}
+
+double cluster_truncation_l2(const TransferReduction& r, int columns, int draws, std::uint64_t seed) {
+  const auto Na = static_cast<int>(r.right_vectors.rows());
+  if (columns < 1 || draws < 1) {
+    throw std::invalid_argument(
+        fmt::format("cluster_truncation_l2: expected columns and draws >= 1, got {} and {}", columns, draws));
+  }
+  std::vector<int> all(static_cast<size_t>(Na));
+  std::iota(all.begin(), all.end(), 0);
+  if (columns >= Na) return cluster_truncation_l2(r, all);
+  std::mt19937_64 rng(seed);
+  std::vector<double> ratios;
+  for (int d = 0; d < draws; ++d) {
+    // The first `columns` of a partial Fisher-Yates shuffle (modulo draws: no
+    // library distribution, so every platform picks the same subsets).
+    for (int i = 0; i < columns; ++i) {
+      const auto j = i + static_cast<int>(rng() % static_cast<std::uint64_t>(Na - i));
+      std::swap(all[static_cast<size_t>(i)], all[static_cast<size_t>(j)]);
+    }
+    ratios.push_back(cluster_truncation_l2(r, std::vector<int>(all.begin(), all.begin() + columns)));
+  }
+  const auto middle = ratios.begin() + static_cast<std::ptrdiff_t>(ratios.size() / 2);
+  std::nth_element(ratios.begin(), middle, ratios.end());
+  return *middle;
 }
 
 }  // namespace phasecast::precompute

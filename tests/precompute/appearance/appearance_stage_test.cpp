@@ -110,7 +110,7 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
             std::string::npos)
       << inspect.out;
   EXPECT_EQ(p.appearance->paper_rank, 12);  // stored; printed only when r_a = 12 is within N_a
-  ASSERT_EQ(p.appearance->held_out_error.size(), 6);
+  ASSERT_EQ(p.appearance->held_out_error.size(), 7);
   EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
   // The paper's-metric figures reach the JSON that bench/paper_tables.py reads.
   const auto json = run_tool("phasecast-inspect", {pkg, "--json"});
@@ -118,6 +118,10 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   const auto held_out = nlohmann::json::parse(json.out)["held_out"];
   EXPECT_NEAR(held_out["l2_total"].get<double>(), p.appearance->held_out_error[4], 1e-6);
   EXPECT_NEAR(held_out["l2_truncation"].get<double>(), p.appearance->held_out_error[5], 1e-6);
+  EXPECT_NEAR(held_out["clusters_l2_truncation"].get<double>(), p.appearance->held_out_error[6], 1e-6);
+  EXPECT_NE(inspect.out.find("the clusters' own truncation measured alike (relative l2 over 3 of them"),
+            std::string::npos)
+      << inspect.out;
 }
 
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
@@ -199,7 +203,8 @@ TEST(AppearanceStage, ClothHasTwoSidesSharingTheirVertexRows) {
     EXPECT_EQ(m.triangles(F + t, 1), m.triangles(t, 2) + V);
     EXPECT_EQ(m.triangles(F + t, 2), m.triangles(t, 1) + V);
   }
-  const auto W = precompute::scene_point_embedding(scene).weights;  // the back of vertex 3 moves with vertex 3 alone
+  const auto W =
+      precompute::scene_point_embedding(scene).weights;  // the back of vertex 3 moves with vertex 3 alone
   ASSERT_EQ(W.rows(), m.points());
   EXPECT_EQ(W.row(V + 3).nonZeros(), 1);
   EXPECT_EQ(W.coeff(V + 3, 3), 1.0);

@@ -104,7 +104,7 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
                                           {.reduction = {.rank = 3}}, truth);
   const auto& a = model.appearance;
-  ASSERT_EQ(a.held_out_error.size(), 6);
+  ASSERT_EQ(a.held_out_error.size(), 7);
   ASSERT_EQ(a.held_out_nodes.size(), 6u);  // the second half: the first picked the interpolant
   EXPECT_TRUE(std::equal(a.held_out_nodes.begin(), a.held_out_nodes.end(), truth.nodes.begin() + 6));
   // A second reader: plain sums over the served fields.
@@ -127,6 +127,8 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   };
   EXPECT_NEAR(a.held_out_error[4], l2(E) / l2(D), 1e-4);
   EXPECT_LE(a.held_out_error[5], a.held_out_error[4] + 1e-6);  // the truncation is part of the error
+  // As many reported nodes (6) as clusters: the clusters' own figure is the paper's sigma_4 / sigma_1.
+  EXPECT_NEAR(a.held_out_error[6], a.singular_values[3] / a.singular_values[0], 1e-5);
   EXPECT_NEAR(a.held_out_error[3], std::sqrt(err2 / truth2), 1e-5);
   EXPECT_GT(a.held_out_error[0], 1e-3);  // not vacuous: these nodes are not samples
   EXPECT_NEAR(a.held_out_error[0] * a.held_out_error[0],

@@ -6,7 +6,10 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include <cmath>
+#include <cstdio>
 #include <random>
+#include <vector>
 
 namespace phasecast {
 namespace {
@@ -87,6 +90,80 @@ TEST(TransferReduction, IdenticalFieldsHaveRankZero) {
   EXPECT_EQ(r.singular_values.cwiseAbs().maxCoeff(), 0.0f);
   EXPECT_EQ(r.rel_error.cwiseAbs().maxCoeff(), 0.0f);
   EXPECT_EQ(r.mean_transfer, X.row(0).transpose());
+}
+
+// Spectral norm by a dense SVD: the second reader of the Gram-based figures.
+double l2(const Eigen::MatrixXd& X) {
+  return Eigen::JacobiSVD<Eigen::MatrixXd>(X).singularValues()[0];
+}
+
+// |(I - U_a U_a^T) A|_2 / |A|_2 for centred columns A, directly.
+double truncation_l2(const precompute::TransferReduction& r, const Eigen::MatrixXd& A) {
+  const Eigen::MatrixXd U = r.U_a.cast<double>();
+  return l2(A - U * (U.transpose() * A)) / l2(A);
+}
+
+// Fields drawn from a population whose spectrum falls slowly (sigma_k ~ k^-0.6
+// over 120 directions), as our transfer's does: 48 x 40 floats per field.
+MatrixXfR flat_spectrum_fields(int count, std::uint64_t seed) {
+  static const Eigen::MatrixXd basis = [] {
+    std::mt19937_64 rng(77);
+    Eigen::MatrixXd g(48 * 40, 120);
+    for (Eigen::Index i = 0; i < g.size(); ++i) g.data()[i] = static_cast<double>(rng() % 2001) / 1000.0 - 1;
+    return Eigen::MatrixXd(Eigen::HouseholderQR<Eigen::MatrixXd>(g).householderQ() *
+                           Eigen::MatrixXd::Identity(g.rows(), g.cols()));
+  }();
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  MatrixXfR X(count, basis.rows());
+  for (int j = 0; j < count; ++j) {
+    Eigen::VectorXd c(basis.cols());
+    for (Eigen::Index k = 0; k < c.size(); ++k)
+      c[k] = normal(rng) * std::pow(1.0 + static_cast<double>(k), -0.6);
+    X.row(j) = (basis * c).transpose().cast<float>();
+  }
+  return X;
+}
+
+TEST(ClusterTruncation, OverAllClustersIsTheSigmaRatioAndOverASubsetMatchesADenseSvd) {
+  const MatrixXfR X = flat_spectrum_fields(30, 4);
+  const auto r = reduce_transfer(X, {.eps_a = 0, .rank = 5});
+  const Eigen::MatrixXd A = (X.rowwise() - r.mean_transfer.transpose()).transpose().cast<double>();
+  const double sigma_ratio = r.singular_values[5] / r.singular_values[0];
+  EXPECT_NEAR(precompute::cluster_truncation_l2(r, 30), sigma_ratio, 1e-5);
+  EXPECT_NEAR(precompute::cluster_truncation_l2(r, 99), sigma_ratio, 1e-5);  // more than N_a: all of them
+  EXPECT_NEAR(truncation_l2(r, A), sigma_ratio, 1e-5);
+  const std::vector<int> subset = {3, 17, 0, 29, 8};
+  Eigen::MatrixXd columns(A.rows(), 5);
+  for (int i = 0; i < 5; ++i) columns.col(i) = A.col(subset[static_cast<size_t>(i)]);
+  EXPECT_NEAR(precompute::cluster_truncation_l2(r, subset), truncation_l2(r, columns), 1e-5);
+  // The median over draws is the same every time (seeded).
+  EXPECT_EQ(precompute::cluster_truncation_l2(r, 6), precompute::cluster_truncation_l2(r, 6));
+  EXPECT_THROW(precompute::cluster_truncation_l2(r, std::vector<int>{30}), std::invalid_argument);
+  EXPECT_THROW(precompute::cluster_truncation_l2(r, 0), std::invalid_argument);
+}
+
+// Why the held-out figure is compared with the clusters' own figure over as
+// many columns: fresh fields from the same population, projected on the basis
+// of 200 samples, read far above sigma_{r+1} / sigma_1 over 10 columns and
+// near it over 200 (the basis generalises: 200 samples of 120 directions); the clusters' figure over 10 of them predicts the first.
+TEST(ClusterTruncation, PredictsAHeldOutFigureOfTheSameSize) {
+  const auto r = reduce_transfer(flat_spectrum_fields(200, 5), {.eps_a = 0, .rank = 8});
+  const auto held_out = [&](int count, std::uint64_t seed) {
+    const MatrixXfR Y = flat_spectrum_fields(count, seed);
+    return truncation_l2(r, (Y.rowwise() - r.mean_transfer.transpose()).transpose().cast<double>());
+  };
+  const double sigma_ratio = r.singular_values[8] / r.singular_values[0];
+  double few = 0;
+  for (std::uint64_t seed = 100; seed < 110; ++seed) few += held_out(10, seed) / 10;  // mean of 10 draws
+  const double alike = precompute::cluster_truncation_l2(r, 10);
+  EXPECT_GT(few, 1.3 * sigma_ratio) << few << " vs " << sigma_ratio;
+  EXPECT_GT(alike, 1.3 * sigma_ratio) << alike << " vs " << sigma_ratio;
+  EXPECT_NEAR(few, alike, 0.2 * few) << few << " vs " << alike;
+  std::printf("sigma ratio %.3f, held out over 10: %.3f, clusters alike: %.3f\n", sigma_ratio, few, alike);
+  const double many = held_out(200, 200);
+  EXPECT_LT(many, 0.75 * few) << many << " vs " << few;
+  EXPECT_NEAR(many, sigma_ratio, 0.2 * sigma_ratio) << "over as many columns, sigma_{r+1} / sigma_1";
 }
 
 std::string failure_of(const MatrixXfR& X, TransferReductionOptions o) {

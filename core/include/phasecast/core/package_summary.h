@@ -40,6 +40,9 @@ struct PackageSummary {
   double held_out_total = 0, held_out_truncation = 0, held_out_interpolation = 0, held_out_of_transfer = 0;
   // The same in the paper's relErr: relative l2 (spectral) norms; NaN in older packages.
   double held_out_l2_total = 0, held_out_l2_truncation = 0;
+  // The clusters' own truncation in that norm over as many of them as there are
+  // held-out nodes: what held_out_l2_truncation compares with. NaN in older packages.
+  double clusters_l2_truncation_at_held_out_size = 0;
   std::uint64_t client_download_bytes = 0;    // sum of basis parts
   std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
   std::uint64_t full_vertex_frame_bytes = 0;  // streaming vertices instead

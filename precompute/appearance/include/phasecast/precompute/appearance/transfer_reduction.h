@@ -4,6 +4,9 @@
 
 #include "phasecast/core/eigen_types.h"
 
+#include <cstdint>
+#include <vector>
+
 namespace phasecast::precompute {
 
 struct TransferReductionOptions {
@@ -12,11 +15,12 @@ struct TransferReductionOptions {
 };
 
 struct TransferReduction {
-  VectorXf mean_transfer;    // 48S: M-bar
-  MatrixXfR U_a;             // 48S x r_a orthonormal transfer basis
-  MatrixXfR Q_a;             // r_a x N_a: column j is q_a^j = U_a^T (M^j - M-bar)
-  VectorXf singular_values;  // all N_a singular values of A_a, decreasing
-  VectorXf rel_error;        // N_a: relative Frobenius error of the rank-(i+1) model (Fig. 12, red)
+  VectorXf mean_transfer;         // 48S: M-bar
+  MatrixXfR U_a;                  // 48S x r_a orthonormal transfer basis
+  MatrixXfR Q_a;                  // r_a x N_a: column j is q_a^j = U_a^T (M^j - M-bar)
+  VectorXf singular_values;       // all N_a singular values of A_a, decreasing
+  VectorXf rel_error;             // N_a: relative Frobenius error of the rank-(i+1) model (Fig. 12, red)
+  Eigen::MatrixXd right_vectors;  // N_a x N_a: V of A_a = U Sigma V^T, column i with sigma_i
 
   int rank() const { return static_cast<int>(U_a.cols()); }
 };
@@ -34,5 +38,21 @@ struct TransferReduction {
 // multiple of 48, non-finite values, eps_a outside [0, 1] or a negative rank.
 TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& fields,
                                   const TransferReductionOptions& options);
+
+// The clusters' own truncation error as a held-out error over the same
+// columns is measured: |(I - U_a U_a^T) A_S|_2 / |A_S|_2, A_S the centred
+// fields of the clusters in `subset` (indices into 0..N_a-1). Over all N_a it
+// is sigma_{r_a+1} / sigma_1, the paper's relErr (§2.3.1). Needs no field:
+// A_S = U Sigma V_S^T, so both norms follow from Sigma and the rows S of V.
+double cluster_truncation_l2(const TransferReduction& reduction, const std::vector<int>& subset);
+
+// The same, as the median over `draws` random subsets of `columns` clusters
+// (seeded, the same on every platform); columns >= N_a: all of them. A
+// spectral ratio over a few columns reads higher than over many when the
+// residual spreads over many directions: the data's leading direction adds
+// up over columns and the residual's do not. So a held-out figure over H
+// nodes compares with this at H, not with sigma_{r_a+1} / sigma_1.
+double cluster_truncation_l2(const TransferReduction& reduction, int columns, int draws = 255,
+                             std::uint64_t seed = 1);
 
 }  // namespace phasecast::precompute
