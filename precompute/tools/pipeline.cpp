@@ -27,6 +27,7 @@ class Stopwatch {
 
 constexpr int kDefaultClusters = 16;
 constexpr int kDefaultHeldOut = 40;
+constexpr int kDefaultRays = 1024;
 constexpr double kDefaultEpsA = 1e-3;
 
 // Sampling progress: IRFs done/total, state nodes and ETA (resumed IRFs do
@@ -146,8 +147,10 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
                   "q_a over q_u: best (lower held-out error), nrbf (§4.3) or knn (docs/transfer.md)")
       ->capture_default_str();
   cmd->add_option("--cluster-seed", s.seed, "seed of the k-means++ clustering")->capture_default_str();
-  cmd->add_option("--rays", s.transfer.rays, "transfer directions of the fixed sphere set")
-      ->capture_default_str();
+  cmd->add_option("--rays", a.rays,
+                  fmt::format("transfer directions of the fixed sphere set (default: the scene's "
+                              "[appearance] rays, else {})",
+                              kDefaultRays));
   cmd->add_option("--bounces", s.transfer.bounces, "interreflection bounces (0: shadowed only)")
       ->capture_default_str();
   cmd->add_option(
@@ -169,6 +172,7 @@ precompute::AppearanceStageOptions appearance_stage_options(const precompute::Sc
   const auto& d = scene.appearance;
   s.clusters = a.clusters.value_or(d.clusters > 0 ? d.clusters : kDefaultClusters);
   s.held_out = a.held_out.value_or(d.held_out > 0 ? d.held_out : kDefaultHeldOut);
+  s.transfer.rays = a.rays.value_or(d.rays > 0 ? d.rays : kDefaultRays);
   s.appearance.reduction.eps_a = a.eps_a.value_or(d.eps_a > 0 ? d.eps_a : kDefaultEpsA);
   if (a.interpolant == "best") {
     s.appearance.interpolant = precompute::InterpolantChoice::best;

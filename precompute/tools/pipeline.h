@@ -26,7 +26,7 @@ struct ReduceArgs {
 struct AppearanceArgs {
   precompute::AppearanceStageOptions stage;
   // Not given: the scene's [appearance] value, else the built-in default.
-  std::optional<int> clusters, held_out;
+  std::optional<int> clusters, held_out, rays;
   std::optional<double> eps_a;
   std::string interpolant = "best";
   bool skip = false;  // --no-appearance: the package has no /appearance (r_a = 0)

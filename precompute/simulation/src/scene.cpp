@@ -467,6 +467,7 @@ AppearanceDefaults read_appearance_defaults(Fields a) {
   d.eps_a = a.number("eps_a", 0);
   if (a.has("eps_a") && !(d.eps_a > 0 && d.eps_a < 1)) a.fail("eps_a", "a number in (0, 1)");
   d.held_out = a.positive_integer("held_out", 0);
+  d.rays = a.positive_integer("rays", 0);
   d.paper_rank_a = a.positive_integer("paper_rank_a", 0);
   a.finish();
   return d;

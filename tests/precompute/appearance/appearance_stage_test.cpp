@@ -19,6 +19,8 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -272,6 +274,46 @@ TEST(AppearanceStage, SameSeedGivesTheSameAppearanceAndNoAppearanceSkipsIt) {
   EXPECT_FALSE(c.appearance.has_value());
   EXPECT_EQ(c.rank_a(), 0);
   EXPECT_TRUE(c.reduction.U_u == a.reduction.U_u);
+}
+
+// The scene's [appearance] rays sets the sphere set when --rays is not given,
+// and --rays overrides it: the scene's 32 reproduces --rays 32 bit for bit,
+// and differs from the 64 rays the run used.
+TEST(AppearanceStage, TheScenesRaysAreTheDefaultAndTheCommandLineOverridesThem) {
+  const auto pkg = run_tiny("appearance_rays");  // --rays 64
+  const auto dir = scratch_dir("appearance_rays_reduce");
+  std::ifstream in(tiny_scene_path());
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto at = text.find("[appearance]\n");
+  ASSERT_NE(at, std::string::npos);
+  text.insert(at + 13, "rays = 32\n");
+  const auto scene = (dir / "rays32.toml").string();
+  std::ofstream(scene) << text;
+  std::vector<std::string> reduce = kReduce;
+  reduce.erase(std::find(reduce.begin(), reduce.end(), "--rays"),
+               std::find(reduce.begin(), reduce.end(), "--rays") + 2);
+  const auto orbits = pkg + ".work/orbits.h5";
+  const auto from_scene = (dir / "scene.h5").string(), from_flag = (dir / "flag.h5").string();
+  std::vector<std::string> a = {"reduce", scene, orbits, "-o", from_scene},
+                           b = {"reduce", tiny_scene_path().string(), orbits, "-o", from_flag, "--rays",
+                                "32"};
+  a.insert(a.end(), reduce.begin(), reduce.end());
+  b.insert(b.end(), reduce.begin(), reduce.end());
+  for (const auto& command : {a, b}) {
+    const auto r = run_tool("phasecast-precompute", command);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  const auto s = core::read_package(from_scene), f = core::read_package(from_flag),
+             r64 = core::read_package(pkg);
+  ASSERT_TRUE(s.appearance && f.appearance && r64.appearance);
+  EXPECT_TRUE(s.appearance->mean_transfer == f.appearance->mean_transfer);
+  EXPECT_FALSE(s.appearance->mean_transfer == r64.appearance->mean_transfer);
+  // And the flag wins over the scene's value.
+  const auto back64 = (dir / "back64.h5").string();
+  std::vector<std::string> c = {"reduce", scene, orbits, "-o", back64};
+  c.insert(c.end(), kReduce.begin(), kReduce.end());  // --rays 64
+  ASSERT_EQ(run_tool("phasecast-precompute", c).exit_code, 0);
+  EXPECT_TRUE(core::read_package(back64).appearance->mean_transfer == r64.appearance->mean_transfer);
 }
 
 struct BadOption {

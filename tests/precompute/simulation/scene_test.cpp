@@ -154,6 +154,10 @@ TEST(SceneErrors, BadAlbedoAndProps) {
             ": field 'appearance.eps_a': expected a number in (0, 1), got integer 2");
   EXPECT_EQ(rejection("clusters", kValid + "[appearance]\nclusters = 0\n"),
             ": field 'appearance.clusters': expected a positive integer, got integer 0");
+  EXPECT_EQ(rejection("rays", kValid + "[appearance]\nrays = 2000000\n"),
+            ": field 'appearance.rays': expected a positive integer, got integer 2000000");
+  EXPECT_EQ(rejection("rays0", kValid + "[appearance]\nrays = 0\n"),
+            ": field 'appearance.rays': expected a positive integer, got integer 0");
 }
 
 TEST(SceneErrors, UnknownEnergyName) {

@@ -66,6 +66,7 @@ struct AppearanceDefaults {
   int clusters = 0;      // N_a
   double eps_a = 0;      // r_a = number of sigma_i >= eps_a sigma_1
   int held_out = 0;      // state nodes whose true transfer measures the served appearance
+  int rays = 0;          // transfer directions: more where ray noise outweighs the variation
   int paper_rank_a = 0;  // the paper's r_a for this scene (Table 1): inspect prints the error there
 };
 
