@@ -156,10 +156,11 @@ std::string to_text(const PackageSummary& s) {
             "of which truncation {:.3g}%",
             100 * s.held_out_l2_total, 100 * s.held_out_l2_truncation);
       if (std::isfinite(s.clusters_l2_truncation_at_held_out_size))
-        line(
-            "             the clusters' own truncation measured alike (relative l2 over {} of them, median "
-            "of random draws): {:.3g}%",
-            s.held_out_nodes, 100 * s.clusters_l2_truncation_at_held_out_size);
+        line("             the clusters' own truncation measured alike (relative l2 over {}): {:.3g}%",
+             s.held_out_nodes < s.clusters
+                 ? fmt::format("{} of them, median of random draws", s.held_out_nodes)
+                 : fmt::format("all {}: sigma_{{r+1}}/sigma_1", s.clusters),
+             100 * s.clusters_l2_truncation_at_held_out_size);
     }
   } else {
     line("appearance   none");

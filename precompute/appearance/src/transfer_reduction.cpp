@@ -135,7 +135,7 @@ double cluster_truncation_l2(const TransferReduction& r, const std::vector<int>&
     return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
   };
   const double data = largest(coordinates);
-  if (!(data > 0)) return 0;
+  if (!(data > 0) || rank >= Na) return 0;  // nothing varies, or nothing is truncated
   return std::sqrt(std::max(0.0, largest(coordinates.rightCols(Na - rank))) / data);
 }
 
