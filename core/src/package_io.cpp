@@ -95,7 +95,7 @@ constexpr DatasetSpec kAppearance[] = {
 constexpr DatasetSpec kAppearanceOptional[] = {
     {"/appearance/interpolant", Dtype::string, 1}, {"/appearance/interpolant_parameters", Dtype::f32, 1},
     {"/appearance/held_out_nodes", Dtype::i32, 1}, {"/appearance/held_out_error", Dtype::f32, 1},
-    {"/appearance/paper_rank", Dtype::i32, 1},
+    {"/appearance/paper_rank", Dtype::i32, 1},     {"/appearance/transfer_sampling", Dtype::i32, 1},
 };
 
 // The extents the file declares, each checked against what the file stores,
@@ -160,6 +160,11 @@ Appearance read_appearance(const Reader& r) {
     a.held_out_nodes = r.vector<std::int32_t>("/appearance/held_out_nodes");
   if (exists("/appearance/held_out_error")) a.held_out_error = r.column<float>("/appearance/held_out_error");
   if (exists("/appearance/paper_rank")) a.paper_rank = r.vector<std::int32_t>("/appearance/paper_rank").at(0);
+  if (exists("/appearance/transfer_sampling")) {
+    const auto sampling = r.vector<std::int32_t>("/appearance/transfer_sampling");
+    a.transfer_rays = sampling.at(0);
+    a.transfer_bounces = sampling.at(1);
+  }
   return a;
 }
 
@@ -262,6 +267,9 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
       f.write("/appearance/held_out_error", ap->held_out_error);
     }
     if (ap->paper_rank > 0) f.write("/appearance/paper_rank", std::vector<std::int32_t>{ap->paper_rank});
+    if (ap->transfer_rays > 0)
+      f.write("/appearance/transfer_sampling",
+              std::vector<std::int32_t>{ap->transfer_rays, ap->transfer_bounces});
   }
 }
 

@@ -45,6 +45,8 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   } else {
     s.interpolant = a.interpolant;
   }
+  s.transfer_rays = a.transfer_rays;
+  s.transfer_bounces = a.transfer_bounces;
   if (a.held_out_error.size() >= 4) {
     s.held_out_nodes = static_cast<int>(a.held_out_nodes.size());
     s.held_out_total = a.held_out_error[0];
@@ -143,6 +145,9 @@ std::string to_text(const PackageSummary& s) {
       line("             at the paper's r_a = {}: sigma_{{r+1}}/sigma_1 = {}, Frobenius {:.3g}%",
            s.paper_rank_a, percent_or_na(s.sigma_ratio_a_at_paper_rank), 100 * s.error_a_at_paper_rank);
     line("             interpolant {}", s.interpolant);
+    if (s.transfer_rays > 0)
+      line("             transfer sampled with {} rays, {} interreflection bounces", s.transfer_rays,
+           s.transfer_bounces);
     if (s.held_out_nodes > 0) {
       line(
           "             held-out truth ({} other nodes): error {:.3g}% = truncation {:.3g}% + interpolation "
@@ -202,6 +207,8 @@ nlohmann::json to_json(const PackageSummary& s) {
       {"sigma_ratio_a_at_paper_rank", number_or_null(s.sigma_ratio_a_at_paper_rank)},
       {"singular_values_a", s.singular_values_a},
       {"interpolant", s.interpolant},
+      {"transfer_rays", s.transfer_rays > 0 ? nlohmann::json(s.transfer_rays) : nlohmann::json()},
+      {"transfer_bounces", s.transfer_rays > 0 ? nlohmann::json(s.transfer_bounces) : nlohmann::json()},
       {"held_out", s.held_out_nodes > 0
                        ? nlohmann::json{{"nodes", s.held_out_nodes},
                                         {"total", s.held_out_total},

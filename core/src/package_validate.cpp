@@ -208,6 +208,8 @@ void check_appearance_shapes(const ShapeChecker& s) {
       s.checker().fail("/appearance/held_out_nodes", "expected the nodes of /appearance/held_out_error");
   }
   if (s.has("/appearance/paper_rank")) s.length("/appearance/paper_rank", 1, "1 (the paper's r_a)");
+  if (s.has("/appearance/transfer_sampling"))
+    s.length("/appearance/transfer_sampling", 2, "2 (rays, bounces)");
 }
 
 Extent extent(Eigen::Index rows, Eigen::Index cols) {
@@ -236,6 +238,7 @@ void add_appearance_shapes(const Appearance& a, PackageShapes& s) {
     s["/appearance/held_out_error"] = extent(a.held_out_error);
   }
   if (a.paper_rank > 0) s["/appearance/paper_rank"] = {1};
+  if (a.transfer_rays > 0) s["/appearance/transfer_sampling"] = {2};
 }
 
 // ---- values: finiteness, indices, flags, the rules between values ----------------
@@ -377,6 +380,9 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
   }
   if (a.paper_rank < 0)
     c.fail("/appearance/paper_rank", fmt::format("expected r_a >= 0, got {}", a.paper_rank));
+  if (a.transfer_rays < 0 || a.transfer_bounces < 0 || (a.transfer_rays == 0 && a.transfer_bounces > 0))
+    c.fail("/appearance/transfer_sampling", fmt::format("expected rays >= 1 and bounces >= 0, got {} and {}",
+                                                        a.transfer_rays, a.transfer_bounces));
 }
 
 }  // namespace

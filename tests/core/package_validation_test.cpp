@@ -262,6 +262,21 @@ TEST_F(PackageRule, HeldOutErrorHoldsSevenFiguresOrTheOlderFourOrSix) {
   }
 }
 
+TEST_F(PackageRule, TransferSamplingIsRaysAndBouncesOrUnrecorded) {
+  for (auto [rays, bounces] : {std::pair{1024, 2}, std::pair{64, 0}, std::pair{0, 0}}) {
+    p.appearance->transfer_rays = rays;
+    p.appearance->transfer_bounces = bounces;
+    EXPECT_EQ(invalid(p), "") << rays << " " << bounces;
+  }
+  for (auto [rays, bounces] : {std::pair{-1, 0}, std::pair{64, -2}, std::pair{0, 2}}) {
+    p.appearance->transfer_rays = rays;
+    p.appearance->transfer_bounces = bounces;
+    EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/transfer_sampling: expected rays >= 1 and "
+                                                  "bounces >= 0, got {} and {}",
+                                                  rays, bounces)));
+  }
+}
+
 TEST_F(PackageRule, AppearanceCoordinatesMatchRank) {
   p.portrait.q_a.conservativeResize(Eigen::NoChange, p.portrait.q_a.cols() + 1);
   EXPECT_THAT(invalid(p), HasSubstr("/portrait/q_a: expected shape N x r_a"));

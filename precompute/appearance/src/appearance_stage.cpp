@@ -128,6 +128,9 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedd
       fit_appearance_model(q_u, report.clusters, fields.topRows(Na), o.appearance, held_out);  // §4.2, §4.3
   report.candidates = std::move(model.candidates);
   model.appearance.paper_rank = o.paper_rank;
+  model.appearance.transfer_rays = o.transfer.rays;
+  model.appearance.transfer_bounces =
+      o.transfer.mode == TransferMode::interreflected ? o.transfer.bounces : 0;
   pkg.appearance = std::move(model.appearance);
   pkg.portrait.q_a = std::move(model.q_a);
   pkg.attributes.eps_a = o.appearance.reduction.rank > 0 ? 0.0 : o.appearance.reduction.eps_a;

@@ -112,6 +112,11 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
             std::string::npos)
       << inspect.out;
   EXPECT_EQ(p.appearance->paper_rank, 12);  // stored; printed only when r_a = 12 is within N_a
+  EXPECT_NE(inspect.out.find(fmt::format("transfer sampled with {} rays, {} interreflection bounces",
+                                         p.appearance->transfer_rays, p.appearance->transfer_bounces)),
+            std::string::npos)
+      << inspect.out;
+  EXPECT_GE(p.appearance->transfer_rays, 1);  // the tiny scene's
   ASSERT_EQ(p.appearance->held_out_error.size(), 7);
   EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
   // The paper's-metric figures reach the JSON that bench/paper_tables.py reads.
@@ -308,6 +313,11 @@ TEST(AppearanceStage, TheScenesRaysAreTheDefaultAndTheCommandLineOverridesThem) 
   ASSERT_TRUE(s.appearance && f.appearance && r64.appearance);
   EXPECT_TRUE(s.appearance->mean_transfer == f.appearance->mean_transfer);
   EXPECT_FALSE(s.appearance->mean_transfer == r64.appearance->mean_transfer);
+  // Each package records the rays and bounces its transfers were taken with.
+  EXPECT_EQ(s.appearance->transfer_rays, 32);
+  EXPECT_EQ(f.appearance->transfer_rays, 32);
+  EXPECT_EQ(r64.appearance->transfer_rays, 64);
+  EXPECT_EQ(s.appearance->transfer_bounces, 1);
   // And the flag wins over the scene's value.
   const auto back64 = (dir / "back64.h5").string();
   std::vector<std::string> c = {"reduce", scene, orbits, "-o", back64};

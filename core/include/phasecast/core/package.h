@@ -165,6 +165,10 @@ struct Appearance {
                                 // relative l2 norm over as many clusters as there are held-out nodes
                                 // (older packages: the first 4 or 6)
   std::int32_t paper_rank = 0;  // the paper's r_a for this scene (Table 1; 0: none)
+  // How the cluster and held-out transfers were sampled, so that a figure can
+  // be reproduced: ray directions of the fixed sphere set and interreflection
+  // bounces (0: unrecorded, as in packages before it was stored).
+  std::int32_t transfer_rays = 0, transfer_bounces = 0;
 
   int rank() const { return static_cast<int>(U_a.cols()); }
   int clusters() const { return static_cast<int>(cluster_nodes.size()); }
