@@ -93,9 +93,10 @@ constexpr DatasetSpec kAppearance[] = {
 // Optional inside /appearance: the interpolant's name and parameters, the
 // held-out truth and the paper's r_a (packages before them have none).
 constexpr DatasetSpec kAppearanceOptional[] = {
-    {"/appearance/interpolant", Dtype::string, 1}, {"/appearance/interpolant_parameters", Dtype::f32, 1},
-    {"/appearance/held_out_nodes", Dtype::i32, 1}, {"/appearance/held_out_error", Dtype::f32, 1},
-    {"/appearance/paper_rank", Dtype::i32, 1},     {"/appearance/transfer_sampling", Dtype::i32, 1},
+    {"/appearance/interpolant", Dtype::string, 1},  {"/appearance/interpolant_parameters", Dtype::f32, 1},
+    {"/appearance/held_out_nodes", Dtype::i32, 1},  {"/appearance/held_out_error", Dtype::f32, 1},
+    {"/appearance/paper_rank", Dtype::i32, 1},      {"/appearance/transfer_sampling", Dtype::i32, 1},
+    {"/appearance/held_out_spread", Dtype::f32, 1},
 };
 
 // The extents the file declares, each checked against what the file stores,
@@ -159,6 +160,8 @@ Appearance read_appearance(const Reader& r) {
   if (exists("/appearance/held_out_nodes"))
     a.held_out_nodes = r.vector<std::int32_t>("/appearance/held_out_nodes");
   if (exists("/appearance/held_out_error")) a.held_out_error = r.column<float>("/appearance/held_out_error");
+  if (exists("/appearance/held_out_spread"))
+    a.held_out_spread = r.column<float>("/appearance/held_out_spread");
   if (exists("/appearance/paper_rank")) a.paper_rank = r.vector<std::int32_t>("/appearance/paper_rank").at(0);
   if (exists("/appearance/transfer_sampling")) {
     const auto sampling = r.vector<std::int32_t>("/appearance/transfer_sampling");
@@ -265,6 +268,7 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
     if (ap->held_out_error.size() > 0) {
       f.write("/appearance/held_out_nodes", ap->held_out_nodes);
       f.write("/appearance/held_out_error", ap->held_out_error);
+      if (ap->held_out_spread.size() > 0) f.write("/appearance/held_out_spread", ap->held_out_spread);
     }
     if (ap->paper_rank > 0) f.write("/appearance/paper_rank", std::vector<std::int32_t>{ap->paper_rank});
     if (ap->transfer_rays > 0)

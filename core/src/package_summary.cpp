@@ -59,6 +59,7 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   s.held_out_l2_truncation = l2 ? a.held_out_error[5] : std::nan("");
   s.clusters_l2_truncation_at_held_out_size =
       a.held_out_error.size() >= 7 ? a.held_out_error[6] : std::nan("");
+  s.held_out_l2_spread.assign(a.held_out_spread.data(), a.held_out_spread.data() + a.held_out_spread.size());
 }
 
 std::string percent_or_na(double ratio) {
@@ -160,6 +161,12 @@ std::string to_text(const PackageSummary& s) {
             "             held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, "
             "of which truncation {:.3g}%",
             100 * s.held_out_l2_total, 100 * s.held_out_l2_truncation);
+      if (s.held_out_l2_spread.size() == 4)
+        line(
+            "             over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%, truncation "
+            "{:.3g}-{:.3g}%",
+            100 * s.held_out_l2_spread[0], 100 * s.held_out_l2_spread[1], 100 * s.held_out_l2_spread[2],
+            100 * s.held_out_l2_spread[3]);
       if (std::isfinite(s.clusters_l2_truncation_at_held_out_size))
         line("             the clusters' own truncation measured alike (relative l2 over {}): {:.3g}%",
              s.held_out_nodes < s.clusters
@@ -218,7 +225,8 @@ nlohmann::json to_json(const PackageSummary& s) {
                                         {"l2_total", number_or_null(s.held_out_l2_total)},
                                         {"l2_truncation", number_or_null(s.held_out_l2_truncation)},
                                         {"clusters_l2_truncation",
-                                         number_or_null(s.clusters_l2_truncation_at_held_out_size)}}
+                                         number_or_null(s.clusters_l2_truncation_at_held_out_size)},
+                                        {"l2_spread", s.held_out_l2_spread}}
                        : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},

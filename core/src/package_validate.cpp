@@ -208,6 +208,12 @@ void check_appearance_shapes(const ShapeChecker& s) {
       s.checker().fail("/appearance/held_out_nodes", "expected the nodes of /appearance/held_out_error");
   }
   if (s.has("/appearance/paper_rank")) s.length("/appearance/paper_rank", 1, "1 (the paper's r_a)");
+  if (s.has("/appearance/held_out_spread")) {
+    s.length("/appearance/held_out_spread", 4,
+             "4 (relative l2 total and truncation, 10th and 90th percentiles)");
+    if (!s.has("/appearance/held_out_error"))
+      s.checker().fail("/appearance/held_out_spread", "expected /appearance/held_out_error beside it");
+  }
   if (s.has("/appearance/transfer_sampling"))
     s.length("/appearance/transfer_sampling", 2, "2 (rays, bounces)");
 }
@@ -236,6 +242,7 @@ void add_appearance_shapes(const Appearance& a, PackageShapes& s) {
   if (a.held_out_error.size() > 0) {
     s["/appearance/held_out_nodes"] = extent(a.held_out_nodes);
     s["/appearance/held_out_error"] = extent(a.held_out_error);
+    if (a.held_out_spread.size() > 0) s["/appearance/held_out_spread"] = extent(a.held_out_spread);
   }
   if (a.paper_rank > 0) s["/appearance/paper_rank"] = {1};
   if (a.transfer_rays > 0) s["/appearance/transfer_sampling"] = {2};
@@ -378,6 +385,14 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
       c.fail("/appearance/held_out_error",
              fmt::format("expected finite errors >= 0, got {} at {}", a.held_out_error[i], i));
   }
+  for (Eigen::Index i = 0; i < a.held_out_spread.size(); ++i) {
+    if (!(a.held_out_spread[i] >= 0 && std::isfinite(a.held_out_spread[i])))
+      c.fail("/appearance/held_out_spread",
+             fmt::format("expected finite errors >= 0, got {} at {}", a.held_out_spread[i], i));
+  }
+  if (a.held_out_spread.size() == 4 &&
+      (a.held_out_spread[0] > a.held_out_spread[1] || a.held_out_spread[2] > a.held_out_spread[3]))
+    c.fail("/appearance/held_out_spread", "expected each 10th percentile <= its 90th");
   if (a.paper_rank < 0)
     c.fail("/appearance/paper_rank", fmt::format("expected r_a >= 0, got {}", a.paper_rank));
   if (a.transfer_rays < 0 || a.transfer_bounces < 0 || (a.transfer_rays == 0 && a.transfer_bounces > 0))

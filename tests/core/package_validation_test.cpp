@@ -262,6 +262,19 @@ TEST_F(PackageRule, HeldOutErrorHoldsSevenFiguresOrTheOlderFourOrSix) {
   }
 }
 
+TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {
+  p.appearance->held_out_nodes = {1, 2};
+  p.appearance->held_out_error = VectorXf::Constant(7, 0.1f);
+  p.appearance->held_out_spread = (VectorXf(4) << 0.1f, 0.2f, 0.05f, 0.15f).finished();
+  EXPECT_EQ(invalid(p), "");
+  p.appearance->held_out_spread[0] = 0.3f;
+  EXPECT_THAT(invalid(p),
+              HasSubstr("/appearance/held_out_spread: expected each 10th percentile <= its 90th"));
+  p.appearance->held_out_spread[0] = std::nanf("");
+  EXPECT_THAT(invalid(p),
+              HasSubstr("/appearance/held_out_spread: expected finite errors >= 0, got nan at 0"));
+}
+
 TEST_F(PackageRule, TransferSamplingIsRaysAndBouncesOrUnrecorded) {
   for (auto [rays, bounces] : {std::pair{1024, 2}, std::pair{64, 0}, std::pair{0, 0}}) {
     p.appearance->transfer_rays = rays;

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
+#include <random>
 #include <stdexcept>
 
 namespace phasecast::precompute {
@@ -63,7 +65,7 @@ std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, cons
 }
 
 void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTruth& test,
-                  const TransferReduction& reduction) {
+                  const TransferReduction& reduction, const TruthErrorSpread& spread) {
   const Interpolant& f = c.interpolant;
   a.interpolant = interpolant_name(f.kind);
   a.interpolant_parameters = f.kind == InterpolantKind::knn
@@ -83,6 +85,9 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
       static_cast<float>(c.test.interpolation), static_cast<float>(c.test.of_transfer),
       static_cast<float>(c.test.l2_total), static_cast<float>(c.test.l2_truncation),
       static_cast<float>(clusters_l2);
+  a.held_out_spread.resize(4);
+  a.held_out_spread << static_cast<float>(spread.l2_total[0]), static_cast<float>(spread.l2_total[1]),
+      static_cast<float>(spread.l2_truncation[0]), static_cast<float>(spread.l2_truncation[1]);
 }
 
 // Largest eigenvalue of a symmetric positive semi-definite Gram matrix: |X|_2^2 for G = X^T X.
@@ -104,10 +109,18 @@ Eigen::MatrixXd gram(const Eigen::MatrixXf& X) {
   return g;
 }
 
-}  // namespace
+// What both the figures and their spread are made of: per-node Frobenius sums
+// and the H x H Gram matrices of the truncation residual T, the error and the
+// centred truth. With P the best coordinates rank r_a has and S the served
+// ones, M - M-bar = T + U P and the error is T + U (P - S), with T orthogonal
+// to U_a, so every Gram matrix follows from T's and the coordinates.
+struct HeldOutGrams {
+  double centred2 = 0, truth2 = 0, total2 = 0, truncation2 = 0, interpolation2 = 0;
+  Eigen::MatrixXd truncation, error, centred;
+};
 
-TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
-                       const Eigen::Ref<const MatrixXfR>& served) {
+HeldOutGrams held_out_grams(const TransferReduction& r, const HeldOutTruth& truth,
+                            const Eigen::Ref<const MatrixXfR>& served) {
   if (served.rows() != truth.fields.rows() || served.cols() != r.rank()) {
     throw std::invalid_argument(fmt::format("truth_error: expected served q_a of {} x {}, got {} x {}",
                                             truth.fields.rows(), r.rank(), served.rows(), served.cols()));
@@ -115,12 +128,9 @@ TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
   const Eigen::MatrixXd U = r.U_a.cast<double>();
   const Eigen::VectorXd mean = r.mean_transfer.cast<double>();
   const Eigen::Index H = truth.fields.rows();
-  // Columns per node: T the truncation residual (orthogonal to U_a), P the
-  // best coordinates, S the served ones. Then M - M-bar = T + U P and the
-  // error is T + U (P - S), so both Gram matrices follow from T's alone.
   Eigen::MatrixXf T(mean.size(), H);
   Eigen::MatrixXd P(r.rank(), H), S(r.rank(), H);
-  double centred2 = 0, truth2 = 0, total2 = 0, truncation2 = 0, interpolation2 = 0;
+  HeldOutGrams g;
   for (Eigen::Index h = 0; h < H; ++h) {
     const Eigen::VectorXd m = truth.fields.row(h).transpose().cast<double>();
     const Eigen::VectorXd d = m - mean;
@@ -128,27 +138,78 @@ TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
     S.col(h) = served.row(h).transpose().cast<double>();
     const Eigen::VectorXd t = d - U * P.col(h);
     T.col(h) = t.cast<float>();
-    truth2 += m.squaredNorm();
-    centred2 += d.squaredNorm();
-    truncation2 += t.squaredNorm();
-    interpolation2 += (P.col(h) - S.col(h)).squaredNorm();
-    total2 += (d - U * S.col(h)).squaredNorm();
+    g.truth2 += m.squaredNorm();
+    g.centred2 += d.squaredNorm();
+    g.truncation2 += t.squaredNorm();
+    g.interpolation2 += (P.col(h) - S.col(h)).squaredNorm();
+    g.total2 += (d - U * S.col(h)).squaredNorm();
   }
+  g.truncation = gram(T);
+  const Eigen::MatrixXd D = P - S;
+  g.error = g.truncation + D.transpose() * D;
+  g.centred = g.truncation + P.transpose() * P;
+  return g;
+}
+
+// The relative l2 figures over the nodes `pick` (repeats allowed): |E|_2 / |M - M-bar|_2
+// from the Gram matrices' rows and columns `pick`; false when nothing varies there.
+bool l2_figures(const HeldOutGrams& g, const std::vector<Eigen::Index>& pick, double& total,
+                double& truncation) {
+  const double centred = largest_eigenvalue(g.centred(pick, pick));
+  if (!(centred > 0)) return false;  // 0 only when the float residuals underflow
+  total = std::sqrt(largest_eigenvalue(g.error(pick, pick)) / centred);
+  truncation = std::sqrt(largest_eigenvalue(g.truncation(pick, pick)) / centred);
+  return true;
+}
+
+double percentile(std::vector<double> v, double p) {
+  const auto at = v.begin() + static_cast<std::ptrdiff_t>(std::lround(p * static_cast<double>(v.size() - 1)));
+  std::nth_element(v.begin(), at, v.end());
+  return *at;
+}
+
+}  // namespace
+
+TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
+                       const Eigen::Ref<const MatrixXfR>& served) {
+  const HeldOutGrams g = held_out_grams(r, truth, served);
   TruthError e;
-  if (centred2 > 0) {
-    e.total = std::sqrt(total2 / centred2);
-    e.truncation = std::sqrt(truncation2 / centred2);
-    e.interpolation = std::sqrt(interpolation2 / centred2);
-    const Eigen::MatrixXd TT = gram(T);
-    const Eigen::MatrixXd D = P - S;
-    const double centred_l2 = largest_eigenvalue(TT + P.transpose() * P);
-    if (centred_l2 > 0) {  // 0 only when the float residuals underflow
-      e.l2_total = std::sqrt(largest_eigenvalue(TT + D.transpose() * D) / centred_l2);
-      e.l2_truncation = std::sqrt(largest_eigenvalue(TT) / centred_l2);
-    }
+  if (g.centred2 > 0) {
+    e.total = std::sqrt(g.total2 / g.centred2);
+    e.truncation = std::sqrt(g.truncation2 / g.centred2);
+    e.interpolation = std::sqrt(g.interpolation2 / g.centred2);
+    std::vector<Eigen::Index> all(static_cast<size_t>(truth.fields.rows()));
+    std::iota(all.begin(), all.end(), Eigen::Index{0});
+    l2_figures(g, all, e.l2_total, e.l2_truncation);
   }
-  if (truth2 > 0) e.of_transfer = std::sqrt(total2 / truth2);
+  if (g.truth2 > 0) e.of_transfer = std::sqrt(g.total2 / g.truth2);
   return e;
+}
+
+TruthErrorSpread truth_error_spread(const TransferReduction& r, const HeldOutTruth& truth,
+                                    const Eigen::Ref<const MatrixXfR>& served, int draws,
+                                    std::uint64_t seed) {
+  if (draws < 1)
+    throw std::invalid_argument(fmt::format("truth_error_spread: expected draws >= 1, got {}", draws));
+  const HeldOutGrams g = held_out_grams(r, truth, served);
+  const auto H = static_cast<std::uint64_t>(truth.fields.rows());
+  TruthErrorSpread spread;
+  if (H == 0) return spread;
+  std::mt19937_64 rng(seed);
+  std::vector<double> totals, truncations;
+  std::vector<Eigen::Index> pick(H);
+  for (int d = 0; d < draws; ++d) {
+    // Modulo draws, no library distribution: every platform resamples alike.
+    for (auto& node : pick) node = static_cast<Eigen::Index>(rng() % H);
+    double total = 0, truncation = 0;
+    if (!l2_figures(g, pick, total, truncation)) continue;
+    totals.push_back(total);
+    truncations.push_back(truncation);
+  }
+  if (totals.empty()) return spread;
+  spread.l2_total = {percentile(totals, 0.1), percentile(totals, 0.9)};
+  spread.l2_truncation = {percentile(truncations, 0.1), percentile(truncations, 0.9)};
+  return spread;
 }
 
 AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
@@ -197,7 +258,13 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
   a.singular_values = reduction.singular_values;
   a.rel_error = reduction.rel_error;
   a.cluster_nodes = clusters.representatives;
-  store_choice(a, chosen, test, reduction);
+  // How much the reported figures owe to which nodes were drawn.
+  const TruthErrorSpread spread =
+      test.nodes.empty()
+          ? TruthErrorSpread{}
+          : truth_error_spread(reduction, test,
+                               evaluate_interpolant(chosen.interpolant, rows_of(q_u, test.nodes)));
+  store_choice(a, chosen, test, reduction, spread);
   return m;
 }
 

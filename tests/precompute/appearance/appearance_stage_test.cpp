@@ -119,6 +119,12 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   EXPECT_GE(p.appearance->transfer_rays, 1);  // the tiny scene's
   ASSERT_EQ(p.appearance->held_out_error.size(), 7);
   EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
+  ASSERT_EQ(p.appearance->held_out_spread.size(), 4);
+  EXPECT_NE(inspect.out.find(fmt::format("over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%",
+                                         100 * p.appearance->held_out_spread[0],
+                                         100 * p.appearance->held_out_spread[1])),
+            std::string::npos)
+      << inspect.out;
   // The paper's-metric figures reach the JSON that bench/paper_tables.py reads.
   const auto json = run_tool("phasecast-inspect", {pkg, "--json"});
   ASSERT_EQ(json.exit_code, 0) << json.err;

@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 namespace phasecast {
 namespace {
@@ -187,6 +188,54 @@ TEST(Appearance, HeldOutErrorInThePapersMetricIsTheSpectralRatio) {
   const auto mean_only = truth_error(r, truth, MatrixXfR::Zero(8, 2));
   EXPECT_NEAR(mean_only.l2_total, 1, 1e-5);
   EXPECT_NEAR(mean_only.l2_truncation, 0.3, 1e-4);
+}
+
+// The spread of the l2 figures over resampled nodes, checked against a dense
+// SVD of the resampled columns themselves (the code works on Gram matrices).
+TEST(Appearance, HeldOutSpreadIsTheRelativeL2OfResampledNodes) {
+  const MatrixXfR fields = fields_with_spectrum({10, 5, 3, 1, 0.5}, 8, 48 * 5);
+  const auto r = reduce_transfer(fields, {.rank = 2});
+  // Six fresh fields: blends of the clusters, unevenly far from span(U_a).
+  HeldOutTruth truth;
+  truth.fields.resize(6, fields.cols());
+  for (int h = 0; h < 6; ++h) {
+    truth.fields.row(h) = (0.2f * static_cast<float>(h)) * fields.row(h) +
+                          (1 - 0.1f * static_cast<float>(h)) * fields.row(7 - h);
+    truth.nodes.push_back(20 + h);
+  }
+  const MatrixXfR served = MatrixXfR::Constant(6, 2, 0.5f);
+  const std::uint64_t seed = 5;
+  const auto one = truth_error_spread(r, truth, served, 1, seed);
+  EXPECT_EQ(one.l2_total[0], one.l2_total[1]);  // one draw: both percentiles are it
+  // The same draw by hand, and its figures from the columns' singular values.
+  std::mt19937_64 rng(seed);
+  const Eigen::MatrixXd U = r.U_a.cast<double>();
+  Eigen::MatrixXd E(fields.cols(), 6), T(fields.cols(), 6), C(fields.cols(), 6);
+  for (int i = 0; i < 6; ++i) {
+    const auto h = static_cast<Eigen::Index>(rng() % 6);
+    const Eigen::VectorXd d = (truth.fields.row(h) - r.mean_transfer.transpose()).transpose().cast<double>();
+    C.col(i) = d;
+    T.col(i) = d - U * (U.transpose() * d);
+    E.col(i) = d - U * served.row(h).transpose().cast<double>();
+  }
+  const auto norm2 = [](const Eigen::MatrixXd& X) {
+    return Eigen::JacobiSVD<Eigen::MatrixXd>(X).singularValues()[0];
+  };
+  EXPECT_NEAR(one.l2_total[0], norm2(E) / norm2(C), 1e-5);
+  EXPECT_NEAR(one.l2_truncation[0], norm2(T) / norm2(C), 1e-5);
+  // Over many draws the spread is real here and holds the figure over all nodes.
+  const auto exact = truth_error(r, truth, served);
+  const auto many = truth_error_spread(r, truth, served);
+  EXPECT_LT(many.l2_truncation[0], many.l2_truncation[1]);
+  EXPECT_LE(many.l2_truncation[0], exact.l2_truncation);
+  EXPECT_GE(many.l2_truncation[1], exact.l2_truncation);
+  EXPECT_LE(many.l2_total[0], exact.l2_total);
+  EXPECT_GE(many.l2_total[1], exact.l2_total);
+  // Nodes that are all alike leave nothing to the draw.
+  for (int h = 1; h < 6; ++h) truth.fields.row(h) = truth.fields.row(0);
+  const auto alike = truth_error_spread(r, truth, MatrixXfR::Zero(6, 2));
+  EXPECT_NEAR(alike.l2_truncation[0], alike.l2_truncation[1], 1e-6);
+  EXPECT_NEAR(alike.l2_total[0], 1, 1e-5);  // the mean alone served: the whole deviation
 }
 
 TEST(Appearance, HeldOutNodesAreDrawnDeterministicallyAndCapped) {

@@ -44,6 +44,9 @@ struct PackageSummary {
   // The clusters' own truncation in that norm over as many of them as there are
   // held-out nodes: what held_out_l2_truncation compares with. NaN in older packages.
   double clusters_l2_truncation_at_held_out_size = 0;
+  // 10th and 90th percentiles of held_out_l2_total, then of held_out_l2_truncation,
+  // over bootstrap resamples of the held-out nodes; empty in older packages.
+  std::vector<double> held_out_l2_spread;
   std::uint64_t client_download_bytes = 0;    // sum of basis parts
   std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
   std::uint64_t full_vertex_frame_bytes = 0;  // streaming vertices instead

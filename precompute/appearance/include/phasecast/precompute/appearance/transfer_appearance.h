@@ -12,6 +12,9 @@
 //   2. fields.row(j) = compute_transfer(mesh of node clusters.representatives[j]) flattened
 //   3. model = fit_appearance_model(q_u, clusters, fields, options)
 
+#include <array>
+#include <cstdint>
+
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/appearance/interpolant.h"
 #include "phasecast/precompute/appearance/kmeans.h"
@@ -53,6 +56,18 @@ struct TruthError {
 // Errors of the reduction's basis with q_a = served (H x r_a) at truth's nodes.
 TruthError truth_error(const TransferReduction& reduction, const HeldOutTruth& truth,
                        const Eigen::Ref<const MatrixXfR>& served);
+
+// How far the relative l2 figures move with the draw of nodes: their 10th and
+// 90th percentiles over `draws` bootstrap resamples of the H nodes (H drawn
+// with replacement, seeded). The spread the figures would show over a fresh
+// draw of as many nodes, without computing a single further transfer.
+struct TruthErrorSpread {
+  std::array<double, 2> l2_total{0, 0};
+  std::array<double, 2> l2_truncation{0, 0};
+};
+TruthErrorSpread truth_error_spread(const TransferReduction& reduction, const HeldOutTruth& truth,
+                                    const Eigen::Ref<const MatrixXfR>& served, int draws = 199,
+                                    std::uint64_t seed = 1);
 
 struct CandidateReport {
   Interpolant interpolant;  // tuned by leave-one-out on the N_a samples
