@@ -8,6 +8,7 @@
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/self_collision.h"
+#include "tet_report.h"
 
 #include <fmt/format.h>
 
@@ -41,6 +42,10 @@ void run_simulate(const SimulateOptions& o) {
   if (scene.model.self_collision) {
     const double close = close_distance(scene);
     fmt::print("{}\n", contact_line(summarize_contact(store.positions, scene.model.surface, close), close));
+  }
+  if (!scene.model.tets.empty()) {
+    fmt::print("{}\n", tet_line(summarize_tets(scene.model, store.positions),
+                                static_cast<int>(scene.model.tets.size())));
   }
   if (!o.obj_dir.empty()) {
     phasecast::core::ProgressBar obj_bar("obj frames");

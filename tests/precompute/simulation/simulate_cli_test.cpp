@@ -2,10 +2,12 @@
 
 #include "phasecast/precompute/sampling/orbit_store.h"
 #include "phasecast/precompute/simulation/obj_mesh.h"
+#include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include <fmt/format.h>
 
@@ -38,6 +40,44 @@ TEST(SimulateCli, WritesOrbitStoreAndObjFrames) {
     intersecting += count_intersecting_pairs(s.positions.row(f).cast<double>().transpose(), triangles) > 0;
   EXPECT_NE(
       r.out.find(fmt::format("contact: {} of 60 frames with intersecting triangle pairs", intersecting)),
+      std::string::npos)
+      << r.out;
+}
+
+// The least det F of a solid's tets, against a second reader: signed volumes
+// from triple products of the stored positions over those of the rest shape.
+TEST(SimulateCli, ReportsHowFarTheSolidsTetsWereSquashed) {
+  const auto dir = testing::scratch_dir("cli_simulate_tets");
+  const auto scene_path = kScenes / "tiny/toy_dashboard.toml";
+  const auto r = run_tool("phasecast-precompute", {"simulate", scene_path.string(), "--schedule",
+                                                   "forward 0.3; back 0.3", "-o", (dir / "run.h5").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Scene scene = load_scene_file(scene_path);
+  const OrbitStore s = read_orbit_store(dir / "run.h5");
+  ASSERT_EQ(s.vertices(), scene.model.vertices());
+  const auto volume6 = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                          const Eigen::Vector3d& d) { return (b - a).cross(c - a).dot(d - a); };
+  double least = 1e9;
+  int inverted_frames = 0;
+  for (int f = 0; f < s.frames(); ++f) {
+    bool inverted = false;
+    for (const auto& t : scene.model.tets) {
+      const auto x = [&](int k) {
+        return Eigen::Vector3d(s.positions.row(f).segment<3>(3 * t.v[k]).cast<double>());
+      };
+      const auto X = [&](int k) { return Eigen::Vector3d(scene.model.rest.segment<3>(3 * t.v[k])); };
+      const double J = volume6(x(0), x(1), x(2), x(3)) / volume6(X(0), X(1), X(2), X(3));
+      least = std::min(least, J);
+      inverted = inverted || J <= 0;
+    }
+    inverted_frames += inverted;
+  }
+  EXPECT_LT(least, 0.99);  // not vacuous: the jolts squash the glued base
+  const auto at = r.out.find("tetrahedra: least J = det F ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_NEAR(std::stod(r.out.substr(at + 28)), least, 1e-3) << r.out;
+  EXPECT_NE(
+      r.out.find(fmt::format("{} of {} frames with an inverted tet (J <= 0)", inverted_frames, s.frames())),
       std::string::npos)
       << r.out;
 }
