@@ -226,7 +226,9 @@ nlohmann::json to_json(const PackageSummary& s) {
                                         {"l2_truncation", number_or_null(s.held_out_l2_truncation)},
                                         {"clusters_l2_truncation",
                                          number_or_null(s.clusters_l2_truncation_at_held_out_size)},
-                                        {"l2_spread", s.held_out_l2_spread}}
+                                        {"l2_spread", s.held_out_l2_spread.empty()
+                                                          ? nlohmann::json()
+                                                          : nlohmann::json(s.held_out_l2_spread)}}
                        : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},

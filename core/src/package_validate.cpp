@@ -390,6 +390,8 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
       c.fail("/appearance/held_out_spread",
              fmt::format("expected finite errors >= 0, got {} at {}", a.held_out_spread[i], i));
   }
+  if (a.held_out_spread.size() > 0 && a.held_out_error.size() == 0)
+    c.fail("/appearance/held_out_spread", "expected /appearance/held_out_error beside it");
   if (a.held_out_spread.size() == 4 &&
       (a.held_out_spread[0] > a.held_out_spread[1] || a.held_out_spread[2] > a.held_out_spread[3]))
     c.fail("/appearance/held_out_spread", "expected each 10th percentile <= its 90th");

@@ -148,6 +148,18 @@ TEST_F(PackageFileRejection, KinematicsColumns) {
       HasSubstr("/palette/kinematics: expected shape D x 11 (axis_x, ..., pulse_tau) = 3x11, got 3x3"));
 }
 
+// The optional appearance datasets' lengths are checked before anything is read.
+TEST_F(PackageFileRejection, OptionalAppearanceFiguresOfTheWrongLength) {
+  core::h5::File::open_write(path_).write("/appearance/transfer_sampling",
+                                          std::vector<std::int32_t>{1024, 2, 7}.data(), {3});
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("/appearance/transfer_sampling: expected length 2 (rays, bounces) = 2, got 3"));
+  remove("/appearance/transfer_sampling");
+  core::h5::File::open_write(path_).write("/appearance/held_out_spread", std::vector<float>(3, 0.1f).data(),
+                                          {3});
+  EXPECT_THAT(package_rejection(path_), HasSubstr("/appearance/held_out_spread: expected length 4"));
+}
+
 TEST_F(PackageFileRejection, AppearanceBasisRows) {
   const auto r_a = static_cast<std::uint64_t>(testing::make_plate_package().rank_a());
   replace<float>("/appearance/U_a", std::vector<float>(4 * r_a, 0.0f), {4, r_a});
@@ -273,6 +285,11 @@ TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {
   p.appearance->held_out_spread[0] = std::nanf("");
   EXPECT_THAT(invalid(p),
               HasSubstr("/appearance/held_out_spread: expected finite errors >= 0, got nan at 0"));
+  p.appearance->held_out_spread[0] = 0.1f;
+  p.appearance->held_out_error.resize(0);
+  p.appearance->held_out_nodes.clear();
+  EXPECT_THAT(invalid(p),
+              HasSubstr("/appearance/held_out_spread: expected /appearance/held_out_error beside it"));
 }
 
 TEST_F(PackageRule, TransferSamplingIsRaysAndBouncesOrUnrecorded) {

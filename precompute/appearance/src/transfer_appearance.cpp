@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <stdexcept>
 
@@ -65,7 +66,7 @@ std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, cons
 }
 
 void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTruth& test,
-                  const TransferReduction& reduction, const TruthErrorSpread& spread) {
+                  const TransferReduction& reduction, const std::optional<TruthErrorSpread>& spread) {
   const Interpolant& f = c.interpolant;
   a.interpolant = interpolant_name(f.kind);
   a.interpolant_parameters = f.kind == InterpolantKind::knn
@@ -85,9 +86,10 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
       static_cast<float>(c.test.interpolation), static_cast<float>(c.test.of_transfer),
       static_cast<float>(c.test.l2_total), static_cast<float>(c.test.l2_truncation),
       static_cast<float>(clusters_l2);
+  if (!spread) return;
   a.held_out_spread.resize(4);
-  a.held_out_spread << static_cast<float>(spread.l2_total[0]), static_cast<float>(spread.l2_total[1]),
-      static_cast<float>(spread.l2_truncation[0]), static_cast<float>(spread.l2_truncation[1]);
+  a.held_out_spread << static_cast<float>(spread->l2_total[0]), static_cast<float>(spread->l2_total[1]),
+      static_cast<float>(spread->l2_truncation[0]), static_cast<float>(spread->l2_truncation[1]);
 }
 
 // Largest eigenvalue of a symmetric positive semi-definite Gram matrix: |X|_2^2 for G = X^T X.
@@ -258,12 +260,12 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
   a.singular_values = reduction.singular_values;
   a.rel_error = reduction.rel_error;
   a.cluster_nodes = clusters.representatives;
-  // How much the reported figures owe to which nodes were drawn.
-  const TruthErrorSpread spread =
-      test.nodes.empty()
-          ? TruthErrorSpread{}
-          : truth_error_spread(reduction, test,
-                               evaluate_interpolant(chosen.interpolant, rows_of(q_u, test.nodes)));
+  // How much the reported figures owe to which nodes were drawn; one node
+  // resamples only to itself, which would read as no spread at all.
+  std::optional<TruthErrorSpread> spread;
+  if (test.nodes.size() >= 2)
+    spread = truth_error_spread(reduction, test,
+                                evaluate_interpolant(chosen.interpolant, rows_of(q_u, test.nodes)));
   store_choice(a, chosen, test, reduction, spread);
   return m;
 }

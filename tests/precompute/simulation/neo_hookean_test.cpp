@@ -5,6 +5,7 @@
 #include "phasecast/precompute/simulation/elastic_forces.h"
 #include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/simulator.h"
+#include "phasecast/precompute/simulation/tet_quality.h"
 #include "run_tool.h"
 
 #include <gtest/gtest.h>
@@ -55,6 +56,27 @@ Matrix12d stiffness(const DeformableModel& m, const Eigen::VectorXd& x) {
   Eigen::SparseMatrix<double> K(12, 12);
   K.setFromTriplets(eval.stiffness.begin(), eval.stiffness.end());
   return Matrix12d(K);
+}
+
+// summarize_tets on frames of known F: det F is the tet's J in every frame.
+TEST(TetQuality, FindsTheLeastDetFAndCountsFramesWithAnInvertedTet) {
+  const DeformableModel m = one_tet();
+  const std::vector<Matrix3d> F = {Matrix3d::Identity(), Eigen::Vector3d(1, 1, -0.5).asDiagonal(),
+                                   Eigen::Vector3d(0.9, 1, 0.8).asDiagonal(),
+                                   Eigen::Vector3d(1, -2, 1).asDiagonal()};
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> frames(4, 12);
+  for (int f = 0; f < 4; ++f)
+    frames.row(f) = deformed(m, F[static_cast<size_t>(f)]).cast<float>().transpose();
+  const TetSummary s = summarize_tets(m, frames);
+  EXPECT_EQ(s.frames, 4);
+  EXPECT_EQ(s.frames_inverted, 2);  // J = -0.5 and -2
+  EXPECT_NEAR(s.least_j, -2, 1e-5);
+  EXPECT_EQ(s.least_frame, 3);
+  EXPECT_EQ(s.least_tet, 0);
+  const TetSummary upright = summarize_tets(m, frames.topRows(1));
+  EXPECT_NEAR(upright.least_j, 1, 1e-5);
+  EXPECT_EQ(upright.frames_inverted, 0);
+  EXPECT_EQ(summarize_tets(m, frames.topRows(0)).least_tet, -1);  // no frame: nothing measured
 }
 
 // Minus the central-difference derivative of the forces: the energy's Hessian.
