@@ -95,8 +95,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   if (a.held_out_spread.size() == 4) {
     fmt::print(
         "appearance: over resampled held-out nodes (10th-90th percentile) relative l2 {:.4f}-{:.4f}, "
-        "truncation "
-        "alone {:.4f}-{:.4f}\n",
+        "truncation alone {:.4f}-{:.4f}\n",
         a.held_out_spread[0], a.held_out_spread[1], a.held_out_spread[2], a.held_out_spread[3]);
   }
 }

@@ -238,6 +238,16 @@ TEST(Appearance, HeldOutSpreadIsTheRelativeL2OfResampledNodes) {
   EXPECT_NEAR(alike.l2_total[0], 1, 1e-5);  // the mean alone served: the whole deviation
 }
 
+TEST(Appearance, HeldOutSpreadRejectsNoDrawsAndMismatchedServedCoordinates) {
+  const MatrixXfR fields = fields_with_spectrum({10, 5, 3}, 6, 48 * 2);
+  const auto r = reduce_transfer(fields, {.rank = 2});
+  HeldOutTruth truth;
+  truth.fields = fields.topRows(3);
+  truth.nodes = {10, 11, 12};
+  EXPECT_THROW(truth_error_spread(r, truth, MatrixXfR::Zero(3, 2), 0), std::invalid_argument);
+  EXPECT_THROW(truth_error_spread(r, truth, MatrixXfR::Zero(2, 2)), std::invalid_argument);
+}
+
 TEST(Appearance, HeldOutNodesAreDrawnDeterministicallyAndCapped) {
   const auto a = draw_held_out_nodes(10, {1, 2, 3}, 4, 9);
   EXPECT_EQ(a, draw_held_out_nodes(10, {1, 2, 3}, 4, 9));
