@@ -59,6 +59,7 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   s.held_out_l2_truncation = l2 ? a.held_out_error[5] : std::nan("");
   s.clusters_l2_truncation_at_held_out_size =
       a.held_out_error.size() >= 7 ? a.held_out_error[6] : std::nan("");
+  s.held_out_l2_floor = a.held_out_error.size() >= 8 ? a.held_out_error[7] : std::nan("");
   s.held_out_l2_spread.assign(a.held_out_spread.data(), a.held_out_spread.data() + a.held_out_spread.size());
 }
 
@@ -173,6 +174,12 @@ std::string to_text(const PackageSummary& s) {
                  ? fmt::format("{} of them, median of random draws", s.held_out_nodes)
                  : fmt::format("all {}: sigma_{{r+1}}/sigma_1", s.clusters),
              100 * s.clusters_l2_truncation_at_held_out_size);
+      if (std::isfinite(s.held_out_l2_floor))
+        line(
+            "             the least any rank-{} model reaches at those nodes (their own "
+            "sigma_{{r+1}}/sigma_1): "
+            "{:.3g}%",
+            s.rank_a, 100 * s.held_out_l2_floor);
     }
   } else {
     line("appearance   none");
@@ -226,6 +233,7 @@ nlohmann::json to_json(const PackageSummary& s) {
                                         {"l2_truncation", number_or_null(s.held_out_l2_truncation)},
                                         {"clusters_l2_truncation",
                                          number_or_null(s.clusters_l2_truncation_at_held_out_size)},
+                                        {"l2_floor", number_or_null(s.held_out_l2_floor)},
                                         {"l2_spread", s.held_out_l2_spread.empty()
                                                           ? nlohmann::json()
                                                           : nlohmann::json(s.held_out_l2_spread)}}

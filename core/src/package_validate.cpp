@@ -194,14 +194,15 @@ void check_appearance_shapes(const ShapeChecker& s) {
     s.checker().fail("/appearance/interpolant_parameters", "expected at most 2 values");
   if (s.has("/appearance/held_out_error")) {
     // 4 figures in packages written before the paper's relErr was added, 6
-    // before the clusters' own figure at the held-out size, 7 since.
+    // before the clusters' own figure at the held-out size, 7 before the
+    // floor of any rank-r_a model at the held-out nodes, 8 since.
     const std::uint64_t figures = s.dim("/appearance/held_out_error", 0);
-    if (figures != 4 && figures != 6 && figures != 7) {
+    if (figures != 4 && figures != 6 && figures != 7 && figures != 8) {
       s.checker().fail(
           "/appearance/held_out_error",
-          fmt::format("expected 7 values (total, truncation, interpolation, of |M|, relative l2 "
-                      "total and truncation, the clusters' relative l2 truncation) or the older 4 "
-                      "or 6, got {}",
+          fmt::format("expected 8 values (total, truncation, interpolation, of |M|, relative l2 "
+                      "total and truncation, the clusters' relative l2 truncation, the least any "
+                      "rank-r_a model reaches) or the older 4, 6 or 7, got {}",
                       figures));
     }
     if (!s.has("/appearance/held_out_nodes"))

@@ -255,28 +255,28 @@ TEST_F(PackageRule, NrbfWidthsPositive) {
 }
 
 // Packages written before the paper's relErr figures hold 4, before the
-// clusters' figure at the held-out size 6; both still load.
-TEST_F(PackageRule, HeldOutErrorHoldsSevenFiguresOrTheOlderFourOrSix) {
+// clusters' figure at the held-out size 6, before the floor 7; all still load.
+TEST_F(PackageRule, HeldOutErrorHoldsEightFiguresOrTheOlderFourSixOrSeven) {
   p.appearance->held_out_nodes = {1, 2};
-  for (int figures : {7, 6, 4}) {
+  for (int figures : {8, 7, 6, 4}) {
     p.appearance->held_out_error = VectorXf::Constant(figures, 0.1f);
     EXPECT_EQ(invalid(p), "") << figures;
   }
-  for (int figures : {5, 8}) {
+  for (int figures : {5, 9}) {
     p.appearance->held_out_error = VectorXf::Constant(figures, 0.1f);
     EXPECT_THAT(
         invalid(p),
         HasSubstr(fmt::format(
-            "/appearance/held_out_error: expected 7 values (total, truncation, interpolation, of |M|, "
-            "relative l2 total and truncation, the clusters' relative l2 truncation) or the older 4 "
-            "or 6, got {}",
+            "/appearance/held_out_error: expected 8 values (total, truncation, interpolation, of |M|, "
+            "relative l2 total and truncation, the clusters' relative l2 truncation, the least any "
+            "rank-r_a model reaches) or the older 4, 6 or 7, got {}",
             figures)));
   }
 }
 
 TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {
   p.appearance->held_out_nodes = {1, 2};
-  p.appearance->held_out_error = VectorXf::Constant(7, 0.1f);
+  p.appearance->held_out_error = VectorXf::Constant(8, 0.1f);
   p.appearance->held_out_spread = (VectorXf(4) << 0.1f, 0.2f, 0.05f, 0.15f).finished();
   EXPECT_EQ(invalid(p), "");
   p.appearance->held_out_spread[0] = 0.3f;

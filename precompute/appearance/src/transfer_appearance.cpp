@@ -81,11 +81,11 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
   // The clusters' own truncation over as many columns as the reported half:
   // the figure its l2 truncation compares with (transfer_reduction.h).
   const double clusters_l2 = cluster_truncation_l2(reduction, static_cast<int>(test.nodes.size()));
-  a.held_out_error.resize(7);
+  a.held_out_error.resize(8);
   a.held_out_error << static_cast<float>(c.test.total), static_cast<float>(c.test.truncation),
       static_cast<float>(c.test.interpolation), static_cast<float>(c.test.of_transfer),
       static_cast<float>(c.test.l2_total), static_cast<float>(c.test.l2_truncation),
-      static_cast<float>(clusters_l2);
+      static_cast<float>(clusters_l2), static_cast<float>(c.test.l2_floor);
   if (!spread) return;
   a.held_out_spread.resize(4);
   a.held_out_spread << static_cast<float>(spread->l2_total[0]), static_cast<float>(spread->l2_total[1]),
@@ -164,6 +164,18 @@ bool l2_figures(const HeldOutGrams& g, const std::vector<Eigen::Index>& pick, do
   return true;
 }
 
+// sigma_{rank+1} / sigma_1 of X from its Gram matrix X^T X: the least relative
+// l2 error of any rank-`rank` approximation of X (Eckart-Young); 0 when X has
+// no more than `rank` columns or does not vary.
+double rank_floor(const Eigen::MatrixXd& gram, int rank) {
+  if (gram.rows() <= rank) return 0;
+  const Eigen::VectorXd lambda = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(gram, Eigen::EigenvaluesOnly)
+                                     .eigenvalues();  // ascending
+  const double first = lambda[lambda.size() - 1];
+  if (!(first > 0)) return 0;
+  return std::sqrt(std::max(0.0, lambda[lambda.size() - 1 - rank]) / first);
+}
+
 double percentile(std::vector<double> v, double p) {
   const auto at = v.begin() + static_cast<std::ptrdiff_t>(std::lround(p * static_cast<double>(v.size() - 1)));
   std::nth_element(v.begin(), at, v.end());
@@ -183,6 +195,7 @@ TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
     std::vector<Eigen::Index> all(static_cast<size_t>(truth.fields.rows()));
     std::iota(all.begin(), all.end(), Eigen::Index{0});
     l2_figures(g, all, e.l2_total, e.l2_truncation);
+    e.l2_floor = rank_floor(g.centred, r.rank());
   }
   if (g.truth2 > 0) e.of_transfer = std::sqrt(g.total2 / g.truth2);
   return e;

@@ -117,7 +117,7 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
             std::string::npos)
       << inspect.out;
   EXPECT_GE(p.appearance->transfer_rays, 1);  // the tiny scene's
-  ASSERT_EQ(p.appearance->held_out_error.size(), 7);
+  ASSERT_EQ(p.appearance->held_out_error.size(), 8);
   EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
   ASSERT_EQ(p.appearance->held_out_spread.size(), 4);
   EXPECT_NE(inspect.out.find(fmt::format("over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%",
@@ -132,6 +132,13 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   EXPECT_NEAR(held_out["l2_total"].get<double>(), p.appearance->held_out_error[4], 1e-6);
   EXPECT_NEAR(held_out["l2_truncation"].get<double>(), p.appearance->held_out_error[5], 1e-6);
   EXPECT_NEAR(held_out["clusters_l2_truncation"].get<double>(), p.appearance->held_out_error[6], 1e-6);
+  EXPECT_NEAR(held_out["l2_floor"].get<double>(), p.appearance->held_out_error[7], 1e-6);
+  EXPECT_LE(p.appearance->held_out_error[7], p.appearance->held_out_error[5] + 1e-6);
+  EXPECT_NE(inspect.out.find(fmt::format("the least any rank-{} model reaches at those nodes (their own "
+                                         "sigma_{{r+1}}/sigma_1): {:.3g}%",
+                                         p.appearance->U_a.cols(), 100 * p.appearance->held_out_error[7])),
+            std::string::npos)
+      << inspect.out;
   EXPECT_NE(inspect.out.find("the clusters' own truncation measured alike (relative l2 over 3 of them"),
             std::string::npos)
       << inspect.out;

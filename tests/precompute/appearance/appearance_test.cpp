@@ -105,7 +105,7 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
                                           {.reduction = {.rank = 3}}, truth);
   const auto& a = model.appearance;
-  ASSERT_EQ(a.held_out_error.size(), 7);
+  ASSERT_EQ(a.held_out_error.size(), 8);
   ASSERT_EQ(a.held_out_nodes.size(), 6u);  // the second half: the first picked the interpolant
   EXPECT_TRUE(std::equal(a.held_out_nodes.begin(), a.held_out_nodes.end(), truth.nodes.begin() + 6));
   // A second reader: plain sums over the served fields.
@@ -130,6 +130,12 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   EXPECT_LE(a.held_out_error[5], a.held_out_error[4] + 1e-6);  // the truncation is part of the error
   // As many reported nodes (6) as clusters: the clusters' own figure is the paper's sigma_4 / sigma_1.
   EXPECT_NEAR(a.held_out_error[6], a.singular_values[3] / a.singular_values[0], 1e-5);
+  // The floor: sigma_4 / sigma_1 of the centred truth itself, which the
+  // clusters' basis can approach but not beat.
+  const Eigen::VectorXd sigma_d = Eigen::JacobiSVD<Eigen::MatrixXd>(D).singularValues();
+  EXPECT_NEAR(a.held_out_error[7], sigma_d[3] / sigma_d[0], 1e-4);
+  EXPECT_GT(a.held_out_error[7], 1e-3);  // six nodes, rank 3: not vacuous
+  EXPECT_LE(a.held_out_error[7], a.held_out_error[5] + 1e-6);
   EXPECT_NEAR(a.held_out_error[3], std::sqrt(err2 / truth2), 1e-5);
   EXPECT_GT(a.held_out_error[0], 1e-3);  // not vacuous: these nodes are not samples
   EXPECT_NEAR(a.held_out_error[0] * a.held_out_error[0],
@@ -184,10 +190,39 @@ TEST(Appearance, HeldOutErrorInThePapersMetricIsTheSpectralRatio) {
   EXPECT_NEAR(exact.l2_total, 0.3, 1e-4);
   EXPECT_NEAR(exact.truncation, std::sqrt((9 + 1 + 0.25) / (100 + 25 + 9 + 1 + 0.25)), 1e-4);
   EXPECT_NEAR(exact.interpolation, 0, 1e-5);
+  // The basis is the nodes' own top two directions: it reaches the floor.
+  EXPECT_NEAR(exact.l2_floor, 0.3, 1e-4);
   // Serving the mean alone leaves all of M - M-bar: the error is the whole of it.
   const auto mean_only = truth_error(r, truth, MatrixXfR::Zero(8, 2));
   EXPECT_NEAR(mean_only.l2_total, 1, 1e-5);
   EXPECT_NEAR(mean_only.l2_truncation, 0.3, 1e-4);
+  EXPECT_NEAR(mean_only.l2_floor, 0.3, 1e-4);  // the floor is the nodes', not the model's
+}
+
+// The floor at held-out nodes is the least l2 truncation of any rank-r_a
+// basis (Eckart-Young): bases from other fields stay above it, the nodes' own
+// reaches it, and no more nodes than r_a leave nothing below which to fall.
+TEST(Appearance, HeldOutFloorIsTheLeastAnyBasisOfThatRankReaches) {
+  const MatrixXfR nodes = fields_with_spectrum({10, 4, 2, 1}, 9, 48 * 4);
+  HeldOutTruth truth;
+  truth.fields = nodes;
+  for (int h = 0; h < 9; ++h) truth.nodes.push_back(100 + h);
+  const auto own = reduce_transfer(nodes, {.rank = 2});
+  const double floor = truth_error(own, truth, own.Q_a.transpose()).l2_floor;
+  EXPECT_NEAR(floor, 0.2, 1e-4);
+  std::mt19937_64 rng(3);
+  for (int trial = 0; trial < 6; ++trial) {
+    // Other fields: the nodes blended and perturbed, so their basis is near but not theirs.
+    MatrixXfR other = nodes;
+    for (Eigen::Index i = 0; i < other.size(); ++i)
+      other.data()[i] += 0.05f * static_cast<float>(static_cast<double>(rng() % 2001) / 1000.0 - 1.0);
+    const auto r = reduce_transfer(other, {.rank = 2});
+    const auto e = truth_error(r, truth, MatrixXfR::Zero(9, 2));  // floor about this model's M-bar
+    EXPECT_GE(e.l2_truncation, e.l2_floor - 1e-6) << trial;
+    EXPECT_GT(e.l2_floor, 0.15) << trial;
+  }
+  const auto two = truth_error(own, {{1, 2}, nodes.topRows(2)}, MatrixXfR::Zero(2, 2));
+  EXPECT_EQ(two.l2_floor, 0);  // two nodes, rank 2: any basis through them fits them
 }
 
 // The spread of the l2 figures over resampled nodes, checked against a dense
