@@ -167,7 +167,7 @@ def held_out_text(r):
     # The clusters' own truncation over as many columns: what the held-out truncation compares with.
     if h.get("clusters_l2_truncation") is not None:
         l2 += f" (clusters alike: {pct(h['clusters_l2_truncation'])})"
-    # The least any rank-r_a model reaches at those nodes: below it no clusters or interpolant go.
+    # The least any rank-r_a model about this M-bar reaches at those nodes: no basis or interpolant goes below.
     if h.get("l2_floor") is not None:
         l2 += f" (floor: {pct(h['l2_floor'])})"
     return f"{h['nodes']} nodes: {l2} / {pct(h['total'])}"

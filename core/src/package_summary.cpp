@@ -176,9 +176,8 @@ std::string to_text(const PackageSummary& s) {
              100 * s.clusters_l2_truncation_at_held_out_size);
       if (std::isfinite(s.held_out_l2_floor))
         line(
-            "             the least any rank-{} model reaches at those nodes (their own "
-            "sigma_{{r+1}}/sigma_1): "
-            "{:.3g}%",
+            "             the least any rank-{} model about M-bar reaches at those nodes "
+            "(sigma_{{r+1}}/sigma_1 of their M - M-bar): {:.3g}%",
             s.rank_a, 100 * s.held_out_l2_floor);
     }
   } else {

@@ -89,7 +89,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
         "appearance: held-out error over {} nodes {:.4f} = truncation {:.4f} + interpolation {:.4f} (in "
         "quadrature, relative to |M - M-bar|); {:.4f} of |M|; relative l2 norm (the paper's relErr) {:.4f}, "
         "truncation alone {:.4f}, the clusters' own truncation over as many of them (all, if fewer) {:.4f}, "
-        "the least any rank-{} model reaches at those nodes {:.4f}\n",
+        "the least any rank-{} model about M-bar reaches at those nodes {:.4f}\n",
         a.held_out_nodes.size(), a.held_out_error[0], a.held_out_error[1], a.held_out_error[2],
         a.held_out_error[3], a.held_out_error[4], a.held_out_error[5], a.held_out_error[6], a.U_a.cols(),
         a.held_out_error[7]);

@@ -134,8 +134,8 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   EXPECT_NEAR(held_out["clusters_l2_truncation"].get<double>(), p.appearance->held_out_error[6], 1e-6);
   EXPECT_NEAR(held_out["l2_floor"].get<double>(), p.appearance->held_out_error[7], 1e-6);
   EXPECT_LE(p.appearance->held_out_error[7], p.appearance->held_out_error[5] + 1e-6);
-  EXPECT_NE(inspect.out.find(fmt::format("the least any rank-{} model reaches at those nodes (their own "
-                                         "sigma_{{r+1}}/sigma_1): {:.3g}%",
+  EXPECT_NE(inspect.out.find(fmt::format("the least any rank-{} model about M-bar reaches at those nodes "
+                                         "(sigma_{{r+1}}/sigma_1 of their M - M-bar): {:.3g}%",
                                          p.appearance->U_a.cols(), 100 * p.appearance->held_out_error[7])),
             std::string::npos)
       << inspect.out;

@@ -160,10 +160,11 @@ struct Appearance {
   // Held-out truth (empty when not measured): the served transfer against
   // the true transfer at state nodes that are not cluster nodes.
   std::vector<std::int32_t> held_out_nodes;  // the nodes the error is measured at
-  VectorXf held_out_error;  // 7: total, truncation, interpolation, total relative to |M|, then total and
+  VectorXf held_out_error;  // 8: total, truncation, interpolation, total relative to |M|, then total and
                             // truncation as relative l2 norms, then the clusters' own truncation as a
-                            // relative l2 norm over as many clusters as there are held-out nodes
-                            // (older packages: the first 4 or 6)
+                            // relative l2 norm over as many clusters as there are held-out nodes, then
+                            // the least relative l2 any rank-r_a model about this M-bar has at the
+                            // held-out nodes (older packages: the first 4, 6 or 7)
   // 4 (empty: not measured): 10th and 90th percentiles of the relative l2 total,
   // then of the truncation, over bootstrap resamples of the held-out nodes.
   VectorXf held_out_spread;

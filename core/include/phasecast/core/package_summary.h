@@ -44,9 +44,9 @@ struct PackageSummary {
   // The clusters' own truncation in that norm over as many of them as there are
   // held-out nodes: what held_out_l2_truncation compares with. NaN in older packages.
   double clusters_l2_truncation_at_held_out_size = 0;
-  // The least relative l2 error any rank-r_a model about M-bar has at the
-  // held-out nodes (their own sigma_{r_a+1} / sigma_1): what no clusters or
-  // interpolant can beat. NaN in older packages.
+  // The least relative l2 error any rank-r_a model about this M-bar has at
+  // the held-out nodes (sigma_{r_a+1} / sigma_1 of their truth less M-bar):
+  // what no basis or interpolant about it can beat. NaN in older packages.
   double held_out_l2_floor = 0;
   // 10th and 90th percentiles of held_out_l2_total, then of held_out_l2_truncation,
   // over bootstrap resamples of the held-out nodes; empty in older packages.

@@ -51,12 +51,13 @@ struct TruthError {
   // exactly sigma_{r_a+1} / sigma_1, the figure the paper reports.
   double l2_total = 0;
   double l2_truncation = 0;
-  // The best any rank-r_a model about M-bar reaches at these nodes, whatever
-  // its basis or interpolant: sigma_{r_a+1} / sigma_1 of the centred truth
-  // M - M-bar itself (Eckart-Young in the spectral norm). l2_truncation minus
-  // this is what the clusters' basis misses of the nodes; this itself is the
-  // scene's, so no choice of clusters brings l2_total below it. 0 when the
-  // nodes are no more than r_a.
+  // The best any rank-r_a model about this M-bar reaches at these nodes,
+  // whatever its basis or interpolant: sigma_{r_a+1} / sigma_1 of the centred
+  // truth M - M-bar itself (Eckart-Young in the spectral norm), a lower bound
+  // of l2_truncation and l2_total. What l2_truncation has above it, this
+  // basis misses. Clusters with another mean have another floor (both the
+  // bound and its denominator move with M-bar). 0 when the nodes are no more
+  // than r_a.
   double l2_floor = 0;
 };
 
