@@ -196,7 +196,7 @@ TEST(Appearance, HeldOutErrorInThePapersMetricIsTheSpectralRatio) {
   const auto mean_only = truth_error(r, truth, MatrixXfR::Zero(8, 2));
   EXPECT_NEAR(mean_only.l2_total, 1, 1e-5);
   EXPECT_NEAR(mean_only.l2_truncation, 0.3, 1e-4);
-  EXPECT_NEAR(mean_only.l2_floor, 0.3, 1e-4);  // the floor is the nodes', not the model's
+  EXPECT_NEAR(mean_only.l2_floor, 0.3, 1e-4);  // the truth's and M-bar's, not the served q_a's
 }
 
 // The floor at held-out nodes is the least l2 truncation of any rank-r_a
