@@ -43,6 +43,9 @@ struct RecordingWriter::Shared {
   std::size_t queued_bytes = 0;  // in the queue or being written
   bool stop = false;             // no more ticks come: drain, fsync, close
   std::string failure;           // set by the writer thread: a write or fsync failed
+  // Set by the tick: the size cap or a full queue ended the recording. Unlike
+  // a failure it does not stop the writer: what was queued is still written.
+  std::string ended;
   int fd = -1;
   std::filesystem::path path;
 
@@ -109,7 +112,7 @@ RecordingWriter::~RecordingWriter() {
   {
     std::lock_guard lock(shared_->mutex);
     shared_->stop = true;
-    failed = !shared_->failure.empty();
+    failed = !shared_->failure.empty() || !shared_->ended.empty();
   }
   shared_->wake.notify_one();
   if (failed) {
@@ -127,21 +130,21 @@ void RecordingWriter::append(const v1::RecordEntry& entry) {
 void RecordingWriter::end_tick() {
   {
     std::lock_guard lock(shared_->mutex);
-    if (shared_->failure.empty() && bytes_ + buffer_.size() > max_bytes_) {
-      shared_->failure = fmt::format("record: '{}' reached its size cap of {} bytes (see --record-max-bytes)",
-                                     path_.string(), max_bytes_);
-    }
-    if (shared_->failure.empty() && shared_->queued_bytes + buffer_.size() > max_queued_bytes) {
-      shared_->failure = fmt::format(
+    const bool going = shared_->failure.empty() && shared_->ended.empty();
+    if (going && bytes_ + buffer_.size() > max_bytes_) {
+      shared_->ended = fmt::format("record: '{}' reached its size cap of {} bytes (see --record-max-bytes)",
+                                   path_.string(), max_bytes_);
+    } else if (going && shared_->queued_bytes + buffer_.size() > max_queued_bytes) {
+      shared_->ended = fmt::format(
           "record: the disk fell behind: {} MiB of '{}' waited to be written (expected at most {} MiB)",
           (shared_->queued_bytes + buffer_.size()) >> 20, path_.string(), max_queued_bytes >> 20);
     }
-    if (!shared_->failure.empty()) {
+    if (!shared_->failure.empty() || !shared_->ended.empty()) {
       // What was queued before is still written; this tick and later ones are not.
       shared_->stop = true;
       shared_->wake.notify_one();
       buffer_.clear();
-      throw RecordingError(shared_->failure);
+      throw RecordingError(shared_->failure.empty() ? shared_->ended : shared_->failure);
     }
     if (!buffer_.empty()) {
       bytes_ += buffer_.size();
@@ -159,7 +162,8 @@ void RecordingWriter::close() {
   if (!writer_.joinable()) return;
   {
     std::lock_guard lock(shared_->mutex);
-    if (shared_->failure.empty() && !buffer_.empty()) {  // entries after the last tick (a destroyed instance)
+    if (shared_->failure.empty() && shared_->ended.empty() &&
+        !buffer_.empty()) {  // entries after the last tick (a destroyed instance)
       bytes_ += buffer_.size();
       shared_->queued_bytes += buffer_.size();
       shared_->queue.push_back(std::move(buffer_));
@@ -170,6 +174,7 @@ void RecordingWriter::close() {
   shared_->wake.notify_one();
   writer_.join();
   if (!shared_->failure.empty()) throw RecordingError(shared_->failure);
+  if (!shared_->ended.empty()) throw RecordingError(shared_->ended);
 }
 
 namespace {

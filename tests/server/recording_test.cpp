@@ -307,10 +307,26 @@ TEST(Recording, SizeCapEndsTheRecordingWithWholeTicks) {
   EXPECT_FALSE(s.recording());
   EXPECT_EQ(s.recording_error(),
             "record: '" + path.string() + "' reached its size cap of 20000 bytes (see --record-max-bytes)");
-  // The writer drains what was queued before the cap on its own thread.
-  for (int i = 0; i < 5000 && std::filesystem::file_size(path) == 0; ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  // The writer drains what was queued before the cap on its own thread. It
+  // is done when no further tick would have fitted: the file is within one
+  // entry of the cap (a partial file is at least one whole tick short).
+  const auto drained = [&] {
+    try {
+      const auto r = core::read_recording_file(path);
+      std::string largest;
+      for (const auto& e : r.entries) {  // one frame a tick: one instance, no impulses
+        if (!e.has_frame()) continue;
+        std::string one;
+        core::append_record(e, one);
+        if (one.size() > largest.size()) largest = one;
+      }
+      return std::filesystem::file_size(path) + largest.size() > 20000u;
+    } catch (const std::exception&) {
+      return false;  // mid-write: a torn last record
+    }
+  };
+  for (int i = 0; i < 2000 && !drained(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_TRUE(drained()) << "ticks queued before the cap were not written";
   EXPECT_LE(std::filesystem::file_size(path), 20000u);
   const auto read = core::read_recording_file(path);
   std::size_t frames = 0;
