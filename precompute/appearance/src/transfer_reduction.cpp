@@ -18,7 +18,8 @@ namespace {
 constexpr Eigen::Index kBlock = 4096;  // columns of A_a^T converted to double at a time
 constexpr double kResolvable = 1e-6;   // sigma below this fraction of sigma_1: Gram round-off
 
-void check(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions& o) {
+void check(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions& o,
+           const Eigen::VectorXd& weights) {
   if (X.rows() == 0 || X.cols() == 0 || X.cols() % core::kTransferPerPoint != 0) {
     throw std::invalid_argument(fmt::format(
         "reduce_transfer: fields must be N_a x 48S with N_a, S >= 1, got {} x {}", X.rows(), X.cols()));
@@ -28,6 +29,15 @@ void check(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions&
   }
   if (o.rank < 0)
     throw std::invalid_argument(fmt::format("reduce_transfer: rank must be >= 0, got {}", o.rank));
+  if (weights.size() != 0 && weights.size() != X.rows()) {
+    throw std::invalid_argument(fmt::format("reduce_transfer: expected {} weights (one per field), got {}",
+                                            X.rows(), weights.size()));
+  }
+  for (Eigen::Index j = 0; j < weights.size(); ++j) {
+    if (!(weights[j] > 0 && std::isfinite(weights[j])))
+      throw std::invalid_argument(
+          fmt::format("reduce_transfer: weight {} is {}, expected a positive finite value", j, weights[j]));
+  }
   for (Eigen::Index j = 0; j < X.rows(); ++j) {
     if (!X.row(j).allFinite()) {
       throw std::invalid_argument(fmt::format("reduce_transfer: field {} has a non-finite value", j));
@@ -50,18 +60,26 @@ void for_blocks(Eigen::Index n, Body body) {
 
 }  // namespace
 
-TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions& o) {
-  check(X, o);
+TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions& o,
+                                  const Eigen::VectorXd& weights) {
+  check(X, o, weights);
   const Eigen::Index Na = X.rows(), n = X.cols();
+  const Eigen::VectorXd W = weights.size() ? weights : Eigen::VectorXd::Ones(Na);
+  const Eigen::VectorXd root_w = W.cwiseSqrt();
+  const Eigen::VectorXd share = W / W.sum();  // M-bar = sum_j share_j M^j
   Eigen::VectorXd mean(n);
   for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
-    mean.segment(b, w) = X.middleCols(b, w).cast<double>().colwise().mean().transpose();
+    const Eigen::MatrixXd block = X.middleCols(b, w).cast<double>();
+    // Equal weights keep the plain mean, so unweighted packages stay bit for bit.
+    mean.segment(b, w) = weights.size() ? Eigen::VectorXd(block.transpose() * share)
+                                        : Eigen::VectorXd(block.colwise().mean().transpose());
   });
 
-  // A_a^T A_a = sum over column blocks; its eigenpairs give sigma^2 and V.
+  // (A_a W^1/2)^T A_a W^1/2 = sum over column blocks; its eigenpairs give sigma^2 and V.
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(Na, Na);
   for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
-    const Eigen::MatrixXd B = centred_block(X, mean, b, w);
+    Eigen::MatrixXd B = centred_block(X, mean, b, w);
+    if (weights.size()) B = root_w.asDiagonal() * B;
     gram.noalias() += B * B.transpose();
   });
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
@@ -86,12 +104,13 @@ TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& X, const Tr
   }
   const int rank = std::min(o.rank > 0 ? o.rank : by_eps, resolvable);
 
-  // U_a = A_a V Sigma^-1, then one Cholesky QR step against Gram round-off.
+  // U_a = A_a W^1/2 V Sigma^-1, then one Cholesky QR step against Gram round-off.
   Eigen::MatrixXd C = V.leftCols(rank);
   for (int i = 0; i < rank; ++i) {
     Eigen::Index big = 0;
     C.col(i).cwiseAbs().maxCoeff(&big);
     if (C(big, i) < 0) C.col(i) = -C.col(i);  // sign convention: largest entry of v_i positive
+    if (weights.size()) C.col(i) = C.col(i).cwiseProduct(root_w);
     C.col(i) /= sigma[i];
   }
   Eigen::MatrixXd U(n, rank);
@@ -110,6 +129,7 @@ TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& X, const Tr
   r.U_a = U.cast<float>();
   r.Q_a = Q.cast<float>();
   r.right_vectors = V;
+  r.weights = W;
   return r;
 }
 
@@ -119,15 +139,17 @@ double cluster_truncation_l2(const TransferReduction& r, const std::vector<int>&
     throw std::invalid_argument(fmt::format(
         "cluster_truncation_l2: expected a non-empty subset of the {} clusters and their right vectors", Na));
   }
-  // Rows S of V Sigma: the coordinates of the chosen columns of A_a.
+  // Rows S of W^-1/2 V Sigma: the coordinates of the chosen columns of A_a.
   Eigen::MatrixXd coordinates(static_cast<Eigen::Index>(subset.size()), Na);
   for (size_t i = 0; i < subset.size(); ++i) {
     if (subset[i] < 0 || subset[i] >= Na) {
       throw std::invalid_argument(
           fmt::format("cluster_truncation_l2: cluster {} is not in 0..{}", subset[i], Na - 1));
     }
+    const double w = r.weights.size() == Na ? r.weights[subset[i]] : 1.0;
     coordinates.row(static_cast<Eigen::Index>(i)) =
-        r.right_vectors.row(subset[i]).cwiseProduct(r.singular_values.cast<double>().transpose());
+        r.right_vectors.row(subset[i]).cwiseProduct(r.singular_values.cast<double>().transpose()) /
+        std::sqrt(w);
   }
   const auto largest = [](const Eigen::MatrixXd& X) {  // |X|_2^2 from the smaller Gram matrix
     const Eigen::MatrixXd g =

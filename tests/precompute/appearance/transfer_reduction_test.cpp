@@ -212,9 +212,50 @@ TEST(ClusterTruncation, PredictsAHeldOutFigureOfTheSameSize) {
   EXPECT_NEAR(many, sigma_ratio, 0.35 * sigma_ratio) << "over as many columns, sigma_{r+1} / sigma_1";
 }
 
-std::string failure_of(const MatrixXfR& X, TransferReductionOptions o) {
+// Weighting a field by an integer count is repeating it that many times: the
+// weighted reduction matches the plain one of the repeated fields (the
+// weights' scale only scales sigma), and the clusters' truncation measures the
+// unweighted fields, read by a dense SVD.
+TEST(WeightedTransferReduction, IsTheReductionOfRepeatedFields) {
+  const MatrixXfR X = flat_spectrum_fields(10, 6);
+  const std::vector<int> counts{1, 7, 2, 1, 3, 1, 1, 5, 1, 2};
+  const int total = std::accumulate(counts.begin(), counts.end(), 0);
+  MatrixXfR repeated(total, X.cols());
+  Eigen::VectorXd weights(10);
+  for (int j = 0, row = 0; j < 10; ++j) {
+    weights[j] = counts[static_cast<size_t>(j)] * 10.0 / total;  // mean 1
+    for (int k = 0; k < counts[static_cast<size_t>(j)]; ++k) repeated.row(row++) = X.row(j);
+  }
+  const auto w = reduce_transfer(X, {.eps_a = 0, .rank = 4}, weights);
+  const auto plain = reduce_transfer(repeated, {.eps_a = 0, .rank = 4});
+  EXPECT_LT((w.mean_transfer - plain.mean_transfer).norm(), 1e-5f * plain.mean_transfer.norm());
+  EXPECT_GT((w.mean_transfer.transpose() - X.colwise().mean()).norm(), 0.1f * w.mean_transfer.norm())
+      << "not vacuous: the weights move M-bar";
+  const double scale = std::sqrt(10.0 / total);
+  for (int i = 0; i < 10; ++i)
+    EXPECT_NEAR(w.singular_values[i], scale * plain.singular_values[i], 1e-5 * w.singular_values[0]) << i;
+  const Eigen::MatrixXd Pw = (w.U_a * w.U_a.transpose()).cast<double>();
+  const Eigen::MatrixXd Pp = (plain.U_a * plain.U_a.transpose()).cast<double>();
+  EXPECT_LT((Pw - Pp).norm(), 1e-4) << "the same subspace";
+  // Q_a: each unweighted field's coordinates, as the interpolant needs them.
+  const Eigen::MatrixXd A = (X.rowwise() - w.mean_transfer.transpose()).transpose().cast<double>();
+  EXPECT_LT((w.Q_a.cast<double>() - w.U_a.cast<double>().transpose() * A).norm(), 1e-4 * A.norm());
+  for (const std::vector<int>& subset : {std::vector<int>{1, 4, 7}, std::vector<int>{0, 2, 3, 5, 6, 8, 9},
+                                         std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9}}) {
+    Eigen::MatrixXd columns(A.rows(), static_cast<Eigen::Index>(subset.size()));
+    for (size_t i = 0; i < subset.size(); ++i) columns.col(static_cast<Eigen::Index>(i)) = A.col(subset[i]);
+    EXPECT_NEAR(precompute::cluster_truncation_l2(w, subset), truncation_l2(w, columns), 1e-5);
+  }
+  // Equal weights are the paper's A_a, bit for bit.
+  const auto ones = reduce_transfer(X, {.eps_a = 0, .rank = 4}, Eigen::VectorXd::Ones(10));
+  const auto none = reduce_transfer(X, {.eps_a = 0, .rank = 4});
+  EXPECT_LT((ones.mean_transfer - none.mean_transfer).norm(), 1e-6f * none.mean_transfer.norm());
+  EXPECT_LT((ones.U_a - none.U_a).norm(), 1e-5f);
+}
+
+std::string failure_of(const MatrixXfR& X, TransferReductionOptions o, const Eigen::VectorXd& weights = {}) {
   try {
-    reduce_transfer(X, o);
+    reduce_transfer(X, o, weights);
   } catch (const std::invalid_argument& e) {
     return e.what();
   }
@@ -231,6 +272,13 @@ TEST(TransferReductionRejects, BadInput) {
   MatrixXfR X = MatrixXfR::Zero(3, 48);
   X(1, 7) = INFINITY;
   EXPECT_EQ(failure_of(X, {}), "reduce_transfer: field 1 has a non-finite value");
+  const MatrixXfR Y = MatrixXfR::Zero(3, 48);
+  EXPECT_EQ(failure_of(Y, {}, Eigen::VectorXd::Ones(2)),
+            "reduce_transfer: expected 3 weights (one per field), got 2");
+  EXPECT_EQ(failure_of(Y, {}, Eigen::Vector3d(1, 0, 2)),
+            "reduce_transfer: weight 1 is 0, expected a positive finite value");
+  EXPECT_EQ(failure_of(Y, {}, Eigen::Vector3d(1, 1, NAN)),
+            "reduce_transfer: weight 2 is nan, expected a positive finite value");
 }
 
 }  // namespace

@@ -20,7 +20,8 @@ struct TransferReduction {
   MatrixXfR Q_a;                  // r_a x N_a: column j is q_a^j = U_a^T (M^j - M-bar)
   VectorXf singular_values;       // all N_a singular values of A_a, decreasing
   VectorXf rel_error;             // N_a: relative Frobenius error of the rank-(i+1) model (Fig. 12, red)
-  Eigen::MatrixXd right_vectors;  // N_a x N_a: V of A_a = U Sigma V^T, column i with sigma_i
+  Eigen::MatrixXd right_vectors;  // N_a x N_a: V of A_a W^1/2 = U Sigma V^T, column i with sigma_i
+  Eigen::VectorXd weights;        // N_a: W, the weight of each field (all 1: equal)
 
   int rank() const { return static_cast<int>(U_a.cols()); }
 };
@@ -29,21 +30,29 @@ struct TransferReduction {
 //   @param[in] fields   #N_a by 48S: row j is the field M^j of cluster node j
 //                       (the transpose of the paper's A_a before centring)
 //   @param[in] options  eps_a or a fixed rank
+//   @param[in] weights  #N_a positive weights W of the fields, mean 1 (empty:
+//                       all 1, the paper's A_a). M-bar is their weighted mean
+//                       and U_a, Sigma the SVD of A_a W^1/2, so a field that
+//                       stands for more state nodes pulls the basis harder;
+//                       Q_a stays the projection of each unweighted field.
 //   @return             M-bar, U_a, Q_a, the singular values and the error curve
 // Method: eigen-decomposition of the N_a x N_a Gram matrix (double), then
 // U_a = A_a V Sigma^-1 re-orthonormalised by a Cholesky QR step; this needs
 // only O(48 S N_a) memory. Singular values below 1e-6 sigma_1 are not
 // resolved this way and are never kept. All fields identical: r_a = 0.
 // Throws std::invalid_argument for an empty input, a row length that is not a
-// multiple of 48, non-finite values, eps_a outside [0, 1] or a negative rank.
+// multiple of 48, non-finite values, eps_a outside [0, 1], a negative rank or
+// weights that are not N_a positive finite values.
 TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& fields,
-                                  const TransferReductionOptions& options);
+                                  const TransferReductionOptions& options,
+                                  const Eigen::VectorXd& weights = {});
 
 // The clusters' own truncation error as a held-out error over the same
 // columns is measured: |(I - U_a U_a^T) A_S|_2 / |A_S|_2, A_S the centred
-// fields of the clusters in `subset` (indices into 0..N_a-1). Over all N_a it
-// is sigma_{r_a+1} / sigma_1, the paper's relErr (§2.3.1). Needs no field:
-// A_S = U Sigma V_S^T, so both norms follow from Sigma and the rows S of V.
+// fields of the clusters in `subset` (indices into 0..N_a-1). Over all N_a
+// with equal weights it is sigma_{r_a+1} / sigma_1, the paper's relErr
+// (§2.3.1). Needs no field: A_S = U Sigma V_S^T W_S^-1/2, so both norms
+// follow from Sigma, the weights and the rows S of V.
 double cluster_truncation_l2(const TransferReduction& reduction, const std::vector<int>& subset);
 
 // The same, as the median over `draws` random subsets of `columns` clusters
