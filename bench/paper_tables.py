@@ -122,6 +122,7 @@ def measure(scene, args):
         "peak_mib_reduce": mem_reduce, **stages,
         "N_a": s.get("N_a", 0), "r_a": s["r_a"], "rel_error_a": s["rel_error_a"], "N": s["N"], "n_irf": s["n_irf"],
         "sigma_ratio_a": s.get("sigma_ratio_a"), "held_out": s.get("held_out"),
+        "transfer_weighting": s.get("transfer_weighting", "equal"),
         "dynamics_s": t_dyn, "transfer_s": t_transfer,
         "fps_defo": render_fps(args.bin, defo, args.size, irfs),
         "fps_defo_transfer": render_fps(args.bin, full, args.size, irfs),
@@ -170,6 +171,10 @@ def held_out_text(r):
     # The least any rank-r_a model about this M-bar reaches at those nodes: no basis or interpolant goes below.
     if h.get("l2_floor") is not None:
         l2 += f" (floor: {pct(h['l2_floor'])})"
+    # Against the nodes' own variation, which no model moves, and the least any rank-r_a model about their mean has.
+    if h.get("l2_of_variation") is not None:
+        l2 += (f"; of their own variation {pct(h['l2_of_variation'])} (floor {pct(h['l2_floor_of_variation'])}, "
+               f"{r.get('transfer_weighting', 'equal')} weights)")
     return f"{h['nodes']} nodes: {l2} / {pct(h['total'])}"
 
 

@@ -96,7 +96,7 @@ constexpr DatasetSpec kAppearanceOptional[] = {
     {"/appearance/interpolant", Dtype::string, 1},  {"/appearance/interpolant_parameters", Dtype::f32, 1},
     {"/appearance/held_out_nodes", Dtype::i32, 1},  {"/appearance/held_out_error", Dtype::f32, 1},
     {"/appearance/paper_rank", Dtype::i32, 1},      {"/appearance/transfer_sampling", Dtype::i32, 1},
-    {"/appearance/held_out_spread", Dtype::f32, 1},
+    {"/appearance/held_out_spread", Dtype::f32, 1}, {"/appearance/transfer_weighting", Dtype::string, 1},
 };
 
 // The extents the file declares, each checked against what the file stores,
@@ -157,6 +157,8 @@ Appearance read_appearance(const Reader& r) {
   if (exists("/appearance/interpolant")) a.interpolant = r.strings("/appearance/interpolant").at(0);
   if (exists("/appearance/interpolant_parameters"))
     a.interpolant_parameters = r.column<float>("/appearance/interpolant_parameters");
+  if (exists("/appearance/transfer_weighting"))
+    a.transfer_weighting = r.strings("/appearance/transfer_weighting").at(0);
   if (exists("/appearance/held_out_nodes"))
     a.held_out_nodes = r.vector<std::int32_t>("/appearance/held_out_nodes");
   if (exists("/appearance/held_out_error")) a.held_out_error = r.column<float>("/appearance/held_out_error");
@@ -265,6 +267,7 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
     f.write("/appearance/nrbf_regularization", VectorXf(VectorXf::Constant(1, ap->nrbf_regularization)));
     f.write_strings("/appearance/interpolant", {ap->interpolant});
     f.write("/appearance/interpolant_parameters", ap->interpolant_parameters);
+    f.write_strings("/appearance/transfer_weighting", {ap->transfer_weighting});
     if (ap->held_out_error.size() > 0) {
       f.write("/appearance/held_out_nodes", ap->held_out_nodes);
       f.write("/appearance/held_out_error", ap->held_out_error);

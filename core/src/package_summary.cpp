@@ -45,6 +45,7 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   } else {
     s.interpolant = a.interpolant;
   }
+  s.transfer_weighting = a.transfer_weighting;
   s.transfer_rays = a.transfer_rays;
   s.transfer_bounces = a.transfer_bounces;
   if (a.held_out_error.size() >= 4) {
@@ -60,6 +61,10 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   s.clusters_l2_truncation_at_held_out_size =
       a.held_out_error.size() >= 7 ? a.held_out_error[6] : std::nan("");
   s.held_out_l2_floor = a.held_out_error.size() >= 8 ? a.held_out_error[7] : std::nan("");
+  const bool of_variation = a.held_out_error.size() >= 11;
+  s.held_out_of_variation = of_variation ? a.held_out_error[8] : std::nan("");
+  s.held_out_l2_of_variation = of_variation ? a.held_out_error[9] : std::nan("");
+  s.held_out_l2_floor_of_variation = of_variation ? a.held_out_error[10] : std::nan("");
   s.held_out_l2_spread.assign(a.held_out_spread.data(), a.held_out_spread.data() + a.held_out_spread.size());
 }
 
@@ -146,7 +151,7 @@ std::string to_text(const PackageSummary& s) {
     if (std::isfinite(s.error_a_at_paper_rank))
       line("             at the paper's r_a = {}: sigma_{{r+1}}/sigma_1 = {}, Frobenius {:.3g}%",
            s.paper_rank_a, percent_or_na(s.sigma_ratio_a_at_paper_rank), 100 * s.error_a_at_paper_rank);
-    line("             interpolant {}", s.interpolant);
+    line("             interpolant {}, transfer fields weighted {}", s.interpolant, s.transfer_weighting);
     if (s.transfer_rays > 0)
       line("             transfer sampled with {} rays, {} interreflection bounces", s.transfer_rays,
            s.transfer_bounces);
@@ -179,6 +184,12 @@ std::string to_text(const PackageSummary& s) {
             "             the least any rank-{} model about M-bar reaches at those nodes "
             "(sigma_{{r+1}}/sigma_1 of their M - M-bar): {:.3g}%",
             s.rank_a, 100 * s.held_out_l2_floor);
+      if (std::isfinite(s.held_out_of_variation))
+        line(
+            "             of the nodes' own variation |M - their mean| (moves with no model): error {:.3g}%, "
+            "relative l2 {:.3g}%; the least any rank-{} model about their mean reaches there {:.3g}%",
+            100 * s.held_out_of_variation, 100 * s.held_out_l2_of_variation, s.rank_a,
+            100 * s.held_out_l2_floor_of_variation);
     }
   } else {
     line("appearance   none");
@@ -220,23 +231,28 @@ nlohmann::json to_json(const PackageSummary& s) {
       {"sigma_ratio_a_at_paper_rank", number_or_null(s.sigma_ratio_a_at_paper_rank)},
       {"singular_values_a", s.singular_values_a},
       {"interpolant", s.interpolant},
+      {"transfer_weighting", s.transfer_weighting},
       {"transfer_rays", s.transfer_rays > 0 ? nlohmann::json(s.transfer_rays) : nlohmann::json()},
       {"transfer_bounces", s.transfer_rays > 0 ? nlohmann::json(s.transfer_bounces) : nlohmann::json()},
-      {"held_out", s.held_out_nodes > 0
-                       ? nlohmann::json{{"nodes", s.held_out_nodes},
-                                        {"total", s.held_out_total},
-                                        {"truncation", s.held_out_truncation},
-                                        {"interpolation", s.held_out_interpolation},
-                                        {"of_transfer", s.held_out_of_transfer},
-                                        {"l2_total", number_or_null(s.held_out_l2_total)},
-                                        {"l2_truncation", number_or_null(s.held_out_l2_truncation)},
-                                        {"clusters_l2_truncation",
-                                         number_or_null(s.clusters_l2_truncation_at_held_out_size)},
-                                        {"l2_floor", number_or_null(s.held_out_l2_floor)},
-                                        {"l2_spread", s.held_out_l2_spread.empty()
-                                                          ? nlohmann::json()
-                                                          : nlohmann::json(s.held_out_l2_spread)}}
-                       : nlohmann::json()},
+      {"held_out",
+       s.held_out_nodes > 0
+           ? nlohmann::json{{"nodes", s.held_out_nodes},
+                            {"total", s.held_out_total},
+                            {"truncation", s.held_out_truncation},
+                            {"interpolation", s.held_out_interpolation},
+                            {"of_transfer", s.held_out_of_transfer},
+                            {"l2_total", number_or_null(s.held_out_l2_total)},
+                            {"l2_truncation", number_or_null(s.held_out_l2_truncation)},
+                            {"clusters_l2_truncation",
+                             number_or_null(s.clusters_l2_truncation_at_held_out_size)},
+                            {"l2_floor", number_or_null(s.held_out_l2_floor)},
+                            {"of_variation", number_or_null(s.held_out_of_variation)},
+                            {"l2_of_variation", number_or_null(s.held_out_l2_of_variation)},
+                            {"l2_floor_of_variation", number_or_null(s.held_out_l2_floor_of_variation)},
+                            {"l2_spread", s.held_out_l2_spread.empty()
+                                              ? nlohmann::json()
+                                              : nlohmann::json(s.held_out_l2_spread)}}
+           : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},
       {"full_vertex_frame_bytes", s.full_vertex_frame_bytes},

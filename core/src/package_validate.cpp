@@ -190,19 +190,23 @@ void check_appearance_shapes(const ShapeChecker& s) {
   s.length("/appearance/nrbf_widths", Na, "N_a");
   s.length("/appearance/nrbf_regularization", 1, "1 (mu)");
   if (s.has("/appearance/interpolant")) s.length("/appearance/interpolant", 1, "1 (the interpolant's name)");
+  if (s.has("/appearance/transfer_weighting"))
+    s.length("/appearance/transfer_weighting", 1, "1 (the weighting's name)");
   if (s.has("/appearance/interpolant_parameters") && s.dim("/appearance/interpolant_parameters", 0) > 2)
     s.checker().fail("/appearance/interpolant_parameters", "expected at most 2 values");
   if (s.has("/appearance/held_out_error")) {
     // 4 figures in packages written before the paper's relErr was added, 6
     // before the clusters' own figure at the held-out size, 7 before the
-    // floor of any rank-r_a model at the held-out nodes, 8 since.
+    // floor of any rank-r_a model at the held-out nodes, 8 before the
+    // figures relative to the nodes' own variation, 11 since.
     const std::uint64_t figures = s.dim("/appearance/held_out_error", 0);
-    if (figures != 4 && figures != 6 && figures != 7 && figures != 8) {
+    if (figures != 4 && figures != 6 && figures != 7 && figures != 8 && figures != 11) {
       s.checker().fail(
           "/appearance/held_out_error",
-          fmt::format("expected 8 values (total, truncation, interpolation, of |M|, relative l2 "
+          fmt::format("expected 11 values (total, truncation, interpolation, of |M|, relative l2 "
                       "total and truncation, the clusters' relative l2 truncation, the least any "
-                      "rank-r_a model reaches) or the older 4, 6 or 7, got {}",
+                      "rank-r_a model reaches, the total of the nodes' variation in Frobenius and "
+                      "l2 and its least) or the older 4, 6, 7 or 8, got {}",
                       figures));
     }
     if (!s.has("/appearance/held_out_nodes"))
@@ -240,6 +244,7 @@ void add_appearance_shapes(const Appearance& a, PackageShapes& s) {
   s["/appearance/nrbf_regularization"] = {1};
   s["/appearance/interpolant"] = {1};
   s["/appearance/interpolant_parameters"] = extent(a.interpolant_parameters);
+  s["/appearance/transfer_weighting"] = {1};
   if (a.held_out_error.size() > 0) {
     s["/appearance/held_out_nodes"] = extent(a.held_out_nodes);
     s["/appearance/held_out_error"] = extent(a.held_out_error);
@@ -379,6 +384,9 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
   if (a.interpolant != "nrbf" && a.interpolant != "knn")
     c.fail("/appearance/interpolant", fmt::format("expected \"nrbf\" or \"knn\", got \"{}\"", a.interpolant));
   c.finite("/appearance/interpolant_parameters", a.interpolant_parameters);
+  if (a.transfer_weighting != "equal" && a.transfer_weighting != "cluster size")
+    c.fail("/appearance/transfer_weighting",
+           fmt::format("expected \"equal\" or \"cluster size\", got \"{}\"", a.transfer_weighting));
   c.index_range("/appearance/held_out_nodes", a.held_out_nodes.data(), a.held_out_nodes.size(), 0, N,
                 "state nodes");
   for (Eigen::Index i = 0; i < a.held_out_error.size(); ++i) {

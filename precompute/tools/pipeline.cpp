@@ -67,9 +67,9 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   const auto r = p.rank_a();
   const bool has_next = r > 0 && r < a.singular_values.size() && a.singular_values[0] > 0;
   fmt::print(
-      "appearance: N_a = {} clusters, {} scene points, r_a = {} (truncation error {:.4f} on the clusters; "
-      "sigma_{{r+1}}/sigma_1 {}, the paper's relErr)\n",
-      a.clusters(), p.mesh.points(), r, r > 0 ? a.rel_error[r - 1] : 0.0f,
+      "appearance: N_a = {} clusters, {} scene points, r_a = {} (fields weighted {}; truncation error {:.4f} "
+      "on the clusters; sigma_{{r+1}}/sigma_1 {}, the paper's relErr)\n",
+      a.clusters(), p.mesh.points(), r, a.transfer_weighting, r > 0 ? a.rel_error[r - 1] : 0.0f,
       has_next ? fmt::format("{:.4f}", a.singular_values[r] / a.singular_values[0]) : std::string("n/a"));
   for (const auto& c : report.candidates) {
     const auto& f = c.interpolant;
@@ -77,14 +77,17 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
         f.kind == precompute::InterpolantKind::knn
             ? fmt::format("k = {}", f.neighbours)
             : fmt::format("width scale {}, lambda {:g}", f.width_scale, f.nrbf.regularization);
-    fmt::print("  interpolant {} ({}): leave-one-out {:.4f}", precompute::interpolant_name(f.kind), params,
+    fmt::print("  {} weights, interpolant {} ({}): leave-one-out {:.4f}",
+               precompute::weighting_name(c.weighting), precompute::interpolant_name(f.kind), params,
                f.leave_one_out);
     if (!a.held_out_nodes.empty())
-      fmt::print(", held-out error {:.4f} (picking half) / {:.4f} (reported half)", c.selection.total,
-                 c.test.total);
+      fmt::print(
+          ", held-out error of |M| {:.4f} (picking half) / {:.4f} (reported half), of the nodes' own "
+          "variation {:.4f} / {:.4f}",
+          c.selection.of_transfer, c.test.of_transfer, c.selection.of_variation, c.test.of_variation);
     fmt::print("{}\n", &c == &report.candidates.front() ? "  <- kept" : "");
   }
-  if (a.held_out_error.size() == 8) {
+  if (a.held_out_error.size() == 11) {
     fmt::print(
         "appearance: held-out error over {} nodes {:.4f} = truncation {:.4f} + interpolation {:.4f} (in "
         "quadrature, relative to |M - M-bar|); {:.4f} of |M|; relative l2 norm (the paper's relErr) {:.4f}, "
@@ -93,6 +96,10 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
         a.held_out_nodes.size(), a.held_out_error[0], a.held_out_error[1], a.held_out_error[2],
         a.held_out_error[3], a.held_out_error[4], a.held_out_error[5], a.held_out_error[6], a.U_a.cols(),
         a.held_out_error[7]);
+    fmt::print(
+        "appearance: relative to the nodes' own variation |M - their mean| (no model moves it): {:.4f}, "
+        "relative l2 {:.4f}; the least any rank-{} model about their mean reaches there {:.4f}\n",
+        a.held_out_error[8], a.held_out_error[9], a.U_a.cols(), a.held_out_error[10]);
   }
   if (a.held_out_spread.size() == 4) {
     fmt::print(
@@ -154,6 +161,11 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
   cmd->add_option("--interpolant", a.interpolant,
                   "q_a over q_u: best (lower held-out error), nrbf (§4.3) or knn (docs/transfer.md)")
       ->capture_default_str();
+  cmd->add_option("--transfer-weighting", a.weighting,
+                  "weights of the cluster fields in M-bar and the SVD (§4.2): best (lower held-out "
+                  "error; equal without held-out nodes), equal (the paper's) or cluster-size (each "
+                  "cluster's share of the state nodes)")
+      ->capture_default_str();
   cmd->add_option("--cluster-seed", s.seed, "seed of the k-means++ clustering")->capture_default_str();
   cmd->add_option("--rays", a.rays,
                   fmt::format("transfer directions of the fixed sphere set (default: the scene's "
@@ -190,6 +202,16 @@ precompute::AppearanceStageOptions appearance_stage_options(const precompute::Sc
     s.appearance.interpolant = precompute::InterpolantChoice::knn;
   } else {
     throw std::invalid_argument(fmt::format("--interpolant '{}': expected best, nrbf or knn", a.interpolant));
+  }
+  if (a.weighting == "best") {
+    s.appearance.weighting = precompute::WeightingChoice::best;
+  } else if (a.weighting == "equal") {
+    s.appearance.weighting = precompute::WeightingChoice::equal;
+  } else if (a.weighting == "cluster-size") {
+    s.appearance.weighting = precompute::WeightingChoice::cluster_size;
+  } else {
+    throw std::invalid_argument(
+        fmt::format("--transfer-weighting '{}': expected best, equal or cluster-size", a.weighting));
   }
   s.paper_rank = d.paper_rank_a;
   s.transfer.point_albedo = precompute::scene_point_albedo(scene);

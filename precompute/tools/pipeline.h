@@ -29,7 +29,8 @@ struct AppearanceArgs {
   std::optional<int> clusters, held_out, rays;
   std::optional<double> eps_a;
   std::string interpolant = "best";
-  bool skip = false;  // --no-appearance: the package has no /appearance (r_a = 0)
+  std::string weighting = "best";  // --transfer-weighting
+  bool skip = false;               // --no-appearance: the package has no /appearance (r_a = 0)
 };
 
 // The stage's options for this scene: what the command line gave, else the

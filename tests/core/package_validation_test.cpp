@@ -255,28 +255,41 @@ TEST_F(PackageRule, NrbfWidthsPositive) {
 }
 
 // Packages written before the paper's relErr figures hold 4, before the
-// clusters' figure at the held-out size 6, before the floor 7; all still load.
-TEST_F(PackageRule, HeldOutErrorHoldsEightFiguresOrTheOlderFourSixOrSeven) {
+// clusters' figure at the held-out size 6, before the floor 7, before the
+// figures of the nodes' own variation 8; all still load.
+TEST_F(PackageRule, HeldOutErrorHoldsElevenFiguresOrTheOlderFourSixSevenOrEight) {
   p.appearance->held_out_nodes = {1, 2};
-  for (int figures : {8, 7, 6, 4}) {
+  for (int figures : {11, 8, 7, 6, 4}) {
     p.appearance->held_out_error = VectorXf::Constant(figures, 0.1f);
     EXPECT_EQ(invalid(p), "") << figures;
   }
-  for (int figures : {5, 9}) {
+  for (int figures : {5, 9, 12}) {
     p.appearance->held_out_error = VectorXf::Constant(figures, 0.1f);
     EXPECT_THAT(
         invalid(p),
         HasSubstr(fmt::format(
-            "/appearance/held_out_error: expected 8 values (total, truncation, interpolation, of |M|, "
+            "/appearance/held_out_error: expected 11 values (total, truncation, interpolation, of |M|, "
             "relative l2 total and truncation, the clusters' relative l2 truncation, the least any "
-            "rank-r_a model reaches) or the older 4, 6 or 7, got {}",
+            "rank-r_a model reaches, the total of the nodes' variation in Frobenius and l2 and its "
+            "least) or the older 4, 6, 7 or 8, got {}",
             figures)));
   }
 }
 
+// "equal" is also what a package written before the choice reads as.
+TEST_F(PackageRule, TransferWeightingIsEqualOrClusterSize) {
+  for (const char* weighting : {"equal", "cluster size"}) {
+    p.appearance->transfer_weighting = weighting;
+    EXPECT_EQ(invalid(p), "") << weighting;
+  }
+  p.appearance->transfer_weighting = "cluster-size";
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/transfer_weighting: expected \"equal\" or \"cluster size\", "
+                                    "got \"cluster-size\""));
+}
+
 TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {
   p.appearance->held_out_nodes = {1, 2};
-  p.appearance->held_out_error = VectorXf::Constant(8, 0.1f);
+  p.appearance->held_out_error = VectorXf::Constant(11, 0.1f);
   p.appearance->held_out_spread = (VectorXf(4) << 0.1f, 0.2f, 0.05f, 0.15f).finished();
   EXPECT_EQ(invalid(p), "");
   p.appearance->held_out_spread[0] = 0.3f;

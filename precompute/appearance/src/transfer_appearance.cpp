@@ -56,6 +56,21 @@ MatrixXfR rows_of(const Eigen::Ref<const MatrixXfR>& q, const std::vector<std::i
   return out;
 }
 
+// The weightings `choice` allows; best tries cluster sizes only with held-out
+// truth to judge by.
+std::vector<TransferWeighting> weightings(WeightingChoice choice, bool judged) {
+  switch (choice) {
+    case WeightingChoice::equal:
+      return {TransferWeighting::equal};
+    case WeightingChoice::cluster_size:
+      return {TransferWeighting::cluster_size};
+    case WeightingChoice::best:
+      break;
+  }
+  if (!judged) return {TransferWeighting::equal};
+  return {TransferWeighting::equal, TransferWeighting::cluster_size};
+}
+
 std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
                                     const MatrixXfR& centers, const MatrixXfR& samples,
                                     InterpolantChoice choice) {
@@ -76,16 +91,19 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
   a.nrbf_weights = f.nrbf.weights;
   a.nrbf_widths = f.nrbf.widths;
   a.nrbf_regularization = f.nrbf.regularization;
+  a.transfer_weighting = weighting_name(c.weighting);
   if (test.nodes.empty()) return;
   a.held_out_nodes = test.nodes;
   // The clusters' own truncation over as many columns as the reported half:
   // the figure its l2 truncation compares with (transfer_reduction.h).
   const double clusters_l2 = cluster_truncation_l2(reduction, static_cast<int>(test.nodes.size()));
-  a.held_out_error.resize(8);
-  a.held_out_error << static_cast<float>(c.test.total), static_cast<float>(c.test.truncation),
-      static_cast<float>(c.test.interpolation), static_cast<float>(c.test.of_transfer),
-      static_cast<float>(c.test.l2_total), static_cast<float>(c.test.l2_truncation),
-      static_cast<float>(clusters_l2), static_cast<float>(c.test.l2_floor);
+  const TruthError& e = c.test;
+  a.held_out_error.resize(11);
+  a.held_out_error << static_cast<float>(e.total), static_cast<float>(e.truncation),
+      static_cast<float>(e.interpolation), static_cast<float>(e.of_transfer), static_cast<float>(e.l2_total),
+      static_cast<float>(e.l2_truncation), static_cast<float>(clusters_l2), static_cast<float>(e.l2_floor),
+      static_cast<float>(e.of_variation), static_cast<float>(e.l2_of_variation),
+      static_cast<float>(e.l2_floor_of_variation);
   if (!spread) return;
   a.held_out_spread.resize(4);
   a.held_out_spread << static_cast<float>(spread->l2_total[0]), static_cast<float>(spread->l2_total[1]),
@@ -117,8 +135,9 @@ Eigen::MatrixXd gram(const Eigen::MatrixXf& X) {
 // ones, M - M-bar = T + U P and the error is T + U (P - S), with T orthogonal
 // to U_a, so every Gram matrix follows from T's and the coordinates.
 struct HeldOutGrams {
-  double centred2 = 0, truth2 = 0, total2 = 0, truncation2 = 0, interpolation2 = 0;
+  double centred2 = 0, truth2 = 0, total2 = 0, truncation2 = 0, interpolation2 = 0, variation2 = 0;
   Eigen::MatrixXd truncation, error, centred;
+  Eigen::MatrixXd variation;  // of M - mean_H M: J G J with J the centring over nodes
 };
 
 HeldOutGrams held_out_grams(const TransferReduction& r, const HeldOutTruth& truth,
@@ -150,6 +169,12 @@ HeldOutGrams held_out_grams(const TransferReduction& r, const HeldOutTruth& trut
   const Eigen::MatrixXd D = P - S;
   g.error = g.truncation + D.transpose() * D;
   g.centred = g.truncation + P.transpose() * P;
+  // Centring over the nodes removes M-bar: (M - M-bar) J = M J.
+  if (H > 0) {
+    const Eigen::MatrixXd J = Eigen::MatrixXd::Identity(H, H) - Eigen::MatrixXd::Constant(H, H, 1.0 / H);
+    g.variation = J * g.centred * J;
+    g.variation2 = std::max(0.0, g.variation.trace());
+  }
   return g;
 }
 
@@ -184,6 +209,23 @@ double percentile(std::vector<double> v, double p) {
 
 }  // namespace
 
+const char* weighting_name(TransferWeighting weighting) {
+  return weighting == TransferWeighting::cluster_size ? "cluster size" : "equal";
+}
+
+Eigen::VectorXd cluster_size_weights(const KMeansResult& clusters) {
+  const auto Na = static_cast<Eigen::Index>(clusters.representatives.size());
+  Eigen::VectorXd count = Eigen::VectorXd::Zero(Na);
+  for (const auto label : clusters.labels) {
+    if (label < 0 || label >= Na)
+      throw std::invalid_argument(
+          fmt::format("cluster_size_weights: label {} is not a cluster in 0..{}", label, Na - 1));
+    count[label] += 1;
+  }
+  count = count.cwiseMax(1.0);
+  return count * (static_cast<double>(Na) / count.sum());
+}
+
 TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
                        const Eigen::Ref<const MatrixXfR>& served) {
   const HeldOutGrams g = held_out_grams(r, truth, served);
@@ -196,6 +238,12 @@ TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
     std::iota(all.begin(), all.end(), Eigen::Index{0});
     l2_figures(g, all, e.l2_total, e.l2_truncation);
     e.l2_floor = rank_floor(g.centred, r.rank());
+  }
+  if (g.variation2 > 0) {
+    e.of_variation = std::sqrt(g.total2 / g.variation2);
+    const double variation = largest_eigenvalue(g.variation);
+    if (variation > 0) e.l2_of_variation = std::sqrt(largest_eigenvalue(g.error) / variation);
+    e.l2_floor_of_variation = rank_floor(g.variation, r.rank());
   }
   if (g.truth2 > 0) e.of_transfer = std::sqrt(g.total2 / g.truth2);
   return e;
@@ -241,8 +289,6 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
   }
   check_held_out(held_out, q_u.rows(), fields.cols());
   const MatrixXfR centers = cluster_centers(q_u, clusters);
-  const TransferReduction reduction = reduce_transfer(fields, o.reduction);  // §4.2: A_a ~ U_a Q_a
-  const MatrixXfR samples = reduction.Q_a.transpose();                       // q_a^j at centre j
 
   // Candidates tuned on the samples; the first half of the held-out nodes
   // picks one, the second half measures it (the choice never sees it).
@@ -250,21 +296,34 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
   const HeldOutTruth selection = part(held_out, 0, selection_size);
   const HeldOutTruth test = part(held_out, selection_size, H - selection_size);
   AppearanceModel m;
-  for (auto& f : candidates(q_u, clusters, centers, samples, o.interpolant)) {
-    CandidateReport c{std::move(f), {}, {}};
-    if (!selection.nodes.empty())
-      c.selection = truth_error(reduction, selection,
-                                evaluate_interpolant(c.interpolant, rows_of(q_u, selection.nodes)));
-    if (!test.nodes.empty())
-      c.test = truth_error(reduction, test, evaluate_interpolant(c.interpolant, rows_of(q_u, test.nodes)));
-    m.candidates.push_back(std::move(c));
+  std::vector<std::pair<TransferWeighting, TransferReduction>> reductions;
+  for (const TransferWeighting w : weightings(o.weighting, !selection.nodes.empty())) {
+    const Eigen::VectorXd weights =
+        w == TransferWeighting::cluster_size ? cluster_size_weights(clusters) : Eigen::VectorXd();
+    const TransferReduction& reduction =
+        reductions.emplace_back(w, reduce_transfer(fields, o.reduction, weights)).second;  // §4.2
+    const MatrixXfR samples = reduction.Q_a.transpose();  // q_a^j at centre j
+    for (auto& f : candidates(q_u, clusters, centers, samples, o.interpolant)) {
+      CandidateReport c{std::move(f), w, {}, {}};
+      if (!selection.nodes.empty())
+        c.selection = truth_error(reduction, selection,
+                                  evaluate_interpolant(c.interpolant, rows_of(q_u, selection.nodes)));
+      if (!test.nodes.empty())
+        c.test = truth_error(reduction, test, evaluate_interpolant(c.interpolant, rows_of(q_u, test.nodes)));
+      m.candidates.push_back(std::move(c));
+    }
   }
+  // Without held-out truth only one weighting is tried, so leave-one-out
+  // (relative to that reduction's samples) compares like with like.
   const auto score = [&](const CandidateReport& c) {
-    return selection.nodes.empty() ? c.interpolant.leave_one_out : c.selection.total;
+    return selection.nodes.empty() ? c.interpolant.leave_one_out : c.selection.of_transfer;
   };
   std::stable_sort(m.candidates.begin(), m.candidates.end(),
                    [&](const CandidateReport& a, const CandidateReport& b) { return score(a) < score(b); });
   const CandidateReport& chosen = m.candidates.front();
+  const TransferReduction& reduction = std::find_if(reductions.begin(), reductions.end(), [&](const auto& r) {
+                                         return r.first == chosen.weighting;
+                                       })->second;
   m.q_a = evaluate_interpolant(chosen.interpolant, q_u);  // §4.3: q_a(q_u) at every state node
 
   core::Appearance& a = m.appearance;

@@ -117,7 +117,7 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
             std::string::npos)
       << inspect.out;
   EXPECT_GE(p.appearance->transfer_rays, 1);  // the tiny scene's
-  ASSERT_EQ(p.appearance->held_out_error.size(), 8);
+  ASSERT_EQ(p.appearance->held_out_error.size(), 11);
   EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
   ASSERT_EQ(p.appearance->held_out_spread.size(), 4);
   EXPECT_NE(inspect.out.find(fmt::format("over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%",
@@ -143,6 +143,20 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
             std::string::npos)
       << inspect.out;
   EXPECT_NE(inspect.out.find("the clusters' own truncation measured alike (relative l2 over 3 of them"),
+            std::string::npos)
+      << inspect.out;
+  // The figures of the nodes' own variation, and the weighting the picking half kept.
+  EXPECT_NEAR(held_out["of_variation"].get<double>(), p.appearance->held_out_error[8], 1e-6);
+  EXPECT_NEAR(held_out["l2_of_variation"].get<double>(), p.appearance->held_out_error[9], 1e-6);
+  EXPECT_NEAR(held_out["l2_floor_of_variation"].get<double>(), p.appearance->held_out_error[10], 1e-6);
+  EXPECT_NE(inspect.out.find(
+                fmt::format("of the nodes' own variation |M - their mean| (moves with no model): "
+                            "error {:.3g}%, relative l2 {:.3g}%",
+                            100 * p.appearance->held_out_error[8], 100 * p.appearance->held_out_error[9])),
+            std::string::npos)
+      << inspect.out;
+  EXPECT_EQ(nlohmann::json::parse(json.out)["transfer_weighting"], p.appearance->transfer_weighting);
+  EXPECT_NE(inspect.out.find(fmt::format("transfer fields weighted {}", p.appearance->transfer_weighting)),
             std::string::npos)
       << inspect.out;
 }
@@ -358,6 +372,8 @@ TEST(AppearanceStage, BadOptionsAreOneLineErrorsBeforeSampling) {
       {{"--rank-a", "-2"}, "appearance: expected --rank-a >= 0 (0: use --eps-a), got -2"},
       {{"--held-out", "-1"}, "appearance: expected --held-out >= 0, got -1"},
       {{"--interpolant", "spline"}, "--interpolant 'spline': expected best, nrbf or knn"},
+      {{"--transfer-weighting", "density"},
+       "--transfer-weighting 'density': expected best, equal or cluster-size"},
   };
   for (const auto& c : cases) {
     const auto r =

@@ -102,10 +102,14 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   for (auto n : truth.nodes)
     EXPECT_EQ(std::count(clusters.representatives.begin(), clusters.representatives.end(), n), 0);
   truth.fields = transfer_fields(p, truth.nodes);
-  const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
-                                          {.reduction = {.rank = 3}}, truth);
+  // Equal weights, so that the clusters' own figure is the paper's sigma ratio
+  // (the choice of weighting is tested below).
+  const auto model =
+      fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
+                           {.reduction = {.rank = 3}, .weighting = WeightingChoice::equal}, truth);
   const auto& a = model.appearance;
-  ASSERT_EQ(a.held_out_error.size(), 8);
+  ASSERT_EQ(a.held_out_error.size(), 11);
+  EXPECT_EQ(a.transfer_weighting, "equal");
   ASSERT_EQ(a.held_out_nodes.size(), 6u);  // the second half: the first picked the interpolant
   EXPECT_TRUE(std::equal(a.held_out_nodes.begin(), a.held_out_nodes.end(), truth.nodes.begin() + 6));
   // A second reader: plain sums over the served fields.
@@ -137,12 +141,20 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   EXPECT_GT(a.held_out_error[7], 1e-3);  // six nodes, rank 3: not vacuous
   EXPECT_LE(a.held_out_error[7], a.held_out_error[5] + 1e-6);
   EXPECT_NEAR(a.held_out_error[3], std::sqrt(err2 / truth2), 1e-5);
-  EXPECT_GT(a.held_out_error[0], 1e-3);  // not vacuous: these nodes are not samples
+  // Of the nodes' own variation: M less their own mean, which no model moves.
+  const Eigen::MatrixXd V = D.colwise() - D.rowwise().mean();
+  EXPECT_NEAR(a.held_out_error[8], E.norm() / V.norm(), 1e-4);
+  EXPECT_NEAR(a.held_out_error[9], l2(E) / l2(V), 1e-4);
+  const Eigen::VectorXd sigma_v = Eigen::JacobiSVD<Eigen::MatrixXd>(V).singularValues();
+  EXPECT_NEAR(a.held_out_error[10], sigma_v[3] / sigma_v[0], 1e-4);
+  EXPECT_GT(a.held_out_error[10], 1e-3);  // five independent columns, rank 3: not vacuous
+  EXPECT_GE(a.held_out_error[9], a.held_out_error[4] - 1e-6);  // |D J|_2 <= |D|_2
+  EXPECT_GT(a.held_out_error[0], 1e-3);                        // not vacuous: these nodes are not samples
   EXPECT_NEAR(a.held_out_error[0] * a.held_out_error[0],
               a.held_out_error[1] * a.held_out_error[1] + a.held_out_error[2] * a.held_out_error[2], 1e-5);
   // The kept interpolant is the one the picking half preferred.
   ASSERT_EQ(model.candidates.size(), 2u);
-  EXPECT_LE(model.candidates[0].selection.total, model.candidates[1].selection.total);
+  EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[1].selection.of_transfer);
   EXPECT_EQ(a.interpolant, interpolant_name(model.candidates[0].interpolant.kind));
   // Written and read back, the figures survive.
   core::ScenePackage out = p;
@@ -154,6 +166,81 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   EXPECT_EQ(back.appearance->held_out_error, a.held_out_error);
   EXPECT_EQ(back.appearance->held_out_nodes, a.held_out_nodes);
   EXPECT_EQ(back.appearance->interpolant, a.interpolant);
+  EXPECT_EQ(back.appearance->transfer_weighting, "equal");
+}
+
+// Fields of a 2-D state that a rank-2 basis cannot hold exactly: 48 smooth
+// features of q, 4 points' worth.
+MatrixXfR feature_fields(const MatrixXfR& q, const std::vector<std::int32_t>& nodes) {
+  MatrixXfR fields(static_cast<Eigen::Index>(nodes.size()), 48 * 4);
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    const double x = q(nodes[i], 0), y = q(nodes[i], 1);
+    for (int k = 0; k < 48 * 4; ++k)
+      fields(static_cast<Eigen::Index>(i), k) =
+          static_cast<float>(std::sin(0.3 * (k % 7 + 1) * x + 0.2 * (k % 5) * y + 0.1 * k));
+  }
+  return fields;
+}
+
+// Most states crowd near the rest, a few lie far out, and k-means gives the
+// few as many clusters as the many: with equal weights M-bar and U_a follow
+// the outliers, weighted by cluster size they follow the states. Held-out
+// nodes are drawn from the states, so the picking half prefers the weighted
+// model, and the reported half (which never chose) confirms it.
+TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
+  std::mt19937_64 rng(21);
+  const auto uniform = [&] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
+  MatrixXfR q_u(400, 2);
+  for (Eigen::Index n = 0; n < 400; ++n) {
+    const double radius = n < 360 ? 0.3 * uniform() : 3 + 2 * uniform(), angle = 2 * M_PI * uniform();
+    q_u.row(n) << static_cast<float>(radius * std::cos(angle)), static_cast<float>(radius * std::sin(angle));
+  }
+  const auto clusters = kmeans(q_u, {.clusters = 12, .seed = 2});
+  const Eigen::VectorXd weights = cluster_size_weights(clusters);
+  EXPECT_NEAR(weights.mean(), 1.0, 1e-12);
+  EXPECT_GT(weights.maxCoeff(), 4 * weights.minCoeff()) << "not vacuous: clusters of unequal size";
+  HeldOutTruth truth;
+  truth.nodes = draw_held_out_nodes(400, clusters.representatives, 60, 4);
+  truth.fields = feature_fields(q_u, truth.nodes);
+  const MatrixXfR fields = feature_fields(q_u, clusters.representatives);
+  const AppearanceOptions best{.reduction = {.rank = 2}};
+  const auto model = fit_appearance_model(q_u, clusters, fields, best, truth);
+  ASSERT_EQ(model.candidates.size(), 4u);  // both weightings, both interpolants
+  for (size_t i = 1; i < 4; ++i)
+    EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[i].selection.of_transfer);
+  EXPECT_EQ(model.candidates[0].weighting, TransferWeighting::cluster_size);
+  EXPECT_EQ(model.appearance.transfer_weighting, "cluster size");
+  // M-bar is the cluster-size mean of the fields.
+  const Eigen::VectorXf mean = (fields.transpose().cast<double>() * weights / weights.sum()).cast<float>();
+  EXPECT_LT((model.appearance.mean_transfer - mean).norm(), 1e-5f * mean.norm());
+  // On the reported half, against the nodes' own variation (which no model moves).
+  const auto equal = fit_appearance_model(
+      q_u, clusters, fields, {.reduction = {.rank = 2}, .weighting = WeightingChoice::equal}, truth);
+  EXPECT_EQ(equal.appearance.transfer_weighting, "equal");
+  const float weighted_error = model.appearance.held_out_error[8],
+              equal_error = equal.appearance.held_out_error[8];
+  EXPECT_LT(weighted_error, 0.9f * equal_error) << weighted_error << " vs " << equal_error;
+  // Without held-out truth nothing compares the two: equal weights, as the paper.
+  const auto unjudged = fit_appearance_model(q_u, clusters, fields, best);
+  ASSERT_EQ(unjudged.candidates.size(), 2u);
+  EXPECT_EQ(unjudged.appearance.transfer_weighting, "equal");
+  // Asked for, cluster sizes are used without held-out truth too.
+  const auto asked = fit_appearance_model(
+      q_u, clusters, fields, {.reduction = {.rank = 2}, .weighting = WeightingChoice::cluster_size});
+  EXPECT_EQ(asked.appearance.transfer_weighting, "cluster size");
+  EXPECT_LT((asked.appearance.mean_transfer - mean).norm(), 1e-5f * mean.norm());
+}
+
+TEST(Appearance, ClusterSizeWeightsRejectAForeignLabel) {
+  KMeansResult clusters;
+  clusters.representatives = {0, 1};
+  clusters.labels = {0, 1, 2};
+  try {
+    cluster_size_weights(clusters);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "cluster_size_weights: label 2 is not a cluster in 0..1");
+  }
 }
 
 // A_a with singular values chosen by hand: rows mean + L diag(sigma) R^T,

@@ -157,14 +157,21 @@ struct Appearance {
   // the choice existed read as the NRBF with no parameters.
   std::string interpolant = "nrbf";  // "nrbf" (§4.3) or "knn"
   VectorXf interpolant_parameters;   // nrbf: width scale, lambda; knn: k
+  // The weights M-bar and U_a gave the cluster fields (docs/transfer.md):
+  // "equal" (the paper's, and every package written before the choice) or
+  // "cluster size".
+  std::string transfer_weighting = "equal";
   // Held-out truth (empty when not measured): the served transfer against
   // the true transfer at state nodes that are not cluster nodes.
   std::vector<std::int32_t> held_out_nodes;  // the nodes the error is measured at
-  VectorXf held_out_error;  // 8: total, truncation, interpolation, total relative to |M|, then total and
+  VectorXf held_out_error;  // 11: total, truncation, interpolation, total relative to |M|, then total and
                             // truncation as relative l2 norms, then the clusters' own truncation as a
                             // relative l2 norm over as many clusters as there are held-out nodes, then
                             // the least relative l2 any rank-r_a model about this M-bar has at the
-                            // held-out nodes (older packages: the first 4, 6 or 7)
+                            // held-out nodes, then the total relative to the nodes' variation about
+                            // their own mean (Frobenius, relative l2) and the least relative l2 any
+                            // rank-r_a model about that mean has (older packages: the first 4, 6, 7
+                            // or 8)
   // 4 (empty: not measured): 10th and 90th percentiles of the relative l2 total,
   // then of the truncation, over bootstrap resamples of the held-out nodes.
   VectorXf held_out_spread;

@@ -36,6 +36,7 @@ struct PackageSummary {
   double sigma_ratio_a_at_rank = 0, sigma_ratio_a_at_paper_rank = 0;
   std::vector<double> singular_values_a;        // every sigma of A_a (N_a)
   std::string interpolant;                      // "nrbf" or "knn", with its parameters
+  std::string transfer_weighting;               // "equal" or "cluster size"
   int transfer_rays = 0, transfer_bounces = 0;  // how the transfer was sampled (0 rays: unrecorded)
   int held_out_nodes = 0;                       // 0: no held-out truth in the package
   double held_out_total = 0, held_out_truncation = 0, held_out_interpolation = 0, held_out_of_transfer = 0;
@@ -48,6 +49,10 @@ struct PackageSummary {
   // the held-out nodes (sigma_{r_a+1} / sigma_1 of their truth less M-bar):
   // what no basis or interpolant about it can beat. NaN in older packages.
   double held_out_l2_floor = 0;
+  // The total relative to the held-out nodes' variation about their own mean
+  // (Frobenius, relative l2), a denominator no model moves, and the least
+  // relative l2 any rank-r_a model about that mean has there. NaN in older packages.
+  double held_out_of_variation = 0, held_out_l2_of_variation = 0, held_out_l2_floor_of_variation = 0;
   // 10th and 90th percentiles of held_out_l2_total, then of held_out_l2_truncation,
   // over bootstrap resamples of the held-out nodes; empty in older packages.
   std::vector<double> held_out_l2_spread;

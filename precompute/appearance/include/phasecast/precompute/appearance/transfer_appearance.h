@@ -24,10 +24,26 @@ namespace phasecast::precompute {
 
 enum class InterpolantChoice { best, nrbf, knn };  // best: lower held-out error (else leave-one-out)
 
+// The weights M-bar and the SVD of §4.2 give the N_a cluster fields: equal,
+// as in the paper, or each cluster's share of the state nodes, so that the
+// basis and M-bar follow the states the server will show rather than the
+// clusters (k-means gives rare outlying states a cluster each).
+enum class TransferWeighting { equal, cluster_size };
+enum class WeightingChoice { best, equal, cluster_size };  // best: lower held-out error
+const char* weighting_name(TransferWeighting weighting);   // "equal", "cluster size"
+
 struct AppearanceOptions {
   TransferReductionOptions reduction;  // eps_a or fixed r_a
   InterpolantChoice interpolant = InterpolantChoice::best;
+  // best tries both weightings only with held-out truth to choose by: no
+  // other figure compares two models with different M-bar.
+  WeightingChoice weighting = WeightingChoice::best;
 };
+
+// Cluster j's share of the state nodes, scaled to mean 1 (a representative
+// stands at least for itself). Throws std::invalid_argument for a label
+// outside 0..N_a-1.
+Eigen::VectorXd cluster_size_weights(const KMeansResult& clusters);
 
 // True transfer at state nodes that are not cluster representatives: the
 // independent truth the served appearance M-bar + U_a q_a(q_u) is measured
@@ -59,6 +75,14 @@ struct TruthError {
   // bound and its denominator move with M-bar). 0 when the nodes are no more
   // than r_a.
   double l2_floor = 0;
+  // The total relative to the nodes' own variation, |M - mean_H M| with
+  // mean_H their mean, in Frobenius and relative l2 norms: a denominator no
+  // model moves, so models with different M-bar compare (the figures above
+  // read better when M-bar lies far from the nodes, as |M - M-bar| grows).
+  double of_variation = 0, l2_of_variation = 0;
+  // sigma_{r_a+1} / sigma_1 of M - mean_H M: the least relative l2 error of
+  // any rank-r_a model about the nodes' own mean, fitted to these very nodes.
+  double l2_floor_of_variation = 0;
 };
 
 // Errors of the reduction's basis with q_a = served (H x r_a) at truth's nodes.
@@ -78,22 +102,26 @@ TruthErrorSpread truth_error_spread(const TransferReduction& reduction, const He
                                     std::uint64_t seed = 1);
 
 struct CandidateReport {
-  Interpolant interpolant;  // tuned by leave-one-out on the N_a samples
-  TruthError selection;     // on the first half of the held-out nodes: picks the candidate
-  TruthError test;          // on the second half: reported, never used to choose
+  Interpolant interpolant;                                 // tuned by leave-one-out on the N_a samples
+  TransferWeighting weighting = TransferWeighting::equal;  // of the reduction it interpolates
+  // On the first half of the held-out nodes: picks the candidate by its error
+  // relative to |M| (a denominator no candidate moves; with one weighting,
+  // the same order as total).
+  TruthError selection;
+  TruthError test;  // on the second half: reported, never used to choose
 };
 
 struct AppearanceModel {
   core::Appearance appearance;              // /appearance/*
   MatrixXfR q_a;                            // N x r_a: /portrait/q_a, the interpolant at every state node
-  std::vector<CandidateReport> candidates;  // every interpolant tried; the chosen one first
+  std::vector<CandidateReport> candidates;  // every weighting and interpolant tried; the chosen one first
 };
 
 //   @param[in] q_u       #N by r_u all state nodes
 //   @param[in] clusters  kmeans(q_u) result: labels and representatives
 //   @param[in] fields    #N_a by 48S: transfer of representative j in row j
 //                        (layout of compute_transfer's rows, flattened)
-//   @param[in] options   reduction rank rule and interpolant choice
+//   @param[in] options   reduction rank rule, weighting and interpolant choice
 //   @param[in] held_out  truth at other nodes (may be empty: the choice then
 //                        falls to leave-one-out and no held-out error is stored)
 // Throws std::invalid_argument when the shapes disagree.
