@@ -177,7 +177,8 @@ std::string to_text(const PackageSummary& s) {
         line("             the clusters' own truncation measured alike (relative l2 over {}): {:.3g}%",
              s.held_out_nodes < s.clusters
                  ? fmt::format("{} of them, median of random draws", s.held_out_nodes)
-                 : fmt::format("all {}: sigma_{{r+1}}/sigma_1", s.clusters),
+                 : fmt::format("all {}{}", s.clusters,
+                               s.transfer_weighting == "equal" ? ": sigma_{r+1}/sigma_1" : ""),
              100 * s.clusters_l2_truncation_at_held_out_size);
       if (std::isfinite(s.held_out_l2_floor))
         line(

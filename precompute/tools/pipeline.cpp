@@ -67,10 +67,13 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   const auto r = p.rank_a();
   const bool has_next = r > 0 && r < a.singular_values.size() && a.singular_values[0] > 0;
   fmt::print(
-      "appearance: N_a = {} clusters, {} scene points, r_a = {} (fields weighted {}; truncation error {:.4f} "
-      "on the clusters; sigma_{{r+1}}/sigma_1 {}, the paper's relErr)\n",
-      a.clusters(), p.mesh.points(), r, a.transfer_weighting, r > 0 ? a.rel_error[r - 1] : 0.0f,
-      has_next ? fmt::format("{:.4f}", a.singular_values[r] / a.singular_values[0]) : std::string("n/a"));
+      "appearance: N_a = {} clusters, {} scene points, r_a = {} (of the paper's A_a: truncation error {:.4f} "
+      "on the clusters, sigma_{{r+1}}/sigma_1 {}, the paper's relErr); U_a and M-bar from the fields "
+      "weighted "
+      "{}\n",
+      a.clusters(), p.mesh.points(), r, r > 0 ? a.rel_error[r - 1] : 0.0f,
+      has_next ? fmt::format("{:.4f}", a.singular_values[r] / a.singular_values[0]) : std::string("n/a"),
+      a.transfer_weighting);
   for (const auto& c : report.candidates) {
     const auto& f = c.interpolant;
     const std::string params =
@@ -87,7 +90,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
           c.selection.of_transfer, c.test.of_transfer, c.selection.of_variation, c.test.of_variation);
     fmt::print("{}\n", &c == &report.candidates.front() ? "  <- kept" : "");
   }
-  if (a.held_out_error.size() == 11) {
+  if (a.held_out_error.size() >= 8) {
     fmt::print(
         "appearance: held-out error over {} nodes {:.4f} = truncation {:.4f} + interpolation {:.4f} (in "
         "quadrature, relative to |M - M-bar|); {:.4f} of |M|; relative l2 norm (the paper's relErr) {:.4f}, "
@@ -96,6 +99,8 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
         a.held_out_nodes.size(), a.held_out_error[0], a.held_out_error[1], a.held_out_error[2],
         a.held_out_error[3], a.held_out_error[4], a.held_out_error[5], a.held_out_error[6], a.U_a.cols(),
         a.held_out_error[7]);
+  }
+  if (a.held_out_error.size() == 11) {
     fmt::print(
         "appearance: relative to the nodes' own variation |M - their mean| (no model moves it): {:.4f}, "
         "relative l2 {:.4f}; the least any rank-{} model about their mean reaches there {:.4f}\n",

@@ -56,19 +56,34 @@ MatrixXfR rows_of(const Eigen::Ref<const MatrixXfR>& q, const std::vector<std::i
   return out;
 }
 
-// The weightings `choice` allows; best tries cluster sizes only with held-out
-// truth to judge by.
-std::vector<TransferWeighting> weightings(WeightingChoice choice, bool judged) {
-  switch (choice) {
-    case WeightingChoice::equal:
-      return {TransferWeighting::equal};
-    case WeightingChoice::cluster_size:
-      return {TransferWeighting::cluster_size};
-    case WeightingChoice::best:
-      break;
+using WeightedReduction = std::pair<TransferWeighting, TransferReduction>;
+
+// The reductions `o.weighting` allows (§4.2), equal weights first. The paper's
+// A_a sets r_a for all of them, so that candidates compare at the one cost a
+// client pays; `spectrum` and `curve` receive its singular values and error
+// curve (the paper's relErr, Fig. 12). best tries cluster sizes only with
+// held-out truth to judge by, and only where they differ; a weighted
+// reduction that resolves fewer than r_a directions is not tried.
+std::vector<WeightedReduction> reductions(const Eigen::Ref<const MatrixXfR>& fields,
+                                          const KMeansResult& clusters, const AppearanceOptions& o,
+                                          bool judged, VectorXf& spectrum, VectorXf& curve) {
+  TransferReduction equal = reduce_transfer(fields, o.reduction);
+  spectrum = equal.singular_values;
+  curve = equal.rel_error;
+  const int rank = equal.rank();
+  std::vector<WeightedReduction> out;
+  if (o.weighting != WeightingChoice::cluster_size)
+    out.emplace_back(TransferWeighting::equal, std::move(equal));
+  const Eigen::VectorXd weights = cluster_size_weights(clusters);
+  const bool differ = weights.maxCoeff() - weights.minCoeff() > 1e-9;
+  const bool wanted = o.weighting == WeightingChoice::cluster_size ||
+                      (o.weighting == WeightingChoice::best && judged && differ);
+  if (wanted && rank > 0) {
+    TransferReduction weighted = reduce_transfer(fields, {.eps_a = o.reduction.eps_a, .rank = rank}, weights);
+    if (weighted.rank() == rank) out.emplace_back(TransferWeighting::cluster_size, std::move(weighted));
   }
-  if (!judged) return {TransferWeighting::equal};
-  return {TransferWeighting::equal, TransferWeighting::cluster_size};
+  if (out.empty()) out.emplace_back(TransferWeighting::equal, std::move(equal));  // nothing to weight
+  return out;
 }
 
 std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
@@ -104,6 +119,8 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
       static_cast<float>(e.l2_truncation), static_cast<float>(clusters_l2), static_cast<float>(e.l2_floor),
       static_cast<float>(e.of_variation), static_cast<float>(e.l2_of_variation),
       static_cast<float>(e.l2_floor_of_variation);
+  // One node does not vary about its own mean: its figures would read 0.
+  if (test.nodes.size() < 2) a.held_out_error.conservativeResize(8);
   if (!spread) return;
   a.held_out_spread.resize(4);
   a.held_out_spread << static_cast<float>(spread->l2_total[0]), static_cast<float>(spread->l2_total[1]),
@@ -296,12 +313,10 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
   const HeldOutTruth selection = part(held_out, 0, selection_size);
   const HeldOutTruth test = part(held_out, selection_size, H - selection_size);
   AppearanceModel m;
-  std::vector<std::pair<TransferWeighting, TransferReduction>> reductions;
-  for (const TransferWeighting w : weightings(o.weighting, !selection.nodes.empty())) {
-    const Eigen::VectorXd weights =
-        w == TransferWeighting::cluster_size ? cluster_size_weights(clusters) : Eigen::VectorXd();
-    const TransferReduction& reduction =
-        reductions.emplace_back(w, reduce_transfer(fields, o.reduction, weights)).second;  // §4.2
+  core::Appearance& a = m.appearance;
+  const std::vector<WeightedReduction> tried =
+      reductions(fields, clusters, o, !selection.nodes.empty(), a.singular_values, a.rel_error);
+  for (const auto& [w, reduction] : tried) {
     const MatrixXfR samples = reduction.Q_a.transpose();  // q_a^j at centre j
     for (auto& f : candidates(q_u, clusters, centers, samples, o.interpolant)) {
       CandidateReport c{std::move(f), w, {}, {}};
@@ -319,18 +334,15 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
     return selection.nodes.empty() ? c.interpolant.leave_one_out : c.selection.of_transfer;
   };
   std::stable_sort(m.candidates.begin(), m.candidates.end(),
-                   [&](const CandidateReport& a, const CandidateReport& b) { return score(a) < score(b); });
+                   [&](const CandidateReport& x, const CandidateReport& y) { return score(x) < score(y); });
   const CandidateReport& chosen = m.candidates.front();
-  const TransferReduction& reduction = std::find_if(reductions.begin(), reductions.end(), [&](const auto& r) {
+  const TransferReduction& reduction = std::find_if(tried.begin(), tried.end(), [&](const auto& r) {
                                          return r.first == chosen.weighting;
                                        })->second;
   m.q_a = evaluate_interpolant(chosen.interpolant, q_u);  // §4.3: q_a(q_u) at every state node
 
-  core::Appearance& a = m.appearance;
   a.mean_transfer = reduction.mean_transfer;
   a.U_a = reduction.U_a;
-  a.singular_values = reduction.singular_values;
-  a.rel_error = reduction.rel_error;
   a.cluster_nodes = clusters.representatives;
   // How much the reported figures owe to which nodes were drawn; one node
   // resamples only to itself, which would read as no spread at all.

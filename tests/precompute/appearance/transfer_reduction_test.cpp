@@ -246,7 +246,7 @@ TEST(WeightedTransferReduction, IsTheReductionOfRepeatedFields) {
     for (size_t i = 0; i < subset.size(); ++i) columns.col(static_cast<Eigen::Index>(i)) = A.col(subset[i]);
     EXPECT_NEAR(precompute::cluster_truncation_l2(w, subset), truncation_l2(w, columns), 1e-5);
   }
-  // Equal weights are the paper's A_a, bit for bit.
+  // Equal weights are the paper's A_a (to round-off: the empty default keeps the plain mean's sums).
   const auto ones = reduce_transfer(X, {.eps_a = 0, .rank = 4}, Eigen::VectorXd::Ones(10));
   const auto none = reduce_transfer(X, {.eps_a = 0, .rank = 4});
   EXPECT_LT((ones.mean_transfer - none.mean_transfer).norm(), 1e-6f * none.mean_transfer.norm());

@@ -70,7 +70,7 @@ MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const Embedding& embedd
 
 struct AppearanceStageReport {
   KMeansResult clusters;
-  std::vector<CandidateReport> candidates;  // the interpolants tried, the chosen one first
+  std::vector<CandidateReport> candidates;  // the weightings and interpolants tried, the chosen one first
 };
 
 // `count` distinct state nodes of 0..N-1 that are not in `exclude`, drawn

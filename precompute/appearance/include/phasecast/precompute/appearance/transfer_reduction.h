@@ -18,8 +18,9 @@ struct TransferReduction {
   VectorXf mean_transfer;         // 48S: M-bar
   MatrixXfR U_a;                  // 48S x r_a orthonormal transfer basis
   MatrixXfR Q_a;                  // r_a x N_a: column j is q_a^j = U_a^T (M^j - M-bar)
-  VectorXf singular_values;       // all N_a singular values of A_a, decreasing
-  VectorXf rel_error;             // N_a: relative Frobenius error of the rank-(i+1) model (Fig. 12, red)
+  VectorXf singular_values;       // all N_a singular values of A_a W^1/2, decreasing
+  VectorXf rel_error;             // N_a: relative Frobenius error of the rank-(i+1) model of A_a W^1/2
+                                  // (Fig. 12, red, with equal weights)
   Eigen::MatrixXd right_vectors;  // N_a x N_a: V of A_a W^1/2 = U Sigma V^T, column i with sigma_i
   Eigen::VectorXd weights;        // N_a: W, the weight of each field (all 1: equal)
 
@@ -37,7 +38,7 @@ struct TransferReduction {
 //                       Q_a stays the projection of each unweighted field.
 //   @return             M-bar, U_a, Q_a, the singular values and the error curve
 // Method: eigen-decomposition of the N_a x N_a Gram matrix (double), then
-// U_a = A_a V Sigma^-1 re-orthonormalised by a Cholesky QR step; this needs
+// U_a = A_a W^1/2 V Sigma^-1 re-orthonormalised by a Cholesky QR step; this needs
 // only O(48 S N_a) memory. Singular values below 1e-6 sigma_1 are not
 // resolved this way and are never kept. All fields identical: r_a = 0.
 // Throws std::invalid_argument for an empty input, a row length that is not a
