@@ -1,5 +1,6 @@
 // phasecast-inspect as a user runs it: exit codes, one-line errors, JSON.
 
+#include "phasecast/core/hdf5_file.h"
 #include "phasecast/core/package.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
@@ -64,6 +65,30 @@ TEST_F(InspectCli, ValidPackageJson) {
   EXPECT_EQ(j["singular_values_a"].size(), static_cast<size_t>(sigma_a.size()));
   EXPECT_EQ(j["frame_state_bytes"], 4 * (4 + package_.rank_a() + 12));
   EXPECT_EQ(j["file_bytes"], std::filesystem::file_size(dir_ / "plate.h5"));
+}
+
+// A package written before the weighting and the figures of the nodes' own
+// variation (8 held-out values, no /appearance/transfer_weighting) reads as
+// equal weights, with those figures unknown rather than 0.
+TEST_F(InspectCli, OlderHeldOutFiguresReadAsEqualWeightsAndUnknownVariation) {
+  package_.appearance->held_out_nodes = {1, 2};
+  package_.appearance->held_out_error =
+      (VectorXf(8) << 0.3f, 0.2f, 0.1f, 0.01f, 0.25f, 0.2f, 0.15f, 0.1f).finished();
+  const auto path = dir_ / "older.h5";
+  core::write_package(package_, path);
+  core::h5::File::open_write(path).remove("/appearance/transfer_weighting");
+  EXPECT_EQ(core::read_package(path).appearance->transfer_weighting, "equal");
+  const auto r = testing::run_tool("phasecast-inspect", {path.string(), "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["transfer_weighting"], "equal");
+  EXPECT_NEAR(j["held_out"]["l2_floor"].get<double>(), 0.1, 1e-7);
+  EXPECT_TRUE(j["held_out"]["of_variation"].is_null());
+  EXPECT_TRUE(j["held_out"]["l2_floor_of_variation"].is_null());
+  const auto text = testing::run_tool("phasecast-inspect", {path.string()});
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_THAT(text.out, HasSubstr("transfer fields weighted equal"));
+  EXPECT_THAT(text.out, ::testing::Not(HasSubstr("of the nodes' own variation")));
 }
 
 TEST_F(InspectCli, TruncatedPackageFailsWithOneLine) {
