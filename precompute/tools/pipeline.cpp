@@ -9,8 +9,13 @@
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <chrono>
+#include <initializer_list>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace phasecast::precompute::tools {
 namespace {
@@ -114,6 +119,21 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   }
 }
 
+// The value of `flag` named `value`; a one-line error listing the names otherwise.
+template <class Choice>
+Choice named_choice(const char* flag, const std::string& value,
+                    std::initializer_list<std::pair<const char*, Choice>> names) {
+  std::vector<std::string> listed;
+  for (const auto& [name, choice] : names) {
+    if (value == name) return choice;
+    listed.emplace_back(name);
+  }
+  const std::string last = listed.back();
+  listed.pop_back();
+  throw std::invalid_argument(
+      fmt::format("{} '{}': expected {} or {}", flag, value, fmt::join(listed, ", "), last));
+}
+
 }  // namespace
 
 void add_sample_options(CLI::App* cmd, SampleArgs& a) {
@@ -199,25 +219,16 @@ precompute::AppearanceStageOptions appearance_stage_options(const precompute::Sc
   s.held_out = a.held_out.value_or(d.held_out > 0 ? d.held_out : kDefaultHeldOut);
   s.transfer.rays = a.rays.value_or(d.rays > 0 ? d.rays : kDefaultRays);
   s.appearance.reduction.eps_a = a.eps_a.value_or(d.eps_a > 0 ? d.eps_a : kDefaultEpsA);
-  if (a.interpolant == "best") {
-    s.appearance.interpolant = precompute::InterpolantChoice::best;
-  } else if (a.interpolant == "nrbf") {
-    s.appearance.interpolant = precompute::InterpolantChoice::nrbf;
-  } else if (a.interpolant == "knn") {
-    s.appearance.interpolant = precompute::InterpolantChoice::knn;
-  } else {
-    throw std::invalid_argument(fmt::format("--interpolant '{}': expected best, nrbf or knn", a.interpolant));
-  }
-  if (a.weighting == "best") {
-    s.appearance.weighting = precompute::WeightingChoice::best;
-  } else if (a.weighting == "equal") {
-    s.appearance.weighting = precompute::WeightingChoice::equal;
-  } else if (a.weighting == "cluster-size") {
-    s.appearance.weighting = precompute::WeightingChoice::cluster_size;
-  } else {
-    throw std::invalid_argument(
-        fmt::format("--transfer-weighting '{}': expected best, equal or cluster-size", a.weighting));
-  }
+  s.appearance.interpolant =
+      named_choice<precompute::InterpolantChoice>("--interpolant", a.interpolant,
+                                                  {{"best", precompute::InterpolantChoice::best},
+                                                   {"nrbf", precompute::InterpolantChoice::nrbf},
+                                                   {"knn", precompute::InterpolantChoice::knn}});
+  s.appearance.weighting = named_choice<precompute::WeightingChoice>(
+      "--transfer-weighting", a.weighting,
+      {{"best", precompute::WeightingChoice::best},
+       {"equal", precompute::WeightingChoice::equal},
+       {"cluster-size", precompute::WeightingChoice::cluster_size}});
   s.paper_rank = d.paper_rank_a;
   s.transfer.point_albedo = precompute::scene_point_albedo(scene);
   precompute::check_appearance_stage_options(s);
