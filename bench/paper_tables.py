@@ -171,7 +171,7 @@ def held_out_text(r):
     # The least any rank-r_a model about this M-bar reaches at those nodes: no basis or interpolant goes below.
     if h.get("l2_floor") is not None:
         l2 += f" (floor: {pct(h['l2_floor'])})"
-    # Against the nodes' own variation, which no model moves, and the least any rank-r_a model about their mean has.
+    # Against the nodes' own variation, which no model moves, and the least any rank-r_a model has there.
     if h.get("l2_of_variation") is not None:
         l2 += (f"; of their own variation {pct(h['l2_of_variation'])} (floor {pct(h['l2_floor_of_variation'])}, "
                f"{r.get('transfer_weighting', 'equal')} weights)")

@@ -188,7 +188,7 @@ std::string to_text(const PackageSummary& s) {
       if (std::isfinite(s.held_out_of_variation))
         line(
             "             of the nodes' own variation |M - their mean| (moves with no model): error {:.3g}%, "
-            "relative l2 {:.3g}%; the least any rank-{} model about their mean reaches there {:.3g}%",
+            "relative l2 {:.3g}%; the least any rank-{} model reaches there, whatever its mean, {:.3g}%",
             100 * s.held_out_of_variation, 100 * s.held_out_l2_of_variation, s.rank_a,
             100 * s.held_out_l2_floor_of_variation);
     }

@@ -108,7 +108,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   if (a.held_out_error.size() == 11) {
     fmt::print(
         "appearance: relative to the nodes' own variation |M - their mean| (no model moves it): {:.4f}, "
-        "relative l2 {:.4f}; the least any rank-{} model about their mean reaches there {:.4f}\n",
+        "relative l2 {:.4f}; the least any rank-{} model reaches there, whatever its mean, {:.4f}\n",
         a.held_out_error[8], a.held_out_error[9], a.U_a.cols(), a.held_out_error[10]);
   }
   if (a.held_out_spread.size() == 4) {

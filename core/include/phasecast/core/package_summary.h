@@ -51,7 +51,7 @@ struct PackageSummary {
   double held_out_l2_floor = 0;
   // The total relative to the held-out nodes' variation about their own mean
   // (Frobenius, relative l2), a denominator no model moves, and the least
-  // relative l2 any rank-r_a model about that mean has there. NaN in older packages.
+  // relative l2 any rank-r_a model has there, whatever its mean. NaN in older packages.
   double held_out_of_variation = 0, held_out_l2_of_variation = 0, held_out_l2_floor_of_variation = 0;
   // 10th and 90th percentiles of held_out_l2_total, then of held_out_l2_truncation,
   // over bootstrap resamples of the held-out nodes; empty in older packages.

@@ -80,8 +80,10 @@ struct TruthError {
   // model moves, so models with different M-bar compare (the figures above
   // read better when M-bar lies far from the nodes, as |M - M-bar| grows).
   double of_variation = 0, l2_of_variation = 0;
-  // sigma_{r_a+1} / sigma_1 of M - mean_H M: the least relative l2 error of
-  // any rank-r_a model about the nodes' own mean, fitted to these very nodes.
+  // sigma_{r_a+1} / sigma_1 of M - mean_H M: the least l2_of_variation of any
+  // rank-r_a model whatever its mean, fitted to these very nodes (with E its
+  // error and J the centring over nodes, E J = M J less a rank-r_a matrix,
+  // and |E|_2 >= |E J|_2).
   double l2_floor_of_variation = 0;
 };
 
