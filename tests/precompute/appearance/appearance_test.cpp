@@ -316,8 +316,12 @@ TEST(Appearance, HeldOutFloorIsTheLeastAnyBasisOfThatRankReaches) {
   truth.fields = nodes;
   for (int h = 0; h < 9; ++h) truth.nodes.push_back(100 + h);
   const auto own = reduce_transfer(nodes, {.rank = 2});
-  const double floor = truth_error(own, truth, own.Q_a.transpose()).l2_floor;
+  const auto fitted = truth_error(own, truth, own.Q_a.transpose());
+  const double floor = fitted.l2_floor;
   EXPECT_NEAR(floor, 0.2, 1e-4);
+  // Of the nodes' own variation the floor is their own spectrum, reached by their own model.
+  EXPECT_NEAR(fitted.l2_floor_of_variation, 0.2, 1e-4);
+  EXPECT_NEAR(fitted.l2_of_variation, 0.2, 1e-4);
   std::mt19937_64 rng(3);
   const auto noise = [&] { return static_cast<float>(static_cast<double>(rng() % 2001) / 1000.0 - 1.0); };
   for (int trial = 0; trial < 6; ++trial) {
@@ -337,6 +341,13 @@ TEST(Appearance, HeldOutFloorIsTheLeastAnyBasisOfThatRankReaches) {
     EXPECT_NEAR(e.l2_floor, s[2] / s[0], 1e-4) << trial;
     EXPECT_GT(std::abs(e.l2_floor - floor), 0.05) << trial;
     EXPECT_GE(e.l2_truncation, e.l2_floor - 1e-6) << trial;
+    // That floor does not move with M-bar, and bounds the model whatever its mean.
+    EXPECT_NEAR(e.l2_floor_of_variation, 0.2, 1e-4) << trial;
+    EXPECT_GE(e.l2_of_variation, 0.2 - 1e-4) << trial;
+    const auto best = truth_error(
+        r, truth,
+        (r.U_a.transpose() * (nodes.rowwise() - r.mean_transfer.transpose()).transpose()).transpose());
+    EXPECT_GE(best.l2_of_variation, 0.2 - 1e-4) << trial;
   }
   const auto two = truth_error(own, {{1, 2}, nodes.topRows(2)}, MatrixXfR::Zero(2, 2));
   EXPECT_EQ(two.l2_floor, 0);  // two nodes, rank 2: any basis through them fits them
