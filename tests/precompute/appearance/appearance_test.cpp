@@ -252,6 +252,28 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
   EXPECT_EQ(by_eps.appearance.singular_values, plain.singular_values);
 }
 
+// Two held-out nodes: one picks, one is reported. A single node does not
+// vary about its own mean, so the figures of that variation are not stored
+// (they would read 0), and the first 8 are.
+TEST(Appearance, OneReportedNodeKeepsTheFirstEightFigures) {
+  core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
+  const auto clusters = kmeans(p.portrait.q_u, {.clusters = 6, .seed = 3});
+  HeldOutTruth truth;
+  truth.nodes = draw_held_out_nodes(p.portrait.nodes(), clusters.representatives, 2, 5);
+  truth.fields = transfer_fields(p, truth.nodes);
+  const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
+                                          {.reduction = {.rank = 3}}, truth);
+  const auto& a = model.appearance;
+  ASSERT_EQ(a.held_out_nodes.size(), 1u);
+  EXPECT_EQ(a.held_out_error.size(), 8);
+  EXPECT_GT(a.held_out_error[0], 1e-3);  // the served error itself is still measured
+  EXPECT_EQ(a.held_out_spread.size(), 0);
+  core::ScenePackage out = p;
+  out.appearance = a;
+  out.portrait.q_a = model.q_a;
+  EXPECT_NO_THROW(core::validate_package(out, "one reported node"));
+}
+
 TEST(Appearance, ClusterSizeWeightsRejectAForeignLabel) {
   KMeansResult clusters;
   clusters.representatives = {0, 1};
