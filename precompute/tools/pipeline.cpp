@@ -12,6 +12,7 @@
 #include <fmt/ranges.h>
 
 #include <chrono>
+#include <cmath>
 #include <initializer_list>
 #include <string>
 #include <utility>
@@ -94,6 +95,15 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
           "variation {:.4f} / {:.4f}",
           c.selection.of_transfer, c.test.of_transfer, c.selection.of_variation, c.test.of_variation);
     fmt::print("{}\n", &c == &report.candidates.front() ? "  <- kept" : "");
+  }
+  if (const auto& g = report.weighting_gain) {
+    fmt::print(
+        "appearance: cluster sizes leave {:+.1f} % less squared error than equal weights at the picking "
+        "half's nodes, noise {} (twice the paired standard error): {}\n",
+        100 * g->gain, std::isfinite(g->noise) ? fmt::format("{:.1f} %", 100 * g->noise) : "unbounded",
+        g->beyond_noise() ? "beyond it, cluster sizes kept"
+        : g->gain > 0     ? "within it, the paper's equal weights kept"
+                          : "the paper's equal weights kept");
   }
   if (a.held_out_error.size() >= 8) {
     fmt::print(

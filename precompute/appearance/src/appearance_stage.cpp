@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 #include <stdexcept>
 
@@ -67,19 +68,24 @@ MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const Embedding& embedd
 
 std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<std::int32_t>& exclude,
                                               int count, std::uint64_t seed) {
-  std::vector<std::int32_t> pool;
   std::vector<std::uint8_t> excluded(static_cast<size_t>(N), 0);
   for (auto n : exclude)
     if (n >= 0 && n < N) excluded[static_cast<size_t>(n)] = 1;
-  for (std::int32_t n = 0; n < N; ++n)
-    if (!excluded[static_cast<size_t>(n)]) pool.push_back(n);
+  // One shuffle of all N nodes whatever `exclude` is, walked in order past the
+  // excluded ones: another set of clusters (another N_a) then reports on the
+  // same nodes but the few that became representatives, so figures compare.
   // Partial Fisher-Yates; mt19937_64's output is fixed by the standard, and
   // the modulo (bias < 2^-40 here) is ours, so every machine draws the same.
+  std::vector<std::int32_t> order(static_cast<size_t>(N));
+  std::iota(order.begin(), order.end(), 0);
   std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
-  const size_t n = std::min(pool.size(), static_cast<size_t>(std::max(count, 0)));
-  for (size_t i = 0; i < n; ++i) std::swap(pool[i], pool[i + rng() % (pool.size() - i)]);
-  pool.resize(n);
-  return pool;
+  std::vector<std::int32_t> drawn;
+  const size_t wanted = static_cast<size_t>(std::max(count, 0));
+  for (size_t i = 0; i < order.size() && drawn.size() < wanted; ++i) {
+    std::swap(order[i], order[i + rng() % (order.size() - i)]);
+    if (!excluded[static_cast<size_t>(order[i])]) drawn.push_back(order[i]);
+  }
+  return drawn;
 }
 
 AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedding& embedding,
@@ -127,6 +133,7 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedd
   AppearanceModel model =
       fit_appearance_model(q_u, report.clusters, fields.topRows(Na), o.appearance, held_out);  // §4.2, §4.3
   report.candidates = std::move(model.candidates);
+  report.weighting_gain = model.weighting_gain;
   model.appearance.paper_rank = o.paper_rank;
   model.appearance.transfer_rays = o.transfer.rays;
   model.appearance.transfer_bounces =

@@ -184,11 +184,8 @@ MatrixXfR feature_fields(const MatrixXfR& q, const std::vector<std::int32_t>& no
 }
 
 // Most states crowd near the rest, a few lie far out, and k-means gives the
-// few as many clusters as the many: with equal weights M-bar and U_a follow
-// the outliers, weighted by cluster size they follow the states. Held-out
-// nodes are drawn from the states, so the picking half prefers the weighted
-// model, and the reported half (which never chose) confirms it.
-TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
+// few as many clusters as the many.
+MatrixXfR crowd_and_outliers() {
   std::mt19937_64 rng(21);
   const auto uniform = [&] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
   MatrixXfR q_u(400, 2);
@@ -196,6 +193,15 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
     const double radius = n < 360 ? 0.3 * uniform() : 3 + 2 * uniform(), angle = 2 * M_PI * uniform();
     q_u.row(n) << static_cast<float>(radius * std::cos(angle)), static_cast<float>(radius * std::sin(angle));
   }
+  return q_u;
+}
+
+// With equal weights M-bar and U_a follow the outliers, weighted by cluster
+// size they follow the states. Held-out nodes are drawn from the states, so
+// the picking half prefers the weighted model, and the reported half (which
+// never chose) confirms it.
+TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
+  const MatrixXfR q_u = crowd_and_outliers();
   const auto clusters = kmeans(q_u, {.clusters = 12, .seed = 2});
   const Eigen::VectorXd weights = cluster_size_weights(clusters);
   EXPECT_NEAR(weights.mean(), 1.0, 1e-12);
@@ -211,6 +217,19 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
     EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[i].selection.of_transfer);
   EXPECT_EQ(model.candidates[0].weighting, TransferWeighting::cluster_size);
   EXPECT_EQ(model.appearance.transfer_weighting, "cluster size");
+  // Kept because its gain over the best equal candidate is beyond the noise
+  // of the 30 picking nodes, as the paired comparison of their errors says.
+  ASSERT_TRUE(model.weighting_gain);
+  EXPECT_TRUE(model.weighting_gain->beyond_noise())
+      << model.weighting_gain->gain << " vs noise " << model.weighting_gain->noise;
+  const auto best_equal = std::find_if(model.candidates.begin(), model.candidates.end(),
+                                       [](const auto& c) { return c.weighting == TransferWeighting::equal; });
+  ASSERT_NE(best_equal, model.candidates.end());
+  const PairedGain recomputed =
+      paired_gain(best_equal->selection.node_error2, model.candidates[0].selection.node_error2);
+  EXPECT_DOUBLE_EQ(model.weighting_gain->gain, recomputed.gain);
+  EXPECT_NEAR(model.candidates[0].selection.node_error2.sum() / best_equal->selection.node_error2.sum(),
+              1 - recomputed.gain, 1e-12);
   // M-bar is the cluster-size mean of the fields.
   const Eigen::VectorXf mean = (fields.transpose().cast<double>() * weights / weights.sum()).cast<float>();
   EXPECT_LT((model.appearance.mean_transfer - mean).norm(), 1e-5f * mean.norm());
@@ -439,6 +458,64 @@ TEST(Appearance, HeldOutNodesAreDrawnDeterministicallyAndCapped) {
   EXPECT_NE(a, draw_held_out_nodes(10, {1, 2, 3}, 4, 10));
   EXPECT_EQ(draw_held_out_nodes(5, {0, 1}, 40, 1).size(), 3u);  // only 3 nodes are not clusters
   EXPECT_TRUE(draw_held_out_nodes(5, {}, 0, 1).empty());
+}
+
+// The same states judged at a few picking nodes, half of them outliers:
+// cluster sizes still pick better there, but by less than the per-node
+// differences can tell apart, so the paper's equal weights are kept.
+TEST(Appearance, EqualWeightsAreKeptWhenClusterSizesGainWithinNoise) {
+  const MatrixXfR q_u = crowd_and_outliers();
+  const auto clusters = kmeans(q_u, {.clusters = 12, .seed = 2});
+  HeldOutTruth truth;
+  // Picking half (first six): three crowded states, where cluster sizes do
+  // better, and three outlying ones, where the two differ by more either way.
+  truth.nodes = {0, 5, 10, 360, 365, 366, 16, 21, 26, 361, 362, 364};
+  for (auto n : truth.nodes)
+    ASSERT_EQ(std::count(clusters.representatives.begin(), clusters.representatives.end(), n), 0);
+  truth.fields = feature_fields(q_u, truth.nodes);
+  const MatrixXfR fields = feature_fields(q_u, clusters.representatives);
+  const auto model = fit_appearance_model(q_u, clusters, fields, {.reduction = {.rank = 2}}, truth);
+  ASSERT_TRUE(model.weighting_gain);
+  const PairedGain& g = *model.weighting_gain;
+  ASSERT_GT(g.gain, 0) << "not vacuous: cluster sizes pick better";
+  ASSERT_FALSE(g.beyond_noise()) << g.gain << " vs noise " << g.noise;
+  EXPECT_EQ(model.candidates[0].weighting, TransferWeighting::equal);
+  EXPECT_EQ(model.appearance.transfer_weighting, "equal");
+  const auto by_equal = fit_appearance_model(
+      q_u, clusters, fields, {.reduction = {.rank = 2}, .weighting = WeightingChoice::equal}, truth);
+  EXPECT_EQ(model.appearance.mean_transfer, by_equal.appearance.mean_transfer);
+  EXPECT_FALSE(by_equal.weighting_gain) << "a forced weighting is not judged";
+}
+
+TEST(Appearance, PairedGainIsTheSavedFractionWithTwiceItsStandardError) {
+  const Eigen::VectorXd same_saving = (Eigen::VectorXd(4) << 4, 4, 4, 4).finished();
+  const PairedGain steady = paired_gain(same_saving, same_saving.array() - 1);
+  EXPECT_DOUBLE_EQ(steady.gain, 0.25);  // 4 of 16 saved, at every node alike
+  EXPECT_DOUBLE_EQ(steady.noise, 0.0);
+  EXPECT_TRUE(steady.beyond_noise());
+  // Saves 3 at one node and loses 1 at the other: differences 3, -1 (mean 1,
+  // sample variance 8), so the 2 of 6 saved has noise 2 sqrt(8 * 2) / 6.
+  const PairedGain mixed = paired_gain(Eigen::Vector2d(4, 2), Eigen::Vector2d(1, 3));
+  EXPECT_DOUBLE_EQ(mixed.gain, 2.0 / 6);
+  EXPECT_DOUBLE_EQ(mixed.noise, 8.0 / 6);
+  EXPECT_FALSE(mixed.beyond_noise());
+  EXPECT_FALSE(paired_gain(Eigen::VectorXd::Constant(1, 5), Eigen::VectorXd::Zero(1)).beyond_noise());
+  EXPECT_THROW(paired_gain(Eigen::Vector2d(1, 2), Eigen::VectorXd::Zero(3)), std::invalid_argument);
+}
+
+// Another N_a must not draw other held-out nodes, or two runs' figures
+// measure different states (a harder draw once read as a worse N_a).
+TEST(Appearance, HeldOutNodesDoNotDependOnWhichNodesAreClusters) {
+  const auto unexcluded = draw_held_out_nodes(1000, {}, 53, 7);
+  ASSERT_EQ(unexcluded.size(), 53u);
+  // Excluding three drawn nodes (they became representatives) drops exactly
+  // those and walks three nodes further; everything else is the same draw.
+  const std::vector<std::int32_t> representatives{unexcluded[4], unexcluded[20], unexcluded[49], 999};
+  std::vector<std::int32_t> expected;
+  for (auto n : unexcluded)
+    if (std::find(representatives.begin(), representatives.end(), n) == representatives.end())
+      expected.push_back(n);
+  EXPECT_EQ(draw_held_out_nodes(1000, representatives, 50, 7), expected);
 }
 
 TEST(Appearance, RejectsMismatchedFields) {

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 namespace phasecast::precompute {
@@ -70,11 +71,15 @@ MatrixXfR transfer_at_frame(const core::SceneMesh& mesh, const Embedding& embedd
 
 struct AppearanceStageReport {
   KMeansResult clusters;
-  std::vector<CandidateReport> candidates;  // the weightings and interpolants tried, the chosen one first
+  std::vector<CandidateReport> candidates;   // the weightings and interpolants tried, the chosen one first
+  std::optional<PairedGain> weighting_gain;  // cluster sizes against equal weights (AppearanceModel)
 };
 
 // `count` distinct state nodes of 0..N-1 that are not in `exclude`, drawn
-// with std::mt19937_64(seed) (fewer when fewer remain), in draw order.
+// with std::mt19937_64(seed) (fewer when fewer remain), in draw order. The
+// draw is one shuffle of all N nodes walked past the excluded ones, so the
+// draws for two sets of representatives (two N_a) differ only by the
+// representatives the walk meets and as many nodes at its end.
 std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<std::int32_t>& exclude,
                                               int count, std::uint64_t seed);
 

@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/appearance/interpolant.h"
@@ -29,8 +30,10 @@ enum class InterpolantChoice { best, nrbf, knn };  // best: lower held-out error
 // basis and M-bar follow the states the server will show rather than the
 // clusters (k-means gives rare outlying states a cluster each).
 enum class TransferWeighting { equal, cluster_size };
-enum class WeightingChoice { best, equal, cluster_size };  // best: lower held-out error
-const char* weighting_name(TransferWeighting weighting);   // "equal", "cluster size"
+// best: cluster sizes when their held-out gain over equal weights is beyond
+// its noise (paired_gain), else the paper's equal weights.
+enum class WeightingChoice { best, equal, cluster_size };
+const char* weighting_name(TransferWeighting weighting);  // "equal", "cluster size"
 
 struct AppearanceOptions {
   TransferReductionOptions reduction;  // eps_a or fixed r_a
@@ -85,7 +88,22 @@ struct TruthError {
   // error and J the centring over nodes, E J = M J less a rank-r_a matrix,
   // and |E|_2 >= |E J|_2).
   double l2_floor_of_variation = 0;
+  // |M - (M-bar + U_a q_a(q_u))|^2 at each node, in their order: what a
+  // paired comparison of two models at the same nodes needs (paired_gain).
+  Eigen::VectorXd node_error2;
 };
+
+// How much less squared error `candidate` leaves than `baseline` at the same
+// nodes, as a fraction of the baseline's (gain < 0: more), and the noise of
+// that fraction: twice its standard error from the spread of the per-node
+// differences (n - 1 in the variance). With fewer than two nodes the noise is
+// infinite: nothing can be told apart.
+struct PairedGain {
+  double gain = 0;
+  double noise = 0;
+  bool beyond_noise() const { return gain > noise; }
+};
+PairedGain paired_gain(const Eigen::VectorXd& baseline, const Eigen::VectorXd& candidate);
 
 // Errors of the reduction's basis with q_a = served (H x r_a) at truth's nodes.
 TruthError truth_error(const TransferReduction& reduction, const HeldOutTruth& truth,
@@ -117,6 +135,10 @@ struct AppearanceModel {
   core::Appearance appearance;              // /appearance/*
   MatrixXfR q_a;                            // N x r_a: /portrait/q_a, the interpolant at every state node
   std::vector<CandidateReport> candidates;  // every weighting and interpolant tried; the chosen one first
+  // The best cluster-size candidate's paired gain over the best equal one on
+  // the picking half, when both were judged there; cluster sizes are kept
+  // only when it is beyond its noise.
+  std::optional<PairedGain> weighting_gain;
 };
 
 //   @param[in] q_u       #N by r_u all state nodes
