@@ -197,9 +197,10 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
                   "q_a over q_u: best (lower held-out error), nrbf (§4.3) or knn (docs/transfer.md)")
       ->capture_default_str();
   cmd->add_option("--transfer-weighting", a.weighting,
-                  "weights of the cluster fields in M-bar and the SVD (§4.2): best (lower held-out "
-                  "error; equal without held-out nodes), equal (the paper's) or cluster-size (each "
-                  "cluster's share of the state nodes)")
+                  "weights of the cluster fields in M-bar and the SVD (§4.2): best (cluster-size where "
+                  "its held-out gain is beyond twice its paired standard error, else equal; equal "
+                  "without held-out nodes), equal (the paper's) or cluster-size (each cluster's share "
+                  "of the state nodes)")
       ->capture_default_str();
   cmd->add_option("--cluster-seed", s.seed, "seed of the k-means++ clustering")->capture_default_str();
   cmd->add_option("--rays", a.rays,

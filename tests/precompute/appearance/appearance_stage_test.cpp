@@ -156,6 +156,11 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
             std::string::npos)
       << inspect.out;
   EXPECT_EQ(nlohmann::json::parse(json.out)["transfer_weighting"], p.appearance->transfer_weighting);
+  // The run printed the paired comparison of the two weightings; its verdict is the stored one.
+  const auto verdict = r.out.find("appearance: cluster sizes leave ");
+  ASSERT_NE(verdict, std::string::npos) << r.out;
+  const bool weighted = r.out.find("beyond it, cluster sizes kept", verdict) != std::string::npos;
+  EXPECT_EQ(p.appearance->transfer_weighting, weighted ? "cluster size" : "equal") << r.out;
   EXPECT_NE(inspect.out.find(fmt::format("transfer fields weighted {}", p.appearance->transfer_weighting)),
             std::string::npos)
       << inspect.out;
