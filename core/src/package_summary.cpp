@@ -167,7 +167,7 @@ std::string to_text(const PackageSummary& s) {
             "             held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, "
             "of which truncation {:.3g}%",
             100 * s.held_out_l2_total, 100 * s.held_out_l2_truncation);
-      if (s.held_out_l2_spread.size() == 4)
+      if (s.held_out_l2_spread.size() >= 4)
         line(
             "             over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%, truncation "
             "{:.3g}-{:.3g}%",
@@ -191,6 +191,11 @@ std::string to_text(const PackageSummary& s) {
             "relative l2 {:.3g}%; the least any rank-{} model reaches there, whatever its mean, {:.3g}%",
             100 * s.held_out_of_variation, 100 * s.held_out_l2_of_variation, s.rank_a,
             100 * s.held_out_l2_floor_of_variation);
+      if (s.held_out_l2_spread.size() == 6)
+        line(
+            "             of their own variation over resampled nodes (10th-90th percentile): relative l2 "
+            "{:.3g}-{:.3g}%",
+            100 * s.held_out_l2_spread[4], 100 * s.held_out_l2_spread[5]);
     }
   } else {
     line("appearance   none");

@@ -157,7 +157,10 @@ TEST_F(PackageFileRejection, OptionalAppearanceFiguresOfTheWrongLength) {
   remove("/appearance/transfer_sampling");
   core::h5::File::open_write(path_).write("/appearance/held_out_spread", std::vector<float>(3, 0.1f).data(),
                                           {3});
-  EXPECT_THAT(package_rejection(path_), HasSubstr("/appearance/held_out_spread: expected length 4"));
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("/appearance/held_out_spread: expected 6 values (relative l2 total, truncation and "
+                        "total of the nodes' own variation, each a 10th and a 90th percentile) or the older "
+                        "4, got 3"));
 }
 
 TEST_F(PackageFileRejection, AppearanceBasisRows) {
@@ -291,7 +294,17 @@ TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {
   p.appearance->held_out_nodes = {1, 2};
   p.appearance->held_out_error = VectorXf::Constant(11, 0.1f);
   p.appearance->held_out_spread = (VectorXf(4) << 0.1f, 0.2f, 0.05f, 0.15f).finished();
+  EXPECT_EQ(invalid(p), "");  // as written before the spread of the nodes' own variation
+  p.appearance->held_out_spread = (VectorXf(6) << 0.1f, 0.2f, 0.05f, 0.15f, 0.2f, 0.3f).finished();
   EXPECT_EQ(invalid(p), "");
+  p.appearance->held_out_spread[4] = 0.4f;
+  EXPECT_THAT(invalid(p),
+              HasSubstr("/appearance/held_out_spread: expected each 10th percentile <= its 90th"));
+  p.appearance->held_out_spread[4] = 0.2f;
+  p.appearance->held_out_spread.conservativeResize(5);
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out_spread: expected 6 values"));
+  p.appearance->held_out_spread.conservativeResize(6);
+  p.appearance->held_out_spread[5] = 0.3f;
   p.appearance->held_out_spread[0] = 0.3f;
   EXPECT_THAT(invalid(p),
               HasSubstr("/appearance/held_out_spread: expected each 10th percentile <= its 90th"));

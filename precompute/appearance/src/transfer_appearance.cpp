@@ -123,9 +123,10 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
   // One node does not vary about its own mean: its figures would read 0.
   if (test.nodes.size() < 2) a.held_out_error.conservativeResize(8);
   if (!spread) return;
-  a.held_out_spread.resize(4);
+  a.held_out_spread.resize(6);
   a.held_out_spread << static_cast<float>(spread->l2_total[0]), static_cast<float>(spread->l2_total[1]),
-      static_cast<float>(spread->l2_truncation[0]), static_cast<float>(spread->l2_truncation[1]);
+      static_cast<float>(spread->l2_truncation[0]), static_cast<float>(spread->l2_truncation[1]),
+      static_cast<float>(spread->l2_of_variation[0]), static_cast<float>(spread->l2_of_variation[1]);
 }
 
 // Largest eigenvalue of a symmetric positive semi-definite Gram matrix: |X|_2^2 for G = X^T X.
@@ -152,6 +153,19 @@ Eigen::MatrixXd gram(const Eigen::MatrixXf& X) {
 // centred truth. With P the best coordinates rank r_a has and S the served
 // ones, M - M-bar = T + U P and the error is T + U (P - S), with T orthogonal
 // to U_a, so every Gram matrix follows from T's and the coordinates.
+// Nodes whose variation about their own mean is below this fraction of their
+// deviation from M-bar are alike: what is left is the rounding of J G J.
+constexpr double kNoVariation = 1e-12;
+
+// J G J, J the centring over the nodes, of the Gram matrix G of M - M-bar:
+// the Gram matrix of M - mean_H M, since centring over nodes removes M-bar
+// ((M - M-bar) J = M J).
+Eigen::MatrixXd centred_over_nodes(const Eigen::MatrixXd& gram) {
+  const Eigen::Index H = gram.rows();
+  const Eigen::MatrixXd J = Eigen::MatrixXd::Identity(H, H) - Eigen::MatrixXd::Constant(H, H, 1.0 / H);
+  return J * gram * J;
+}
+
 struct HeldOutGrams {
   double centred2 = 0, truth2 = 0, total2 = 0, truncation2 = 0, interpolation2 = 0, variation2 = 0;
   Eigen::MatrixXd truncation, error, centred;
@@ -190,10 +204,8 @@ HeldOutGrams held_out_grams(const TransferReduction& r, const HeldOutTruth& trut
   const Eigen::MatrixXd D = P - S;
   g.error = g.truncation + D.transpose() * D;
   g.centred = g.truncation + P.transpose() * P;
-  // Centring over the nodes removes M-bar: (M - M-bar) J = M J.
   if (H > 0) {
-    const Eigen::MatrixXd J = Eigen::MatrixXd::Identity(H, H) - Eigen::MatrixXd::Constant(H, H, 1.0 / H);
-    g.variation = J * g.centred * J;
+    g.variation = centred_over_nodes(g.centred);
     g.variation2 = std::max(0.0, g.variation.trace());
   }
   return g;
@@ -278,7 +290,7 @@ TruthError truth_error(const TransferReduction& r, const HeldOutTruth& truth,
     l2_figures(g, all, e.l2_total, e.l2_truncation);
     e.l2_floor = rank_floor(g.centred, r.rank());
   }
-  if (g.variation2 > 0) {
+  if (g.variation2 > kNoVariation * g.centred2) {
     e.of_variation = std::sqrt(g.total2 / g.variation2);
     const double variation = largest_eigenvalue(g.variation);
     if (variation > 0) e.l2_of_variation = std::sqrt(largest_eigenvalue(g.error) / variation);
@@ -310,7 +322,7 @@ TruthErrorSpread truth_error_spread(const TransferReduction& r, const HeldOutTru
   TruthErrorSpread spread;
   if (H == 0) return spread;
   std::mt19937_64 rng(seed);
-  std::vector<double> totals, truncations;
+  std::vector<double> totals, truncations, of_variation;
   std::vector<Eigen::Index> pick(H);
   for (int d = 0; d < draws; ++d) {
     // Modulo draws, no library distribution: every platform resamples alike.
@@ -319,10 +331,16 @@ TruthErrorSpread truth_error_spread(const TransferReduction& r, const HeldOutTru
     if (!l2_figures(g, pick, total, truncation)) continue;
     totals.push_back(total);
     truncations.push_back(truncation);
+    const Eigen::MatrixXd centred = g.centred(pick, pick);
+    const double variation = largest_eigenvalue(centred_over_nodes(centred));
+    if (variation > kNoVariation * largest_eigenvalue(centred))
+      of_variation.push_back(std::sqrt(largest_eigenvalue(g.error(pick, pick)) / variation));
   }
   if (totals.empty()) return spread;
   spread.l2_total = {percentile(totals, 0.1), percentile(totals, 0.9)};
   spread.l2_truncation = {percentile(truncations, 0.1), percentile(truncations, 0.9)};
+  if (!of_variation.empty())
+    spread.l2_of_variation = {percentile(of_variation, 0.1), percentile(of_variation, 0.9)};
   return spread;
 }
 

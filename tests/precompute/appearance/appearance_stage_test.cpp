@@ -119,7 +119,13 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   EXPECT_GE(p.appearance->transfer_rays, 1);  // the tiny scene's
   ASSERT_EQ(p.appearance->held_out_error.size(), 11);
   EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
-  ASSERT_EQ(p.appearance->held_out_spread.size(), 4);
+  ASSERT_EQ(p.appearance->held_out_spread.size(), 6);
+  EXPECT_NE(inspect.out.find(
+                fmt::format("of their own variation over resampled nodes (10th-90th percentile): "
+                            "relative l2 {:.3g}-{:.3g}%",
+                            100 * p.appearance->held_out_spread[4], 100 * p.appearance->held_out_spread[5])),
+            std::string::npos)
+      << inspect.out;
   EXPECT_NE(inspect.out.find(fmt::format("over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%",
                                          100 * p.appearance->held_out_spread[0],
                                          100 * p.appearance->held_out_spread[1])),

@@ -427,6 +427,10 @@ TEST(Appearance, HeldOutSpreadIsTheRelativeL2OfResampledNodes) {
   };
   EXPECT_NEAR(one.l2_total[0], norm2(E) / norm2(C), 1e-5);
   EXPECT_NEAR(one.l2_truncation[0], norm2(T) / norm2(C), 1e-5);
+  // Of the resample's own variation: its columns centred on their own mean (repeats counted).
+  const Eigen::MatrixXd own = C.colwise() - C.rowwise().mean();
+  EXPECT_NEAR(one.l2_of_variation[0], norm2(E) / norm2(own), 1e-5);
+  EXPECT_GT(one.l2_of_variation[0], one.l2_total[0]) << "not vacuous: the two denominators differ";
   // Over many draws the spread is real here and holds the figure over all nodes.
   const auto exact = truth_error(r, truth, served);
   const auto many = truth_error_spread(r, truth, served);
@@ -435,11 +439,15 @@ TEST(Appearance, HeldOutSpreadIsTheRelativeL2OfResampledNodes) {
   EXPECT_GE(many.l2_truncation[1], exact.l2_truncation);
   EXPECT_LE(many.l2_total[0], exact.l2_total);
   EXPECT_GE(many.l2_total[1], exact.l2_total);
+  EXPECT_LT(many.l2_of_variation[0], many.l2_of_variation[1]);
   // Nodes that are all alike leave nothing to the draw.
   for (int h = 1; h < 6; ++h) truth.fields.row(h) = truth.fields.row(0);
   const auto alike = truth_error_spread(r, truth, MatrixXfR::Zero(6, 2));
   EXPECT_NEAR(alike.l2_truncation[0], alike.l2_truncation[1], 1e-6);
   EXPECT_NEAR(alike.l2_total[0], 1, 1e-5);  // the mean alone served: the whole deviation
+  // No node varies about their mean in any resample: no figure of that variation.
+  EXPECT_EQ(alike.l2_of_variation[0], 0);
+  EXPECT_EQ(alike.l2_of_variation[1], 0);
 }
 
 TEST(Appearance, HeldOutSpreadRejectsNoDrawsAndMismatchedServedCoordinates) {

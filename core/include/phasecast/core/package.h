@@ -144,8 +144,10 @@ struct PhasePortrait {
 
 // Reduced radiance transfer (§4).
 struct Appearance {
-  VectorXf mean_transfer;                   // 48S: M-bar
-  MatrixXfR U_a;                            // 48S x r_a orthonormal transfer basis
+  VectorXf mean_transfer;  // 48S: M-bar
+  MatrixXfR U_a;           // 48S x r_a orthonormal transfer basis
+  // Of the paper's A_a (equal weights) whichever weighting made U_a, so the
+  // paper's relErr and Fig. 12 read the same in every package.
   VectorXf singular_values;                 // every computed sigma, decreasing
   VectorXf rel_error;                       // relative l2 error at rank i+1 (Fig. 12, red)
   std::vector<std::int32_t> cluster_nodes;  // N_a state nodes whose transfer was computed
@@ -172,8 +174,9 @@ struct Appearance {
                             // their own mean (Frobenius, relative l2) and the least relative l2 any
                             // rank-r_a model about that mean has (older packages: the first 4, 6, 7
                             // or 8)
-  // 4 (empty: not measured): 10th and 90th percentiles of the relative l2 total,
-  // then of the truncation, over bootstrap resamples of the held-out nodes.
+  // 6 (empty: not measured): 10th and 90th percentiles of the relative l2 total,
+  // then of the truncation, then of the total relative to the nodes' own
+  // variation, over bootstrap resamples of the held-out nodes (older: the first 4).
   VectorXf held_out_spread;
   std::int32_t paper_rank = 0;  // the paper's r_a for this scene (Table 1; 0: none)
   // How the cluster and held-out transfers were sampled, so that a figure can

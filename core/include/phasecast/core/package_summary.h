@@ -54,7 +54,8 @@ struct PackageSummary {
   // relative l2 any rank-r_a model has there, whatever its mean. NaN in older packages.
   double held_out_of_variation = 0, held_out_l2_of_variation = 0, held_out_l2_floor_of_variation = 0;
   // 10th and 90th percentiles of held_out_l2_total, then of held_out_l2_truncation,
-  // over bootstrap resamples of the held-out nodes; empty in older packages.
+  // then of held_out_l2_of_variation, over bootstrap resamples of the held-out
+  // nodes; empty (or without the last two) in older packages.
   std::vector<double> held_out_l2_spread;
   std::uint64_t client_download_bytes = 0;    // sum of basis parts
   std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
