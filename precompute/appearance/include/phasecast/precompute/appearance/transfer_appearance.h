@@ -116,9 +116,9 @@ TruthError truth_error(const TransferReduction& reduction, const HeldOutTruth& t
 struct TruthErrorSpread {
   std::array<double, 2> l2_total{0, 0};
   std::array<double, 2> l2_truncation{0, 0};
-  // l2_of_variation, each resample centred on its own mean: the steadier
-  // figure, since a resample that misses the nodes far from M-bar shrinks
-  // |M - M-bar| but not the nodes' own variation as much.
+  // l2_of_variation, each resample centred on its own mean. Not steadier than
+  // the figures about M-bar (measured: as wide or wider, since a resample of
+  // nodes alike has little variation of its own to divide by).
   std::array<double, 2> l2_of_variation{0, 0};
 };
 TruthErrorSpread truth_error_spread(const TransferReduction& reduction, const HeldOutTruth& truth,
