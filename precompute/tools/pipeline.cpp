@@ -98,9 +98,10 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   }
   if (const auto& g = report.weighting_gain) {
     fmt::print(
-        "appearance: cluster sizes leave {:+.1f} % less squared error than equal weights at the picking "
+        "appearance: cluster sizes leave {:.1f} % {} squared error than equal weights at the picking "
         "half's nodes, noise {} (twice the paired standard error): {}\n",
-        100 * g->gain, std::isfinite(g->noise) ? fmt::format("{:.1f} %", 100 * g->noise) : "unbounded",
+        100 * std::abs(g->gain), g->gain >= 0 ? "less" : "more",
+        std::isfinite(g->noise) ? fmt::format("{:.1f} %", 100 * g->noise) : "unbounded",
         g->beyond_noise() ? "beyond it, cluster sizes kept"
         : g->gain > 0     ? "within it, the paper's equal weights kept"
                           : "the paper's equal weights kept");

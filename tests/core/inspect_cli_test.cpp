@@ -74,6 +74,8 @@ TEST_F(InspectCli, OlderHeldOutFiguresReadAsEqualWeightsAndUnknownVariation) {
   package_.appearance->held_out_nodes = {1, 2};
   package_.appearance->held_out_error =
       (VectorXf(8) << 0.3f, 0.2f, 0.1f, 0.01f, 0.25f, 0.2f, 0.15f, 0.1f).finished();
+  // A spread written before its own-variation pair: 4 values.
+  package_.appearance->held_out_spread = (VectorXf(4) << 0.2f, 0.3f, 0.15f, 0.25f).finished();
   const auto path = dir_ / "older.h5";
   core::write_package(package_, path);
   core::h5::File::open_write(path).remove("/appearance/transfer_weighting");
@@ -89,6 +91,9 @@ TEST_F(InspectCli, OlderHeldOutFiguresReadAsEqualWeightsAndUnknownVariation) {
   ASSERT_EQ(text.exit_code, 0) << text.err;
   EXPECT_THAT(text.out, HasSubstr("transfer fields weighted equal"));
   EXPECT_THAT(text.out, ::testing::Not(HasSubstr("of the nodes' own variation")));
+  EXPECT_THAT(text.out, HasSubstr("over resampled nodes (10th-90th percentile): 20-30%, truncation 15-25%"));
+  EXPECT_THAT(text.out, ::testing::Not(HasSubstr("of their own variation over resampled nodes")));
+  EXPECT_EQ(j["held_out"]["l2_spread"].size(), 4u);
 }
 
 TEST_F(InspectCli, TruncatedPackageFailsWithOneLine) {

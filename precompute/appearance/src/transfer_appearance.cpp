@@ -123,10 +123,13 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
   // One node does not vary about its own mean: its figures would read 0.
   if (test.nodes.size() < 2) a.held_out_error.conservativeResize(8);
   if (!spread) return;
-  a.held_out_spread.resize(6);
+  a.held_out_spread.resize(4);
   a.held_out_spread << static_cast<float>(spread->l2_total[0]), static_cast<float>(spread->l2_total[1]),
-      static_cast<float>(spread->l2_truncation[0]), static_cast<float>(spread->l2_truncation[1]),
-      static_cast<float>(spread->l2_of_variation[0]), static_cast<float>(spread->l2_of_variation[1]);
+      static_cast<float>(spread->l2_truncation[0]), static_cast<float>(spread->l2_truncation[1]);
+  if (const auto& own = spread->l2_of_variation) {
+    a.held_out_spread.conservativeResize(6);
+    a.held_out_spread.tail(2) << static_cast<float>((*own)[0]), static_cast<float>((*own)[1]);
+  }
 }
 
 // Largest eigenvalue of a symmetric positive semi-definite Gram matrix: |X|_2^2 for G = X^T X.
@@ -243,9 +246,9 @@ double percentile(std::vector<double> v, double p) {
 // Equal weights are the paper's (§4.2): the best cluster-size candidate goes
 // first only where its paired gain over the best equal one on the picking
 // half is beyond its noise. A picking half of 20-50 nodes reads differences
-// of a few percent either way (on one draw the default plant's picked cluster
-// sizes 0.4 points better and its reported half read them 1.1 points worse). `ranked` is sorted by the
-// picking half.
+// of a few percent either way (on one draw the default plant's picked
+// cluster sizes 0.4 points better and its reported half read them 1.1
+// points worse). `ranked` is sorted by the picking half.
 std::optional<PairedGain> keep_equal_within_noise(std::vector<CandidateReport>& ranked) {
   const auto first_of = [&](TransferWeighting w) {
     return std::find_if(ranked.begin(), ranked.end(), [&](const auto& c) { return c.weighting == w; });
@@ -341,7 +344,7 @@ TruthErrorSpread truth_error_spread(const TransferReduction& r, const HeldOutTru
   spread.l2_total = {percentile(totals, 0.1), percentile(totals, 0.9)};
   spread.l2_truncation = {percentile(truncations, 0.1), percentile(truncations, 0.9)};
   if (!of_variation.empty())
-    spread.l2_of_variation = {percentile(of_variation, 0.1), percentile(of_variation, 0.9)};
+    spread.l2_of_variation = std::array{percentile(of_variation, 0.1), percentile(of_variation, 0.9)};
   return spread;
 }
 

@@ -79,7 +79,8 @@ struct AppearanceStageReport {
 // with std::mt19937_64(seed) (fewer when fewer remain), in draw order. The
 // draw is one shuffle of all N nodes walked past the excluded ones, so the
 // draws for two sets of representatives (two N_a) differ only by the
-// representatives the walk meets and as many nodes at its end.
+// representatives the walk meets and as many nodes at its end, and a
+// shorter count draws the start of a longer one.
 std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<std::int32_t>& exclude,
                                               int count, std::uint64_t seed);
 

@@ -96,8 +96,8 @@ struct TruthError {
 // How much less squared error `candidate` leaves than `baseline` at the same
 // nodes, as a fraction of the baseline's (gain < 0: more), and the noise of
 // that fraction: twice its standard error from the spread of the per-node
-// differences (n - 1 in the variance). With fewer than two nodes the noise is
-// infinite: nothing can be told apart.
+// differences (n - 1 in the variance), the baseline's total taken as fixed. With fewer than two nodes the
+// noise is infinite: nothing can be told apart.
 struct PairedGain {
   double gain = 0;
   double noise = 0;
@@ -116,10 +116,11 @@ TruthError truth_error(const TransferReduction& reduction, const HeldOutTruth& t
 struct TruthErrorSpread {
   std::array<double, 2> l2_total{0, 0};
   std::array<double, 2> l2_truncation{0, 0};
-  // l2_of_variation, each resample centred on its own mean. Not steadier than
-  // the figures about M-bar (measured: as wide or wider, since a resample of
-  // nodes alike has little variation of its own to divide by).
-  std::array<double, 2> l2_of_variation{0, 0};
+  // l2_of_variation, each resample centred on its own mean; none when no
+  // resample varies. Not steadier than the figures about M-bar (measured:
+  // about as wide or wider, since a resample of nodes alike has little
+  // variation of its own to divide by).
+  std::optional<std::array<double, 2>> l2_of_variation;
 };
 TruthErrorSpread truth_error_spread(const TransferReduction& reduction, const HeldOutTruth& truth,
                                     const Eigen::Ref<const MatrixXfR>& served, int draws = 199,
