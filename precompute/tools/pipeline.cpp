@@ -99,7 +99,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   if (const auto& g = report.weighting_gain) {
     fmt::print(
         "appearance: cluster sizes leave {:.1f} % {} squared error than equal weights at the picking "
-        "half's nodes, noise {} (twice the paired standard error): {}\n",
+        "half's nodes, noise {} (95 % t interval of the paired differences): {}\n",
         100 * std::abs(g->gain), g->gain >= 0 ? "less" : "more",
         std::isfinite(g->noise) ? fmt::format("{:.1f} %", 100 * g->noise) : "unbounded",
         g->beyond_noise() ? "beyond it, cluster sizes kept"
@@ -200,7 +200,7 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
       ->capture_default_str();
   cmd->add_option("--transfer-weighting", a.weighting,
                   "weights of the cluster fields in M-bar and the SVD (§4.2): best (cluster-size where "
-                  "its held-out gain is beyond twice its paired standard error, else equal; equal "
+                  "its held-out gain is beyond its paired 95 % t interval, else equal; equal "
                   "without held-out nodes), equal (the paper's) or cluster-size (each cluster's share "
                   "of the state nodes)")
       ->capture_default_str();

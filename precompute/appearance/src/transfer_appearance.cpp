@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 #include <Eigen/Eigenvalues>
+#include <boost/math/distributions/students_t.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -313,7 +314,9 @@ PairedGain paired_gain(const Eigen::VectorXd& baseline, const Eigen::VectorXd& c
   if (n < 2 || !(sum > 0)) return {0, std::numeric_limits<double>::infinity()};
   const Eigen::VectorXd less = baseline - candidate;  // per node: what the candidate saves
   const double variance = (less.array() - less.mean()).square().sum() / (n - 1);
-  return {less.sum() / sum, 2 * std::sqrt(variance * n) / sum};
+  // Student's t, not 2: a picking half of a few nodes estimates the spread badly.
+  const double t = boost::math::quantile(boost::math::students_t(n - 1), 0.975);
+  return {less.sum() / sum, t * std::sqrt(variance * n) / sum};
 }
 
 TruthErrorSpread truth_error_spread(const TransferReduction& r, const HeldOutTruth& truth,
