@@ -122,12 +122,14 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
         "relative l2 {:.4f}; the least any rank-{} model reaches there, whatever its mean, {:.4f}\n",
         a.held_out_error[8], a.held_out_error[9], a.U_a.cols(), a.held_out_error[10]);
   }
-  if (a.held_out_spread.size() == 6) {
+  if (a.held_out_spread.size() >= 4) {
     fmt::print(
         "appearance: over resampled held-out nodes (10th-90th percentile) relative l2 {:.4f}-{:.4f}, "
-        "truncation alone {:.4f}-{:.4f}; relative l2 of their own variation {:.4f}-{:.4f}\n",
+        "truncation alone {:.4f}-{:.4f}{}\n",
         a.held_out_spread[0], a.held_out_spread[1], a.held_out_spread[2], a.held_out_spread[3],
-        a.held_out_spread[4], a.held_out_spread[5]);
+        a.held_out_spread.size() == 6 ? fmt::format("; relative l2 of their own variation {:.4f}-{:.4f}",
+                                                    a.held_out_spread[4], a.held_out_spread[5])
+                                      : std::string());
   }
 }
 

@@ -96,10 +96,10 @@ struct TruthError {
 // How much less squared error `candidate` leaves than `baseline` at the same
 // nodes, as a fraction of the baseline's (gain < 0: more), and the noise of
 // that fraction: the half-width of its two-sided 95 % Student t interval
-// (t_0.975 with n - 1 degrees of freedom, 12.7 at 2 nodes, 2.09 at 20, 1.98
+// (t_0.975 with n - 1 degrees of freedom: 12.7 at 2 nodes, 2.09 at 20, 1.98
 // at 100) times its standard error from the spread of the per-node
-// differences (n - 1 in the variance), the baseline's total taken as fixed. With fewer than two nodes the
-// noise is infinite: nothing can be told apart.
+// differences (n - 1 in the variance), the baseline's total taken as fixed.
+// With fewer than two nodes the noise is infinite: nothing can be told apart.
 struct PairedGain {
   double gain = 0;
   double noise = 0;
