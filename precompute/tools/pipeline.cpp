@@ -68,6 +68,27 @@ ContactSummary sampled_contact(const precompute::Scene& scene, const precompute:
   return c;
 }
 
+// "deformable points 74 % / 88 % (0.0873), props 26 % / 12 % (0.0552); SH band 0 ...": each
+// part's share of the variation and of the residual, and its relative error.
+std::string residual_parts(const precompute::ResidualByPart& r) {
+  const auto part = [](const char* name, const precompute::PartOfResidual& x) {
+    return fmt::format("{} {:.0f} % / {:.0f} % ({:.4f})", name, 100 * x.of_data, 100 * x.of_residual,
+                       x.relative);
+  };
+  return fmt::format("{}, {}; SH band {}, {}, {}, {}", part("deformable points", r.points[0]),
+                     part("props", r.points[1]), part("0", r.bands[0]), part("1", r.bands[1]),
+                     part("2", r.bands[2]), part("3", r.bands[3]));
+}
+
+void print_residual_parts(const precompute::AppearanceStageReport& report) {
+  fmt::print(
+      "appearance: where the truncation error lives (share of the variation about M-bar / of what U_a "
+      "leaves of it (relative error)): clusters {:.4f}: {}\n",
+      report.clusters_residual.relative, residual_parts(report.clusters_residual));
+  if (const auto& h = report.held_out_residual)
+    fmt::print("  held-out nodes {:.4f}: {}\n", h->relative, residual_parts(*h));
+}
+
 void print_appearance_report(const core::ScenePackage& p, const precompute::AppearanceStageReport& report) {
   const auto& a = *p.appearance;
   const auto r = p.rank_a();
@@ -131,6 +152,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
                                                     a.held_out_spread[4], a.held_out_spread[5])
                                       : std::string());
   }
+  if (r > 0) print_residual_parts(report);
 }
 
 // The value of `flag` named `value`; a one-line error listing the names otherwise.

@@ -139,6 +139,11 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedd
   model.appearance.transfer_bounces =
       o.transfer.mode == TransferMode::interreflected ? o.transfer.bounces : 0;
   pkg.appearance = std::move(model.appearance);
+  const auto& a = *pkg.appearance;
+  report.clusters_residual =
+      residual_by_part(fields.topRows(Na), a.mean_transfer, a.U_a, pkg.mesh.deformable);
+  if (held_out.fields.rows() > 0)
+    report.held_out_residual = residual_by_part(held_out.fields, a.mean_transfer, a.U_a, pkg.mesh.deformable);
   pkg.portrait.q_a = std::move(model.q_a);
   pkg.attributes.eps_a = o.appearance.reduction.rank > 0 ? 0.0 : o.appearance.reduction.eps_a;
   return report;

@@ -186,4 +186,48 @@ double cluster_truncation_l2(const TransferReduction& r, int columns, int draws,
   return *middle;
 }
 
+ResidualByPart residual_by_part(const Eigen::Ref<const MatrixXfR>& X, const VectorXf& mean_f,
+                                const MatrixXfR& U_a, const std::vector<std::uint8_t>& deformable) {
+  const Eigen::Index n = X.cols();
+  const auto S = static_cast<Eigen::Index>(deformable.size());
+  if (n != core::kTransferPerPoint * S || mean_f.size() != n || U_a.rows() != n) {
+    throw std::invalid_argument(
+        fmt::format("residual_by_part: expected fields, mean and U_a of 48 x {} values, got {}, {} and {}", S,
+                    n, mean_f.size(), U_a.rows()));
+  }
+  const Eigen::VectorXd mean = mean_f.cast<double>();
+  // The coordinates U_a^T A of every field, then R block by block.
+  Eigen::MatrixXd coordinates = Eigen::MatrixXd::Zero(X.rows(), U_a.cols());
+  for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
+    coordinates.noalias() += centred_block(X, mean, b, w) * U_a.middleRows(b, w).cast<double>();
+  });
+  std::array<double, 2> point_data{}, point_residual{};
+  std::array<double, 4> band_data{}, band_residual{};
+  for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
+    const Eigen::MatrixXd A = centred_block(X, mean, b, w);
+    const Eigen::MatrixXd R = A - coordinates * U_a.middleRows(b, w).cast<double>().transpose();
+    const Eigen::VectorXd a2 = A.colwise().squaredNorm(), r2 = R.colwise().squaredNorm();
+    for (Eigen::Index i = 0; i < w; ++i) {
+      const Eigen::Index value = b + i, coefficient = value % 16;
+      const size_t kind = deformable[static_cast<size_t>(value / core::kTransferPerPoint)] ? 0 : 1;
+      const auto band =
+          static_cast<size_t>(std::sqrt(static_cast<double>(coefficient)));  // k in [l^2, (l+1)^2)
+      point_data[kind] += a2[i];
+      point_residual[kind] += r2[i];
+      band_data[band] += a2[i];
+      band_residual[band] += r2[i];
+    }
+  });
+  const double data = point_data[0] + point_data[1], residual = point_residual[0] + point_residual[1];
+  const auto share = [](double part, double whole) { return whole > 0 ? part / whole : 0.0; };
+  const auto part = [&](double d, double r) {
+    return PartOfResidual{share(d, data), share(r, residual), d > 0 ? std::sqrt(r / d) : 0.0};
+  };
+  ResidualByPart out;
+  for (size_t k = 0; k < 2; ++k) out.points[k] = part(point_data[k], point_residual[k]);
+  for (size_t l = 0; l < 4; ++l) out.bands[l] = part(band_data[l], band_residual[l]);
+  out.relative = data > 0 ? std::sqrt(residual / data) : 0.0;
+  return out;
+}
+
 }  // namespace phasecast::precompute

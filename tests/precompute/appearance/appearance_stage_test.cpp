@@ -170,6 +170,20 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   EXPECT_NE(inspect.out.find(fmt::format("transfer fields weighted {}", p.appearance->transfer_weighting)),
             std::string::npos)
       << inspect.out;
+  // Where the truncation error lives, on the clusters and on the held-out nodes. With equal weights
+  // the clusters' figure is the package's Frobenius error curve at r_a (Fig. 12).
+  const std::string lives =
+      "where the truncation error lives (share of the variation about M-bar / of what "
+      "U_a leaves of it (relative error)): clusters ";
+  const auto at = r.out.find(lives);
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const double clusters = std::stod(r.out.substr(at + lives.size(), 6));
+  if (p.appearance->transfer_weighting == "equal")
+    EXPECT_NEAR(clusters, p.appearance->rel_error[p.rank_a() - 1], 1e-4) << r.out;
+  EXPECT_NE(r.out.find(": deformable points ", at), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\n  held-out nodes ", at), std::string::npos) << r.out;
+  EXPECT_NE(inspect.out.find(fmt::format("interpolant {}", p.appearance->interpolant)), std::string::npos)
+      << inspect.out;
 }
 
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {

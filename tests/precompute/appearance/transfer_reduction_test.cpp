@@ -262,6 +262,49 @@ std::string failure_of(const MatrixXfR& X, TransferReductionOptions o, const Eig
   return "no exception";
 }
 
+// Two points, the first deformable: it varies in one band-1 value, the prop
+// in one band-3 value, less. A rank-1 basis takes the larger variation, so
+// all that is left lives on the prop, in band 3.
+TEST(ResidualByPart, PutsWhatTheBasisLeavesOnThePartThatVariesOutsideIt) {
+  const Eigen::Vector4d a(3, -1, -4, 2), b(3, -1, 1, -3);  // of mean 0, orthogonal
+  MatrixXfR X = MatrixXfR::Constant(4, 96, 0.5f);
+  for (int j = 0; j < 4; ++j) {
+    X(j, 1) += static_cast<float>(a[j]);            // point 0, red, coefficient 1 (l = 1)
+    X(j, 48 + 16 + 9) += static_cast<float>(b[j]);  // point 1, green, coefficient 9 (l = 3)
+  }
+  const auto r = reduce_transfer(X, {.eps_a = 0, .rank = 1});
+  const auto parts = precompute::residual_by_part(X, r.mean_transfer, r.U_a, {1, 0});
+  const double A = a.squaredNorm(), B = b.squaredNorm();  // 30 and 20
+  EXPECT_NEAR(parts.points[0].of_data, A / (A + B), 1e-6);
+  EXPECT_NEAR(parts.points[0].of_residual, 0, 1e-6);
+  EXPECT_NEAR(parts.points[0].relative, 0, 1e-4);
+  EXPECT_NEAR(parts.points[1].of_data, B / (A + B), 1e-6);
+  EXPECT_NEAR(parts.points[1].of_residual, 1, 1e-6);
+  EXPECT_NEAR(parts.points[1].relative, 1, 1e-6);
+  EXPECT_NEAR(parts.bands[1].of_data, A / (A + B), 1e-6);
+  EXPECT_NEAR(parts.bands[3].of_residual, 1, 1e-6);
+  for (size_t l : {0, 2}) EXPECT_EQ(parts.bands[l].of_data, 0) << "band " << l;
+  EXPECT_NEAR(parts.relative, std::sqrt(B / (A + B)), 1e-6);
+  EXPECT_NEAR(parts.relative, r.rel_error[0], 1e-6);  // the Frobenius relErr of Fig. 12
+}
+
+// On fields that vary everywhere, the parts add up and the whole is the
+// error curve at that rank, the second reader.
+TEST(ResidualByPart, AddsUpToTheErrorCurve) {
+  const MatrixXfR X = rank3_fields();
+  const auto r = reduce_transfer(X, {.eps_a = 0, .rank = 2});
+  std::vector<std::uint8_t> deformable{1, 0, 1, 1, 0};
+  const auto parts = precompute::residual_by_part(X, r.mean_transfer, r.U_a, deformable);
+  EXPECT_NEAR(parts.relative, r.rel_error[1], 1e-5);
+  double data = 0, residual = 0;
+  for (const auto& p : parts.bands) data += p.of_data, residual += p.of_residual;
+  EXPECT_NEAR(data, 1, 1e-9);
+  EXPECT_NEAR(residual, 1, 1e-9);
+  EXPECT_NEAR(parts.points[0].of_residual + parts.points[1].of_residual, 1, 1e-9);
+  EXPECT_GT(parts.points[1].of_residual, 0);
+  EXPECT_THROW(precompute::residual_by_part(X, r.mean_transfer, r.U_a, {1, 0}), std::invalid_argument);
+}
+
 TEST(TransferReductionRejects, BadInput) {
   EXPECT_EQ(failure_of(MatrixXfR::Zero(3, 50), {}),
             "reduce_transfer: fields must be N_a x 48S with N_a, S >= 1, got 3 x 50");

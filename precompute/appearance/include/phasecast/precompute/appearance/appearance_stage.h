@@ -73,6 +73,10 @@ struct AppearanceStageReport {
   KMeansResult clusters;
   std::vector<CandidateReport> candidates;   // the weightings and interpolants tried, the chosen one first
   std::optional<PairedGain> weighting_gain;  // cluster sizes against equal weights (AppearanceModel)
+  // Where the served basis's truncation error lives (residual_by_part), on
+  // the clusters' fields and on the held-out truth (none without held-out nodes).
+  ResidualByPart clusters_residual;
+  std::optional<ResidualByPart> held_out_residual;
 };
 
 // `count` distinct state nodes of 0..N-1 that are not in `exclude`, drawn

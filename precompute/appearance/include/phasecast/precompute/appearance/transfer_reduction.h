@@ -4,6 +4,7 @@
 
 #include "phasecast/core/eigen_types.h"
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -64,5 +65,30 @@ double cluster_truncation_l2(const TransferReduction& reduction, const std::vect
 // nodes compares with this at H, not with sigma_{r_a+1} / sigma_1.
 double cluster_truncation_l2(const TransferReduction& reduction, int columns, int draws = 255,
                              std::uint64_t seed = 1);
+
+// Where a rank-r_a model's truncation error lives: the fields' variation
+// about M-bar, A = M - M-bar, and what the basis leaves of it, R = (I - U_a U_a^T) A,
+// summed over parts of the 48 values of each scene point.
+struct PartOfResidual {
+  double of_data = 0;      // the part's share of |A|_F^2
+  double of_residual = 0;  // its share of |R|_F^2
+  double relative = 0;     // |R_part|_F / |A_part|_F (0 where the part does not vary)
+};
+struct ResidualByPart {
+  // Deformable scene points, then the others (props: they change only by
+  // the shadows and light the deformables cast on them).
+  std::array<PartOfResidual, 2> points;
+  std::array<PartOfResidual, 4> bands;  // spherical-harmonic bands l = 0..3, all colours
+  double relative = 0;                  // |R|_F / |A|_F over all parts
+};
+
+// Splits the truncation error of `fields` (#fields by 48S, as for
+// reduce_transfer) about `mean` (48S) in the orthonormal basis `U_a`
+// (48S x r_a) by point kind and SH band. With the clusters' fields and the
+// paper's M-bar and U_a, `relative` is its Frobenius relErr (Fig. 12).
+//   @param[in] deformable  S flags: 1 for a point U_u moves
+// Throws std::invalid_argument when the sizes disagree.
+ResidualByPart residual_by_part(const Eigen::Ref<const MatrixXfR>& fields, const VectorXf& mean,
+                                const MatrixXfR& U_a, const std::vector<std::uint8_t>& deformable);
 
 }  // namespace phasecast::precompute
