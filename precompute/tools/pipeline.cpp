@@ -104,7 +104,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   for (const auto& c : report.candidates) {
     const auto& f = c.interpolant;
     const std::string params =
-        f.kind == precompute::InterpolantKind::knn
+        f.kind != precompute::InterpolantKind::nrbf
             ? fmt::format("k = {}", f.neighbours)
             : fmt::format("width scale {}, lambda {:g}", f.width_scale, f.nrbf.regularization);
     fmt::print("  {} weights, interpolant {} ({}): leave-one-out {:.4f}",
@@ -220,7 +220,8 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
                   "the interpolant, half are reported (default: the scene's, else {}; 0: none)",
                   kDefaultHeldOut));
   cmd->add_option("--interpolant", a.interpolant,
-                  "q_a over q_u: best (lower held-out error), nrbf (§4.3) or knn (docs/transfer.md)")
+                  "q_a over q_u: best (lowest held-out error), nrbf (§4.3), knn or affine-knn "
+                  "(docs/transfer.md)")
       ->capture_default_str();
   cmd->add_option("--transfer-weighting", a.weighting,
                   "weights of the cluster fields in M-bar and the SVD (§4.2): best (cluster-size where "
@@ -256,11 +257,12 @@ precompute::AppearanceStageOptions appearance_stage_options(const precompute::Sc
   s.held_out = a.held_out.value_or(d.held_out > 0 ? d.held_out : kDefaultHeldOut);
   s.transfer.rays = a.rays.value_or(d.rays > 0 ? d.rays : kDefaultRays);
   s.appearance.reduction.eps_a = a.eps_a.value_or(d.eps_a > 0 ? d.eps_a : kDefaultEpsA);
-  s.appearance.interpolant =
-      named_choice<precompute::InterpolantChoice>("--interpolant", a.interpolant,
-                                                  {{"best", precompute::InterpolantChoice::best},
-                                                   {"nrbf", precompute::InterpolantChoice::nrbf},
-                                                   {"knn", precompute::InterpolantChoice::knn}});
+  s.appearance.interpolant = named_choice<precompute::InterpolantChoice>(
+      "--interpolant", a.interpolant,
+      {{"best", precompute::InterpolantChoice::best},
+       {"nrbf", precompute::InterpolantChoice::nrbf},
+       {"knn", precompute::InterpolantChoice::knn},
+       {"affine-knn", precompute::InterpolantChoice::affine_knn}});
   s.appearance.weighting = named_choice<precompute::WeightingChoice>(
       "--transfer-weighting", a.weighting,
       {{"best", precompute::WeightingChoice::best},

@@ -163,6 +163,19 @@ TEST_F(PackageFileRejection, OptionalAppearanceFiguresOfTheWrongLength) {
                         "4, got 3"));
 }
 
+// Read before the name: a length that fits no interpolant.
+TEST_F(PackageFileRejection, InterpolantParametersOfNoInterpolantsLength) {
+  const auto p = core::read_package(path_);
+  const auto affine = 1 + (1 + p.reduction.U_u.cols()) * p.appearance->U_a.cols();
+  remove("/appearance/interpolant_parameters");
+  core::h5::File::open_write(path_).write("/appearance/interpolant_parameters",
+                                          std::vector<float>(3, 0.5f).data(), {3});
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr(fmt::format("/appearance/interpolant_parameters: expected at most 2 values, or {} "
+                                    "(affine-knn: k and a (1 + r_u) x r_a map), got 3",
+                                    affine)));
+}
+
 TEST_F(PackageFileRejection, AppearanceBasisRows) {
   const auto r_a = static_cast<std::uint64_t>(testing::make_plate_package().rank_a());
   replace<float>("/appearance/U_a", std::vector<float>(4 * r_a, 0.0f), {4, r_a});
@@ -288,6 +301,31 @@ TEST_F(PackageRule, TransferWeightingIsEqualOrClusterSize) {
   p.appearance->transfer_weighting = "cluster-size";
   EXPECT_THAT(invalid(p), HasSubstr("/appearance/transfer_weighting: expected \"equal\" or \"cluster size\", "
                                     "got \"cluster-size\""));
+}
+
+// nrbf and knn keep at most 2 parameters, affine-knn its k and its
+// (1 + r_u) x r_a affine map, which nothing else can be mistaken for.
+TEST_F(PackageRule, InterpolantParametersFitTheInterpolant) {
+  auto& a = *p.appearance;
+  const Eigen::Index affine = 1 + (1 + a.nrbf_centers.cols()) * a.U_a.cols();
+  ASSERT_GT(affine, 2);
+  a.interpolant = "knn";
+  a.interpolant_parameters = VectorXf::Constant(1, 3);
+  EXPECT_EQ(invalid(p), "");
+  a.interpolant = "affine-knn";
+  EXPECT_THAT(invalid(p),
+              HasSubstr(fmt::format("/appearance/interpolant_parameters: expected {} (k and a "
+                                    "(1 + r_u) x r_a map) for interpolant \"affine-knn\", got 1 values",
+                                    affine)));
+  a.interpolant_parameters = VectorXf::Constant(affine, 0.5f);
+  EXPECT_EQ(invalid(p), "");
+  a.interpolant = "nrbf";
+  EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/interpolant_parameters: expected at most 2 for "
+                                                "interpolant \"nrbf\", got {} values",
+                                                affine)));
+  a.interpolant = "spline";
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/interpolant: expected \"nrbf\", \"knn\" or \"affine-knn\", "
+                                    "got \"spline\""));
 }
 
 TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {

@@ -1,6 +1,7 @@
 #include "phasecast/precompute/appearance/interpolant.h"
 
 #include <fmt/format.h>
+#include <Eigen/QR>
 
 #include <algorithm>
 #include <cmath>
@@ -39,10 +40,79 @@ double knn_leave_one_out(const MatrixXfR& centers, const MatrixXfR& samples, int
   return norm2 > 0 ? std::sqrt(err2 / norm2) : 0;
 }
 
+// [1 q] for every row q.
+Eigen::MatrixXd with_ones(const Eigen::Ref<const MatrixXfR>& q) {
+  Eigen::MatrixXd X(q.rows(), q.cols() + 1);
+  X.col(0).setOnes();
+  X.rightCols(q.cols()) = q.cast<double>();
+  return X;
+}
+
+// The least-squares affine map [1 q] M of the rows of X = [1 q] to Y. Fitted
+// about the means, so that where the samples leave it open (fewer than
+// 1 + r_u) the least-norm slope is taken and the intercept stays free: one
+// sample gives a constant.
+Eigen::MatrixXd fit_affine(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y) {
+  const Eigen::RowVectorXd x_mean = X.colwise().mean(), y_mean = Y.colwise().mean();
+  const Eigen::MatrixXd dX = X.rightCols(X.cols() - 1).rowwise() - x_mean.tail(X.cols() - 1);
+  Eigen::MatrixXd map(X.cols(), Y.cols());
+  map.bottomRows(X.cols() - 1) = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(dX).solve(
+      Eigen::MatrixXd(Y.rowwise() - y_mean));
+  map.row(0) = y_mean - x_mean.tail(X.cols() - 1) * map.bottomRows(X.cols() - 1);
+  return map;
+}
+
+void check_samples(const char* name, const Eigen::Ref<const MatrixXfR>& centers,
+                   const Eigen::Ref<const MatrixXfR>& samples) {
+  if (centers.rows() == 0 || samples.rows() != centers.rows()) {
+    throw std::invalid_argument(
+        fmt::format("{}: expected one sample per centre ({}), got {}", name, centers.rows(), samples.rows()));
+  }
+}
+
+// Leave-one-out of affine-knn for every k of the grid at once: each sample
+// is left out of the map's fit and of the knn.
+std::vector<double> affine_knn_leave_one_out(const Eigen::Ref<const MatrixXfR>& centers,
+                                             const Eigen::Ref<const MatrixXfR>& samples,
+                                             const std::vector<int>& ks) {
+  const Eigen::Index Na = centers.rows();
+  const Eigen::MatrixXd X = with_ones(centers), Y = samples.cast<double>();
+  const MatrixXfR points = centers;
+  std::vector<double> err2(ks.size(), 0.0);
+  for (Eigen::Index j = 0; j < Na; ++j) {
+    Eigen::MatrixXd Xo(Na - 1, X.cols()), Yo(Na - 1, Y.cols());
+    for (Eigen::Index i = 0, o = 0; i < Na; ++i)
+      if (i != j) Xo.row(o) = X.row(i), Yo.row(o++) = Y.row(i);
+    const Eigen::MatrixXd map = fit_affine(Xo, Yo);
+    const MatrixXfR rest = (Y - X * map).cast<float>();  // row j unused: knn skips it
+    for (size_t m = 0; m < ks.size(); ++m) {
+      const Eigen::RowVectorXd guess = X.row(j) * map + knn_at(points, rest, ks[m], points.row(j), j);
+      err2[m] += (guess - Y.row(j)).squaredNorm();
+    }
+  }
+  return err2;
+}
+
+// The k of kKnnNeighbours that leave-one-out may try with `Na` samples.
+std::vector<int> neighbour_grid(Eigen::Index Na) {
+  std::vector<int> ks;
+  for (int k : kKnnNeighbours)
+    if (k <= std::max<Eigen::Index>(1, Na - 1)) ks.push_back(k);
+  return ks;
+}
+
 }  // namespace
 
 const char* interpolant_name(InterpolantKind kind) {
-  return kind == InterpolantKind::knn ? "knn" : "nrbf";
+  switch (kind) {
+    case InterpolantKind::knn:
+      return "knn";
+    case InterpolantKind::affine_knn:
+      return "affine-knn";
+    case InterpolantKind::nrbf:
+      break;
+  }
+  return "nrbf";
 }
 
 Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<std::int32_t>& labels,
@@ -66,10 +136,7 @@ Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<
 }
 
 Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples) {
-  if (centers.rows() == 0 || samples.rows() != centers.rows()) {
-    throw std::invalid_argument(
-        fmt::format("knn: expected one sample per centre ({}), got {}", centers.rows(), samples.rows()));
-  }
+  check_samples("knn", centers, samples);
   Interpolant best;
   best.kind = InterpolantKind::knn;
   best.nrbf.centers = centers;
@@ -77,8 +144,7 @@ Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Re
   best.nrbf.widths = VectorXf::Ones(centers.rows());
   best.nrbf.regularization = 0;
   best.leave_one_out = std::numeric_limits<double>::infinity();
-  for (int k : kKnnNeighbours) {
-    if (k > std::max<Eigen::Index>(1, centers.rows() - 1)) break;
+  for (int k : neighbour_grid(centers.rows())) {
     const double loo = centers.rows() < 2 ? 0.0 : knn_leave_one_out(centers, samples, k);
     if (loo < best.leave_one_out) {
       best.neighbours = k;
@@ -88,15 +154,43 @@ Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Re
   return best;
 }
 
+Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
+                            const Eigen::Ref<const MatrixXfR>& samples) {
+  check_samples("affine-knn", centers, samples);
+  const Eigen::MatrixXd X = with_ones(centers), Y = samples.cast<double>();
+  const Eigen::MatrixXd map = fit_affine(X, Y);
+  Interpolant best;
+  best.kind = InterpolantKind::affine_knn;
+  best.affine = map.cast<float>();
+  best.nrbf.centers = centers;
+  best.nrbf.weights = (Y - X * map).cast<float>();
+  best.nrbf.widths = VectorXf::Ones(centers.rows());
+  best.nrbf.regularization = 0;
+  const std::vector<int> ks = neighbour_grid(centers.rows());
+  best.neighbours = ks.front();
+  best.leave_one_out = 0;
+  if (centers.rows() < 2) return best;
+  const std::vector<double> err2 = affine_knn_leave_one_out(centers, samples, ks);
+  const double norm2 = Y.squaredNorm();
+  const auto m = static_cast<size_t>(std::min_element(err2.begin(), err2.end()) - err2.begin());
+  best.neighbours = ks[m];
+  best.leave_one_out = norm2 > 0 ? std::sqrt(err2[m] / norm2) : 0;
+  return best;
+}
+
 MatrixXfR evaluate_interpolant(const Interpolant& f, const Eigen::Ref<const MatrixXfR>& q) {
   if (f.kind == InterpolantKind::nrbf) return evaluate_nrbf(f.nrbf, q);
   if (q.cols() != f.nrbf.centers.cols()) {
-    throw std::invalid_argument(
-        fmt::format("knn: queries must have {} columns (r_u), got {}", f.nrbf.centers.cols(), q.cols()));
+    throw std::invalid_argument(fmt::format("{}: queries must have {} columns (r_u), got {}",
+                                            interpolant_name(f.kind), f.nrbf.centers.cols(), q.cols()));
   }
+  const bool affine = f.kind == InterpolantKind::affine_knn;
+  const Eigen::MatrixXd trend = affine ? Eigen::MatrixXd(with_ones(q) * f.affine.cast<double>())
+                                       : Eigen::MatrixXd::Zero(q.rows(), f.nrbf.weights.cols());
   MatrixXfR out(q.rows(), f.nrbf.weights.cols());
   for (Eigen::Index i = 0; i < q.rows(); ++i)
-    out.row(i) = knn_at(f.nrbf.centers, f.nrbf.weights, f.neighbours, q.row(i)).cast<float>();
+    out.row(i) =
+        (trend.row(i) + knn_at(f.nrbf.centers, f.nrbf.weights, f.neighbours, q.row(i))).cast<float>();
   return out;
 }
 

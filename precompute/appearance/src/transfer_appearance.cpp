@@ -92,18 +92,29 @@ std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, cons
                                     const MatrixXfR& centers, const MatrixXfR& samples,
                                     InterpolantChoice choice) {
   std::vector<Interpolant> out;
-  if (choice != InterpolantChoice::knn) out.push_back(tune_nrbf(q_u, clusters.labels, centers, samples));
-  if (choice != InterpolantChoice::nrbf) out.push_back(tune_knn(centers, samples));
+  const bool all = choice == InterpolantChoice::best;
+  if (all || choice == InterpolantChoice::nrbf)
+    out.push_back(tune_nrbf(q_u, clusters.labels, centers, samples));
+  if (all || choice == InterpolantChoice::knn) out.push_back(tune_knn(centers, samples));
+  if (all || choice == InterpolantChoice::affine_knn) out.push_back(tune_affine_knn(centers, samples));
   return out;
+}
+
+// nrbf: width scale, lambda; knn: k; affine-knn: k, then the affine map row by row.
+VectorXf interpolant_parameters(const Interpolant& f) {
+  if (f.kind == InterpolantKind::nrbf)
+    return (VectorXf(2) << f.width_scale, f.nrbf.regularization).finished();
+  VectorXf v(1 + (f.kind == InterpolantKind::affine_knn ? f.affine.size() : 0));
+  v[0] = static_cast<float>(f.neighbours);
+  v.tail(v.size() - 1) = Eigen::Map<const VectorXf>(f.affine.data(), f.affine.size());
+  return v;
 }
 
 void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTruth& test,
                   const TransferReduction& reduction, const std::optional<TruthErrorSpread>& spread) {
   const Interpolant& f = c.interpolant;
   a.interpolant = interpolant_name(f.kind);
-  a.interpolant_parameters = f.kind == InterpolantKind::knn
-                                 ? VectorXf::Constant(1, static_cast<float>(f.neighbours))
-                                 : VectorXf((VectorXf(2) << f.width_scale, f.nrbf.regularization).finished());
+  a.interpolant_parameters = interpolant_parameters(f);
   a.nrbf_centers = f.nrbf.centers;
   a.nrbf_weights = f.nrbf.weights;
   a.nrbf_widths = f.nrbf.widths;

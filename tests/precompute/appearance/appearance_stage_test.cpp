@@ -396,7 +396,7 @@ TEST(AppearanceStage, BadOptionsAreOneLineErrorsBeforeSampling) {
       {{"--eps-a", "1.5"}, "appearance: expected --eps-a in (0, 1), got 1.5"},
       {{"--rank-a", "-2"}, "appearance: expected --rank-a >= 0 (0: use --eps-a), got -2"},
       {{"--held-out", "-1"}, "appearance: expected --held-out >= 0, got -1"},
-      {{"--interpolant", "spline"}, "--interpolant 'spline': expected best, nrbf or knn"},
+      {{"--interpolant", "spline"}, "--interpolant 'spline': expected best, nrbf, knn or affine-knn"},
       {{"--transfer-weighting", "density"},
        "--transfer-weighting 'density': expected best, equal or cluster-size"},
   };

@@ -53,7 +53,7 @@ TEST(Appearance, FillsAValidPackage) {
   EXPECT_EQ(a.cluster_nodes, clusters.representatives);
   EXPECT_EQ(model.q_a.rows(), p.portrait.nodes());
   EXPECT_EQ(model.q_a.cols(), a.rank());
-  ASSERT_EQ(model.candidates.size(), 2u);  // nrbf and knn, tuned by leave-one-out
+  ASSERT_EQ(model.candidates.size(), 3u);  // nrbf, knn and affine-knn, tuned by leave-one-out
   for (const auto& c : model.candidates) EXPECT_TRUE(std::isfinite(c.interpolant.leave_one_out));
   EXPECT_EQ(a.held_out_error.size(), 0);  // no held-out truth given
   // At a cluster node the k-nearest-neighbour interpolant returns that node's own q_a^j.
@@ -154,8 +154,9 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   EXPECT_NEAR(a.held_out_error[0] * a.held_out_error[0],
               a.held_out_error[1] * a.held_out_error[1] + a.held_out_error[2] * a.held_out_error[2], 1e-5);
   // The kept interpolant is the one the picking half preferred.
-  ASSERT_EQ(model.candidates.size(), 2u);
-  EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[1].selection.of_transfer);
+  ASSERT_EQ(model.candidates.size(), 3u);
+  for (size_t i = 1; i < 3; ++i)
+    EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[i].selection.of_transfer);
   EXPECT_EQ(a.interpolant, interpolant_name(model.candidates[0].interpolant.kind));
   // Written and read back, the figures survive.
   core::ScenePackage out = p;
@@ -212,8 +213,8 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
   const MatrixXfR fields = feature_fields(q_u, clusters.representatives);
   const AppearanceOptions best{.reduction = {.rank = 2}};
   const auto model = fit_appearance_model(q_u, clusters, fields, best, truth);
-  ASSERT_EQ(model.candidates.size(), 4u);  // both weightings, both interpolants
-  for (size_t i = 1; i < 4; ++i)
+  ASSERT_EQ(model.candidates.size(), 6u);  // both weightings, three interpolants
+  for (size_t i = 1; i < 6; ++i)
     EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[i].selection.of_transfer);
   EXPECT_EQ(model.candidates[0].weighting, TransferWeighting::cluster_size);
   EXPECT_EQ(model.appearance.transfer_weighting, "cluster size");
@@ -242,7 +243,7 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
   EXPECT_LT(weighted_error, 0.9f * equal_error) << weighted_error << " vs " << equal_error;
   // Without held-out truth nothing compares the two: equal weights, as the paper.
   const auto unjudged = fit_appearance_model(q_u, clusters, fields, best);
-  ASSERT_EQ(unjudged.candidates.size(), 2u);
+  ASSERT_EQ(unjudged.candidates.size(), 3u);
   EXPECT_EQ(unjudged.appearance.transfer_weighting, "equal");
   // Asked for, cluster sizes are used without held-out truth too.
   const auto asked = fit_appearance_model(

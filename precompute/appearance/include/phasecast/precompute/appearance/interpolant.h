@@ -6,9 +6,13 @@
 //         scale and the regularization lambda picked by leave-one-out on the
 //         N_a cluster samples;
 //   knn   inverse-square-distance weighting of the k nearest cluster samples
-//         in q_u, k picked the same way.
+//         in q_u, k picked the same way;
+//   affine-knn  an affine map of q_u fitted to the samples by least squares,
+//         plus knn of what it leaves at each sample. The transfer is mostly
+//         linear in q_u (docs/transfer.md): the map carries that part across
+//         the gaps between clusters, and knn only the remainder.
 //
-// Both reproduce every sample at its own centre. The appearance stage keeps
+// All reproduce every sample at its own centre. The appearance stage keeps
 // the one whose error against held-out true transfer is lower.
 
 #include "phasecast/precompute/appearance/nrbf.h"
@@ -19,14 +23,16 @@
 
 namespace phasecast::precompute {
 
-enum class InterpolantKind { nrbf, knn };
+enum class InterpolantKind { nrbf, knn, affine_knn };
 const char* interpolant_name(InterpolantKind kind);
 
 struct Interpolant {
   InterpolantKind kind = InterpolantKind::nrbf;
   NrbfInterpolant nrbf;      // nrbf: the fit; knn: centres, samples as weights, widths 1
+                             // (affine-knn: what the affine map leaves of them as weights)
   float width_scale = 1.0f;  // nrbf: widths = scale x cluster spread (nrbf_widths)
-  int neighbours = 0;        // knn: k
+  int neighbours = 0;        // knn, affine-knn: k
+  MatrixXfR affine;          // affine-knn: (1 + r_u) x r_a, q_a ~ [1 q_u] affine
   double leave_one_out = 0;  // relative leave-one-out error of this choice on the samples
 };
 
@@ -41,6 +47,12 @@ Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<
 
 // Tunes k of the k-nearest-neighbour interpolant by leave-one-out.
 Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples);
+
+// The affine map by least squares (the least-norm one where fewer than
+// 1 + r_u samples leave it open), then k of the knn of its remainders by
+// leave-one-out, each left-out sample predicted by a map refitted without it.
+Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
+                            const Eigen::Ref<const MatrixXfR>& samples);
 
 // q_a at every row of q (#M by r_u); returns #M by r_a.
 MatrixXfR evaluate_interpolant(const Interpolant& f, const Eigen::Ref<const MatrixXfR>& q);

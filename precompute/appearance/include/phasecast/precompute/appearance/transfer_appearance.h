@@ -23,7 +23,8 @@
 
 namespace phasecast::precompute {
 
-enum class InterpolantChoice { best, nrbf, knn };  // best: lower held-out error (else leave-one-out)
+// best: the lowest held-out error of all three (else of leave-one-out)
+enum class InterpolantChoice { best, nrbf, knn, affine_knn };
 
 // The weights M-bar and the SVD of §4.2 give the N_a cluster fields: equal,
 // as in the paper, or each cluster's share of the state nodes, so that the
