@@ -158,12 +158,12 @@ Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
                             const Eigen::Ref<const MatrixXfR>& samples) {
   check_samples("affine-knn", centers, samples);
   const Eigen::MatrixXd X = with_ones(centers), Y = samples.cast<double>();
-  const Eigen::MatrixXd map = fit_affine(X, Y);
   Interpolant best;
   best.kind = InterpolantKind::affine_knn;
-  best.affine = map.cast<float>();
+  best.affine = fit_affine(X, Y).cast<float>();
   best.nrbf.centers = centers;
-  best.nrbf.weights = (Y - X * map).cast<float>();
+  // Against the stored (float) map, so that map and remainders give back each sample.
+  best.nrbf.weights = (Y - X * best.affine.cast<double>()).cast<float>();
   best.nrbf.widths = VectorXf::Ones(centers.rows());
   best.nrbf.regularization = 0;
   const std::vector<int> ks = neighbour_grid(centers.rows());

@@ -178,8 +178,9 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   const auto at = r.out.find(lives);
   ASSERT_NE(at, std::string::npos) << r.out;
   const double clusters = std::stod(r.out.substr(at + lives.size(), 6));
-  if (p.appearance->transfer_weighting == "equal")
+  if (p.appearance->transfer_weighting == "equal") {
     EXPECT_NEAR(clusters, p.appearance->rel_error[p.rank_a() - 1], 1e-4) << r.out;
+  }
   EXPECT_NE(r.out.find(": deformable points ", at), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\n  held-out nodes ", at), std::string::npos) << r.out;
   EXPECT_NE(inspect.out.find(fmt::format("interpolant {}", p.appearance->interpolant)), std::string::npos)

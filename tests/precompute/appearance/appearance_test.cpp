@@ -78,6 +78,61 @@ TEST(Appearance, FillsAValidPackage) {
   EXPECT_EQ(back.portrait.q_a, model.q_a);
 }
 
+// A second reader of the stored affine-knn: q_a rebuilt by hand from what
+// the package holds (k, the (1 + r_u) x r_a map row by row, the remainders
+// as weights) is the q_a it serves.
+TEST(Appearance, AffineKnnIsStoredSoThatItsQaCanBeRebuilt) {
+  core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
+  const auto clusters = kmeans(p.portrait.q_u, {.clusters = 8, .seed = 3});
+  const auto model =
+      fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
+                           {.reduction = {.eps_a = 1e-3}, .interpolant = InterpolantChoice::affine_knn});
+  ASSERT_GE(model.appearance.rank(), 1);
+  p.appearance = model.appearance;
+  p.portrait.q_a = model.q_a;
+  p.attributes.eps_a = 1e-3;
+  const auto path = testing::scratch_dir("appearance_affine_knn") / "plate.h5";
+  core::write_package(p, path);  // validates
+  const auto back = core::read_package(path);
+  const auto& a = *back.appearance;
+  ASSERT_EQ(a.interpolant, "affine-knn");
+  const Eigen::Index r_u = a.nrbf_centers.cols(), r_a = a.U_a.cols();
+  ASSERT_EQ(a.interpolant_parameters.size(), 1 + (1 + r_u) * r_a);
+  const int k = static_cast<int>(a.interpolant_parameters[0]);
+  Eigen::MatrixXd map(1 + r_u, r_a);
+  for (Eigen::Index i = 0; i < map.rows(); ++i)
+    for (Eigen::Index j = 0; j < r_a; ++j) map(i, j) = a.interpolant_parameters[1 + i * r_a + j];
+  double worst = 0;
+  for (Eigen::Index n = 0; n < back.portrait.nodes(); ++n) {
+    const Eigen::VectorXd q = back.portrait.q_u.row(n).transpose().cast<double>();
+    std::vector<std::pair<double, Eigen::Index>> d;
+    for (Eigen::Index c = 0; c < a.nrbf_centers.rows(); ++c)
+      d.emplace_back((a.nrbf_centers.row(c).transpose().cast<double>() - q).squaredNorm(), c);
+    std::sort(d.begin(), d.end());
+    Eigen::RowVectorXd rest = Eigen::RowVectorXd::Zero(r_a);
+    if (d[0].first == 0) {
+      rest = a.nrbf_weights.row(d[0].second).cast<double>();
+    } else {
+      double total = 0;
+      for (int i = 0; i < k; ++i) {
+        rest += a.nrbf_weights.row(d[static_cast<size_t>(i)].second).cast<double>() /
+                d[static_cast<size_t>(i)].first;
+        total += 1 / d[static_cast<size_t>(i)].first;
+      }
+      rest /= total;
+    }
+    const Eigen::RowVectorXd want = map.row(0) + q.transpose() * map.bottomRows(r_u) + rest;
+    worst = std::max(worst, (want - back.portrait.q_a.row(n).cast<double>()).norm());
+  }
+  EXPECT_LT(worst, 1e-5 * back.portrait.q_a.cast<double>().norm());
+  // At its own node each cluster gets its projection back: map plus remainder is the sample.
+  const auto r = reduce_transfer(transfer_fields(p, clusters), {.eps_a = 1e-3});
+  for (int j = 0; j < 8; ++j) {
+    const Eigen::VectorXf got = back.portrait.q_a.row(a.cluster_nodes[static_cast<size_t>(j)]).transpose();
+    EXPECT_LT((got - r.Q_a.col(j)).norm(), 1e-5f * r.Q_a.norm()) << "cluster " << j;
+  }
+}
+
 TEST(Appearance, OneClusterHasRankZero) {
   core::ScenePackage p = testing::make_plate_package({.grid = 4, .appearance = false});
   const auto clusters = kmeans(p.portrait.q_u, {.clusters = 1});

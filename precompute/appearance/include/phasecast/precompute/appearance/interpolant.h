@@ -12,8 +12,9 @@
 //         linear in q_u (docs/transfer.md): the map carries that part across
 //         the gaps between clusters, and knn only the remainder.
 //
-// All reproduce every sample at its own centre. The appearance stage keeps
-// the one whose error against held-out true transfer is lower.
+// knn and affine-knn reproduce every sample at its own centre, the NRBF
+// nearly (lambda > 0). The appearance stage keeps the one whose error against
+// held-out true transfer is lowest.
 
 #include "phasecast/precompute/appearance/nrbf.h"
 

@@ -85,7 +85,8 @@ struct ResidualByPart {
 // Splits the truncation error of `fields` (#fields by 48S, as for
 // reduce_transfer) about `mean` (48S) in the orthonormal basis `U_a`
 // (48S x r_a) by point kind and SH band. With the clusters' fields and the
-// paper's M-bar and U_a, `relative` is its Frobenius relErr (Fig. 12).
+// paper's (equal-weight) M-bar and U_a, `relative` is their Frobenius
+// relative error at r_a, rel_error[r_a - 1] (Fig. 12's curve).
 //   @param[in] deformable  S flags: 1 for a point U_u moves
 // Throws std::invalid_argument when the sizes disagree.
 ResidualByPart residual_by_part(const Eigen::Ref<const MatrixXfR>& fields, const VectorXf& mean,
