@@ -38,8 +38,10 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   s.sigma_ratio_a_at_paper_rank = sigma_ratio(a.singular_values, a.paper_rank);
   s.singular_values_a.assign(a.singular_values.data(), a.singular_values.data() + a.singular_values.size());
   const auto& v = a.interpolant_parameters;
-  if ((a.interpolant == "knn" || a.interpolant == "affine-knn") && v.size() >= 1) {
-    s.interpolant = fmt::format("{} (k = {})", a.interpolant, v[0]);
+  if (a.interpolant == "affine-knn" && v.size() >= 1) {
+    s.interpolant = fmt::format("affine-knn (k = {}, ridge {:g})", v[0], a.nrbf_regularization);
+  } else if (a.interpolant == "knn" && v.size() >= 1) {
+    s.interpolant = fmt::format("knn (k = {})", v[0]);
   } else if (v.size() >= 2) {
     s.interpolant = fmt::format("nrbf (width scale {}, lambda {:g})", v[0], v[1]);
   } else {

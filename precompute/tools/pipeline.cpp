@@ -104,9 +104,11 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   for (const auto& c : report.candidates) {
     const auto& f = c.interpolant;
     const std::string params =
-        f.kind != precompute::InterpolantKind::nrbf
+        f.kind == precompute::InterpolantKind::nrbf
+            ? fmt::format("width scale {}, lambda {:g}", f.width_scale, f.nrbf.regularization)
+        : f.kind == precompute::InterpolantKind::knn
             ? fmt::format("k = {}", f.neighbours)
-            : fmt::format("width scale {}, lambda {:g}", f.width_scale, f.nrbf.regularization);
+            : fmt::format("k = {}, ridge {:g}", f.neighbours, f.nrbf.regularization);
     fmt::print("  {} weights, interpolant {} ({}): leave-one-out {:.4f}",
                precompute::weighting_name(c.weighting), precompute::interpolant_name(f.kind), params,
                f.leave_one_out);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 
@@ -48,17 +49,26 @@ Eigen::MatrixXd with_ones(const Eigen::Ref<const MatrixXfR>& q) {
   return X;
 }
 
-// The least-squares affine map [1 q] M of the rows of X = [1 q] to Y. Fitted
-// about the means, so that where the samples leave it open (fewer than
-// 1 + r_u) the least-norm slope is taken and the intercept stays free: one
-// sample gives a constant.
-Eigen::MatrixXd fit_affine(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y) {
+// The affine map [1 q] M of the rows of X = [1 q] to Y by least squares with
+// a ridge on the slope of `ridge` times the samples' mean squared spread per
+// coordinate. Fitted about the means, so the intercept is never shrunk;
+// without a ridge, where the samples leave the slope open (fewer than
+// 1 + r_u) the least-norm one is taken: one sample gives a constant.
+Eigen::MatrixXd fit_affine(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y, double ridge) {
+  const Eigen::Index r_u = X.cols() - 1;
   const Eigen::RowVectorXd x_mean = X.colwise().mean(), y_mean = Y.colwise().mean();
-  const Eigen::MatrixXd dX = X.rightCols(X.cols() - 1).rowwise() - x_mean.tail(X.cols() - 1);
+  const Eigen::MatrixXd dX = X.rightCols(r_u).rowwise() - x_mean.tail(r_u);
+  const Eigen::MatrixXd dY = Y.rowwise() - y_mean;
+  const double spread = r_u > 0 ? dX.squaredNorm() / static_cast<double>(r_u) : 0.0;
   Eigen::MatrixXd map(X.cols(), Y.cols());
-  map.bottomRows(X.cols() - 1) = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(dX).solve(
-      Eigen::MatrixXd(Y.rowwise() - y_mean));
-  map.row(0) = y_mean - x_mean.tail(X.cols() - 1) * map.bottomRows(X.cols() - 1);
+  if (ridge > 0 && spread > 0) {
+    Eigen::MatrixXd gram = dX.transpose() * dX;
+    gram.diagonal().array() += ridge * spread;
+    map.bottomRows(r_u) = gram.ldlt().solve(dX.transpose() * dY);
+  } else {
+    map.bottomRows(r_u) = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(dX).solve(dY);
+  }
+  map.row(0) = y_mean - x_mean.tail(r_u) * map.bottomRows(r_u);
   return map;
 }
 
@@ -70,24 +80,26 @@ void check_samples(const char* name, const Eigen::Ref<const MatrixXfR>& centers,
   }
 }
 
-// Leave-one-out of affine-knn for every k of the grid at once: each sample
-// is left out of the map's fit and of the knn.
-std::vector<double> affine_knn_leave_one_out(const Eigen::Ref<const MatrixXfR>& centers,
-                                             const Eigen::Ref<const MatrixXfR>& samples,
-                                             const std::vector<int>& ks) {
+// Leave-one-out of affine-knn for every ridge and k of the grids at once
+// (err2[ridge][k]): each sample is left out of the map's fit and of the knn.
+std::vector<std::vector<double>> affine_knn_leave_one_out(const Eigen::Ref<const MatrixXfR>& centers,
+                                                          const Eigen::Ref<const MatrixXfR>& samples,
+                                                          const std::vector<int>& ks) {
   const Eigen::Index Na = centers.rows();
   const Eigen::MatrixXd X = with_ones(centers), Y = samples.cast<double>();
   const MatrixXfR points = centers;
-  std::vector<double> err2(ks.size(), 0.0);
+  std::vector<std::vector<double>> err2(std::size(kAffineRidges), std::vector<double>(ks.size(), 0.0));
   for (Eigen::Index j = 0; j < Na; ++j) {
     Eigen::MatrixXd Xo(Na - 1, X.cols()), Yo(Na - 1, Y.cols());
     for (Eigen::Index i = 0, o = 0; i < Na; ++i)
       if (i != j) Xo.row(o) = X.row(i), Yo.row(o++) = Y.row(i);
-    const Eigen::MatrixXd map = fit_affine(Xo, Yo);
-    const MatrixXfR rest = (Y - X * map).cast<float>();  // row j unused: knn skips it
-    for (size_t m = 0; m < ks.size(); ++m) {
-      const Eigen::RowVectorXd guess = X.row(j) * map + knn_at(points, rest, ks[m], points.row(j), j);
-      err2[m] += (guess - Y.row(j)).squaredNorm();
+    for (size_t r = 0; r < err2.size(); ++r) {
+      const Eigen::MatrixXd map = fit_affine(Xo, Yo, kAffineRidges[r]);
+      const MatrixXfR rest = (Y - X * map).cast<float>();  // row j unused: knn skips it
+      for (size_t m = 0; m < ks.size(); ++m) {
+        const Eigen::RowVectorXd guess = X.row(j) * map + knn_at(points, rest, ks[m], points.row(j), j);
+        err2[r][m] += (guess - Y.row(j)).squaredNorm();
+      }
     }
   }
   return err2;
@@ -158,23 +170,28 @@ Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
                             const Eigen::Ref<const MatrixXfR>& samples) {
   check_samples("affine-knn", centers, samples);
   const Eigen::MatrixXd X = with_ones(centers), Y = samples.cast<double>();
+  const std::vector<int> ks = neighbour_grid(centers.rows());
+  size_t ridge = 0, k = 0;  // grid indices; one sample: no ridge, the first k
+  double loo = 0;
+  if (centers.rows() >= 2) {
+    const auto err2 = affine_knn_leave_one_out(centers, samples, ks);
+    double least = std::numeric_limits<double>::infinity();
+    for (size_t r = 0; r < err2.size(); ++r)
+      for (size_t m = 0; m < ks.size(); ++m)
+        if (err2[r][m] < least) least = err2[r][m], ridge = r, k = m;  // ties: smaller ridge, then k
+    const double norm2 = Y.squaredNorm();
+    loo = norm2 > 0 ? std::sqrt(least / norm2) : 0;
+  }
   Interpolant best;
   best.kind = InterpolantKind::affine_knn;
-  best.affine = fit_affine(X, Y).cast<float>();
+  best.affine = fit_affine(X, Y, kAffineRidges[ridge]).cast<float>();
   best.nrbf.centers = centers;
   // Against the stored (float) map, so that map and remainders give back each sample.
   best.nrbf.weights = (Y - X * best.affine.cast<double>()).cast<float>();
   best.nrbf.widths = VectorXf::Ones(centers.rows());
-  best.nrbf.regularization = 0;
-  const std::vector<int> ks = neighbour_grid(centers.rows());
-  best.neighbours = ks.front();
-  best.leave_one_out = 0;
-  if (centers.rows() < 2) return best;
-  const std::vector<double> err2 = affine_knn_leave_one_out(centers, samples, ks);
-  const double norm2 = Y.squaredNorm();
-  const auto m = static_cast<size_t>(std::min_element(err2.begin(), err2.end()) - err2.begin());
-  best.neighbours = ks[m];
-  best.leave_one_out = norm2 > 0 ? std::sqrt(err2[m] / norm2) : 0;
+  best.nrbf.regularization = kAffineRidges[ridge];
+  best.neighbours = ks[k];
+  best.leave_one_out = loo;
   return best;
 }
 

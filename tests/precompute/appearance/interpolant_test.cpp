@@ -5,9 +5,14 @@
 #include "phasecast/precompute/appearance/interpolant.h"
 
 #include <gtest/gtest.h>
+#include <Eigen/LU>
+#include <Eigen/QR>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <utility>
+#include <vector>
 
 namespace phasecast {
 namespace {
@@ -31,11 +36,62 @@ MatrixXfR affine_of(const MatrixXfR& q) {
   return out;
 }
 
+// The interpolant written out by hand, a second reader of interpolant.cpp:
+// the map about the means with a ridge on its slope (none: least norm), then
+// inverse-square-distance weights of the k nearest remainders.
+Eigen::MatrixXd map_by_hand(const MatrixXfR& centers, const MatrixXfR& samples, double ridge) {
+  const Eigen::Index d = centers.cols();
+  const Eigen::RowVectorXd x_mean = centers.cast<double>().colwise().mean();
+  const Eigen::RowVectorXd y_mean = samples.cast<double>().colwise().mean();
+  const Eigen::MatrixXd dX = centers.cast<double>().rowwise() - x_mean;
+  const Eigen::MatrixXd dY = samples.cast<double>().rowwise() - y_mean;
+  Eigen::MatrixXd map(1 + d, samples.cols());
+  if (ridge > 0) {
+    const Eigen::MatrixXd gram = dX.transpose() * dX;
+    const Eigen::MatrixXd shifted =
+        gram + ridge * gram.trace() / static_cast<double>(d) * Eigen::MatrixXd::Identity(d, d);
+    map.bottomRows(d) = shifted.inverse() * dX.transpose() * dY;
+  } else {
+    map.bottomRows(d) = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(dX).solve(dY);
+  }
+  map.row(0) = y_mean - x_mean * map.bottomRows(d);
+  return map;
+}
+
+Eigen::RowVectorXd affine_knn_by_hand(const MatrixXfR& centers, const MatrixXfR& samples, double ridge, int k,
+                                      const Eigen::RowVectorXd& q, Eigen::Index skip = -1) {
+  MatrixXfR fit_centers = centers, fit_samples = samples;
+  if (skip >= 0) {  // the map without the skipped sample
+    for (Eigen::Index i = skip; i + 1 < centers.rows(); ++i)
+      fit_centers.row(i) = centers.row(i + 1), fit_samples.row(i) = samples.row(i + 1);
+    fit_centers.conservativeResize(centers.rows() - 1, Eigen::NoChange);
+    fit_samples.conservativeResize(samples.rows() - 1, Eigen::NoChange);
+  }
+  const Eigen::MatrixXd map = map_by_hand(fit_centers, fit_samples, ridge);
+  const auto at = [&](const Eigen::RowVectorXd& x) {
+    return Eigen::RowVectorXd(map.row(0) + x * map.bottomRows(x.size()));
+  };
+  std::vector<std::pair<double, Eigen::Index>> d;
+  for (Eigen::Index c = 0; c < centers.rows(); ++c)
+    if (c != skip) d.emplace_back((centers.row(c).cast<double>() - q).squaredNorm(), c);
+  std::sort(d.begin(), d.end());
+  Eigen::RowVectorXd rest = Eigen::RowVectorXd::Zero(samples.cols());
+  double total = 0;
+  for (int i = 0; i < k && i < static_cast<int>(d.size()); ++i) {
+    const auto c = d[static_cast<size_t>(i)].second;
+    const double w = 1 / d[static_cast<size_t>(i)].first;
+    rest += w * (samples.row(c).cast<double>() - at(centers.row(c).cast<double>()));
+    total += w;
+  }
+  return at(q) + rest / total;
+}
+
 TEST(AffineKnn, CarriesAnAffineFunctionExactlyBetweenSamples) {
   const MatrixXfR centers = random_points(20, 4, 1), queries = random_points(50, 4, 2);
   const Interpolant f = tune_affine_knn(centers, affine_of(centers));
   EXPECT_EQ(f.kind, InterpolantKind::affine_knn);
   EXPECT_LT(f.leave_one_out, 1e-5);
+  EXPECT_EQ(f.nrbf.regularization, 0) << "an exact affine function wants no ridge";
   const MatrixXfR want = affine_of(queries);
   EXPECT_LT((evaluate_interpolant(f, queries) - want).norm(), 1e-4f * want.norm());
   // knn alone cannot: it averages neighbours, and an affine function is not flat.
@@ -64,16 +120,32 @@ TEST(AffineKnn, ReproducesEverySampleAndBeatsKnnOnANearlyAffineFunction) {
   EXPECT_LT(f.leave_one_out, tune_knn(centers, samples).leave_one_out);
 }
 
-// Leave-one-out refits the map without the left-out sample: with 1 + r_u
-// samples the map through all of them is exact, yet each left-out sample is
-// predicted by a least-norm map of the others, so the error is not zero.
+// Leave-one-out refits the map without the left-out sample: the stored
+// figure is the one the hand-written interpolant gives when each sample is
+// dropped from the map's fit and from the knn (with the ridge and k kept).
+// With 1 + r_u samples a map fitted to all would pass through the left-out
+// one, so a figure taken without the refit would read nearly 0.
 TEST(AffineKnn, LeaveOneOutRefitsTheMapWithoutTheSample) {
   const MatrixXfR centers = random_points(5, 4, 5);
   MatrixXfR samples = random_points(5, 3, 6);
   const Interpolant f = tune_affine_knn(centers, samples);
   EXPECT_LT((evaluate_interpolant(f, centers) - samples).norm(), 1e-4f * samples.norm());
-  EXPECT_LT(f.nrbf.weights.norm(), 1e-4f * samples.norm()) << "the map fits 5 samples in 5 unknowns";
+  double err2 = 0;
+  for (Eigen::Index j = 0; j < 5; ++j) {
+    const Eigen::RowVectorXd guess = affine_knn_by_hand(centers, samples, f.nrbf.regularization, f.neighbours,
+                                                        centers.row(j).cast<double>(), j);
+    err2 += (guess - samples.row(j).cast<double>()).squaredNorm();
+  }
+  EXPECT_NEAR(f.leave_one_out, std::sqrt(err2 / samples.cast<double>().squaredNorm()), 1e-5);
   EXPECT_GT(f.leave_one_out, 0.05);
+  // And what it serves off the samples is the hand-written interpolant too.
+  const MatrixXfR queries = random_points(10, 4, 7);
+  const MatrixXfR served = evaluate_interpolant(f, queries);
+  for (Eigen::Index i = 0; i < 10; ++i) {
+    const Eigen::RowVectorXd want = affine_knn_by_hand(centers, samples, f.nrbf.regularization, f.neighbours,
+                                                       queries.row(i).cast<double>());
+    EXPECT_LT((served.row(i).cast<double>() - want).norm(), 1e-4 * (1 + want.norm())) << "query " << i;
+  }
   // Fewer samples than unknowns: the least-norm map still passes through them.
   const Interpolant few = tune_affine_knn(centers.topRows(3), samples.topRows(3));
   EXPECT_LT((evaluate_interpolant(few, centers.topRows(3)) - samples.topRows(3)).norm(),
@@ -82,6 +154,34 @@ TEST(AffineKnn, LeaveOneOutRefitsTheMapWithoutTheSample) {
   const Interpolant one = tune_affine_knn(centers.topRows(1), samples.topRows(1));
   EXPECT_EQ(one.leave_one_out, 0);
   EXPECT_LT((evaluate_interpolant(one, centers.bottomRows(1)) - samples.topRows(1)).norm(), 1e-5f);
+}
+
+// 12 noisy samples of an affine function of 8 coordinates: the plain fit
+// has 9 unknowns per output and follows the noise. Leave-one-out picks a
+// ridge, and the ridged map serves new points better than the plain one.
+TEST(AffineKnn, LeaveOneOutPicksARidgeWhereTheSamplesBarelyFixTheMap) {
+  const MatrixXfR centers = random_points(12, 8, 11), queries = random_points(400, 8, 12);
+  const auto truth = [](const MatrixXfR& q) {  // q_a = 0.3 (sum of q) in 2 outputs
+    MatrixXfR out(q.rows(), 2);
+    for (Eigen::Index i = 0; i < q.rows(); ++i) out.row(i).setConstant(0.3f * q.row(i).sum());
+    return out;
+  };
+  MatrixXfR samples = truth(centers);
+  samples += 0.6f * random_points(12, 2, 13);  // noise of about the signal's size
+  const Interpolant f = tune_affine_knn(centers, samples);
+  EXPECT_GT(f.nrbf.regularization, 0) << "leave-one-out kept the plain fit";
+  // The same k, no ridge: what the plain least-squares map would serve.
+  Interpolant plain = f;
+  const Eigen::MatrixXd map = map_by_hand(centers, samples, 0);
+  plain.affine = map.cast<float>();
+  Eigen::MatrixXd X(12, 9);
+  X.col(0).setOnes();
+  X.rightCols(8) = centers.cast<double>();
+  plain.nrbf.weights = (samples.cast<double>() - X * map).cast<float>();
+  const MatrixXfR want = truth(queries);
+  const float ridged = (evaluate_interpolant(f, queries) - want).norm();
+  const float unridged = (evaluate_interpolant(plain, queries) - want).norm();
+  EXPECT_LT(ridged, unridged) << "ridged " << ridged << " vs plain " << unridged;
 }
 
 TEST(AffineKnnRejects, MismatchedInput) {

@@ -32,7 +32,7 @@ struct Interpolant {
   NrbfInterpolant nrbf;      // nrbf: the fit; knn: centres, samples as weights, widths 1
                              // (affine-knn: what the affine map leaves of them as weights)
   float width_scale = 1.0f;  // nrbf: widths = scale x cluster spread (nrbf_widths)
-  int neighbours = 0;        // knn, affine-knn: k
+  int neighbours = 0;        // knn, affine-knn: k (affine-knn's ridge: nrbf.regularization)
   MatrixXfR affine;          // affine-knn: (1 + r_u) x r_a, q_a ~ [1 q_u] affine
   double leave_one_out = 0;  // relative leave-one-out error of this choice on the samples
 };
@@ -49,9 +49,11 @@ Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<
 // Tunes k of the k-nearest-neighbour interpolant by leave-one-out.
 Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples);
 
-// The affine map by least squares (the least-norm one where fewer than
-// 1 + r_u samples leave it open), then k of the knn of its remainders by
-// leave-one-out, each left-out sample predicted by a map refitted without it.
+// The affine map by least squares with a ridge on its slope (none: the
+// least-norm one where fewer than 1 + r_u samples leave it open), plus knn of
+// its remainders; the ridge (kAffineRidges, kept in nrbf.regularization) and
+// k by leave-one-out, each left-out sample predicted by a map refitted
+// without it.
 Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
                             const Eigen::Ref<const MatrixXfR>& samples);
 
@@ -61,5 +63,8 @@ MatrixXfR evaluate_interpolant(const Interpolant& f, const Eigen::Ref<const Matr
 inline constexpr float kNrbfWidthScales[] = {0.25f, 0.5f, 1.0f, 2.0f, 4.0f};
 inline constexpr float kNrbfRegularizations[] = {1e-6f, 1e-4f, 1e-3f, 1e-2f, 1e-1f};
 inline constexpr int kKnnNeighbours[] = {1, 2, 3, 4, 6, 8, 12, 16};
+// Ridges of affine-knn's slope, times the samples' mean squared spread per
+// q_u coordinate (0: plain least squares).
+inline constexpr double kAffineRidges[] = {0.0, 1e-3, 1e-2, 1e-1, 1.0};
 
 }  // namespace phasecast::precompute
