@@ -154,6 +154,17 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
                                                     a.held_out_spread[4], a.held_out_spread[5])
                                       : std::string());
   }
+  if (const auto& b = report.basis_comparison) {
+    fmt::print(
+        "appearance: truncation alone at the reported half, relative to the nodes' own variation "
+        "(Frobenius / l2): the clusters' basis {:.4f} / {:.4f}; a rank-{} basis of the picking half's "
+        "own {} fields (random states) {:.4f} / {:.4f}{}\n",
+        b->served.of_variation, b->served.l2_of_variation, r, b->drawn_fields, b->drawn.of_variation,
+        b->drawn.l2_of_variation,
+        b->drawn.of_variation >= b->served.of_variation
+            ? " (no better than the clusters': what the clusters miss, as many other states miss too)"
+            : " (better than the clusters': other states would give a better basis)");
+  }
   if (r > 0) print_residual_parts(report);
 }
 

@@ -134,6 +134,7 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedd
       fit_appearance_model(q_u, report.clusters, fields.topRows(Na), o.appearance, held_out);  // §4.2, §4.3
   report.candidates = std::move(model.candidates);
   report.weighting_gain = model.weighting_gain;
+  report.basis_comparison = model.basis_comparison;
   model.appearance.paper_rank = o.paper_rank;
   model.appearance.transfer_rays = o.transfer.rays;
   model.appearance.transfer_bounces =

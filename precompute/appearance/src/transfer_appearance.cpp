@@ -362,6 +362,28 @@ TruthErrorSpread truth_error_spread(const TransferReduction& r, const HeldOutTru
   return spread;
 }
 
+namespace {
+// q_a = U_a^T (M - M-bar) at every node: the served basis's best coordinates.
+MatrixXfR projections(const TransferReduction& r, const HeldOutTruth& truth) {
+  const MatrixXfR centred = truth.fields.rowwise() - r.mean_transfer.transpose();
+  return centred * r.U_a;
+}
+}  // namespace
+
+std::optional<BasisComparison> compare_with_drawn_basis(const TransferReduction& reduction,
+                                                        const HeldOutTruth& picking,
+                                                        const HeldOutTruth& test) {
+  const int rank = reduction.rank();
+  if (test.nodes.size() < 2 || rank == 0 || picking.fields.rows() <= rank) return std::nullopt;
+  const TransferReduction drawn = reduce_transfer(picking.fields, {.eps_a = 0, .rank = rank});
+  if (drawn.rank() < rank) return std::nullopt;
+  BasisComparison c;
+  c.served = truth_error(reduction, test, projections(reduction, test));
+  c.drawn = truth_error(drawn, test, projections(drawn, test));
+  c.drawn_fields = static_cast<int>(picking.fields.rows());
+  return c;
+}
+
 AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
                                      const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& o,
                                      const HeldOutTruth& held_out) {
@@ -422,6 +444,7 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
     spread = truth_error_spread(reduction, test,
                                 evaluate_interpolant(chosen.interpolant, rows_of(q_u, test.nodes)));
   store_choice(a, chosen, test, reduction, spread);
+  m.basis_comparison = compare_with_drawn_basis(reduction, selection, test);
   return m;
 }
 

@@ -183,8 +183,34 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   }
   EXPECT_NE(r.out.find(": deformable points ", at), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\n  held-out nodes ", at), std::string::npos) << r.out;
+  // The basis of the picking half's 3 fields is compared when they resolve r_a directions.
+  const bool compared =
+      r.out.find(fmt::format("a rank-{} basis of the picking half's own 3 fields (random states) ",
+                             p.rank_a())) != std::string::npos;
+  EXPECT_EQ(compared, p.rank_a() < 3) << r.out;
   EXPECT_NE(inspect.out.find(fmt::format("interpolant {}", p.appearance->interpolant)), std::string::npos)
       << inspect.out;
+}
+
+// At r_a = 1 the picking half's 3 fields resolve a basis of the served rank:
+// the run prints both truncations, the served one part of the stored total.
+TEST(AppearanceStage, RunComparesTheClustersBasisWithOneOfThePickingHalf) {
+  const auto dir = scratch_dir("appearance_drawn_basis");
+  const auto pkg = (dir / "tiny.h5").string();
+  const auto r = run_tool("phasecast-precompute",
+                          args({"run", tiny_scene_path().string(), "-o", pkg}, {"--rank-a", "1"}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto p = core::read_package(pkg);
+  ASSERT_EQ(p.rank_a(), 1);
+  const std::string served = "(Frobenius / l2): the clusters' basis ";
+  const auto at = r.out.find(served);
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("a rank-1 basis of the picking half's own 3 fields (random states) ", at),
+            std::string::npos)
+      << r.out;
+  const double truncation = std::stod(r.out.substr(at + served.size(), 6));
+  EXPECT_GT(truncation, 0);
+  EXPECT_LE(truncation, p.appearance->held_out_error[8] + 1e-4) << r.out;  // part of the total error
 }
 
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {

@@ -213,6 +213,13 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   for (size_t i = 1; i < 3; ++i)
     EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[i].selection.of_transfer);
   EXPECT_EQ(a.interpolant, interpolant_name(model.candidates[0].interpolant.kind));
+  // The basis comparison measures the served basis at the reported half: its
+  // truncation there, against a basis of the picking half's six fields.
+  ASSERT_TRUE(model.basis_comparison.has_value());
+  EXPECT_EQ(model.basis_comparison->drawn_fields, 6);
+  EXPECT_NEAR(model.basis_comparison->served.total, a.held_out_error[1], 1e-5);
+  const Eigen::MatrixXd T = D - a.U_a.cast<double>() * (a.U_a.cast<double>().transpose() * D);
+  EXPECT_NEAR(model.basis_comparison->served.of_variation, T.norm() / V.norm(), 1e-4);
   // Written and read back, the figures survive.
   core::ScenePackage out = p;
   out.appearance = a;
@@ -448,6 +455,53 @@ TEST(Appearance, HeldOutFloorIsTheLeastAnyBasisOfThatRankReaches) {
   }
   const auto two = truth_error(own, {{1, 2}, nodes.topRows(2)}, MatrixXfR::Zero(2, 2));
   EXPECT_EQ(two.l2_floor, 0);  // two nodes, rank 2: any basis through them fits them
+}
+
+// The drawn basis is fitted to the picking half and measured at the reported
+// half. Population: a mean plus directions u1, u2 with random coefficients;
+// the clusters vary along u1 and u3 only, so their rank-2 basis leaves all of
+// u2 at the reported nodes, which the picking half's own basis spans.
+TEST(Appearance, DrawnBasisComparisonMeasuresBothBasesAtTheReportedHalf) {
+  const Eigen::Index width = 48 * 3;
+  std::mt19937_64 rng(11);
+  const auto unit = [&] { return static_cast<double>(rng() % 2001) / 1000.0 - 1.0; };
+  Eigen::MatrixXd u =
+      Eigen::HouseholderQR<Eigen::MatrixXd>(Eigen::MatrixXd::Random(width, 3)).householderQ() *
+      Eigen::MatrixXd::Identity(width, 3);
+  const Eigen::RowVectorXd mean = Eigen::RowVectorXd::Random(width);
+  const auto fields_along = [&](int n, int a, int b, Eigen::MatrixXd& coefficients) {
+    coefficients.resize(n, 2);
+    MatrixXfR f(n, width);
+    for (int i = 0; i < n; ++i) {
+      coefficients(i, 0) = 2 * unit(), coefficients(i, 1) = unit();
+      f.row(i) =
+          (mean + coefficients(i, 0) * u.col(a).transpose() + coefficients(i, 1) * u.col(b).transpose())
+              .cast<float>();
+    }
+    return f;
+  };
+  Eigen::MatrixXd cc, pc, tc;
+  const auto served = reduce_transfer(fields_along(8, 0, 2, cc), {.rank = 2});
+  HeldOutTruth picking{{0, 1, 2, 3, 4, 5}, fields_along(6, 0, 1, pc)};
+  HeldOutTruth test{{6, 7, 8, 9, 10, 11, 12}, fields_along(7, 0, 1, tc)};
+  const auto c = compare_with_drawn_basis(served, picking, test);
+  ASSERT_TRUE(c.has_value());
+  EXPECT_EQ(c->drawn_fields, 6);
+  // The picking half spans the reported half's variation: nothing is left.
+  EXPECT_NEAR(c->drawn.of_variation, 0, 1e-4);
+  EXPECT_NEAR(c->drawn.l2_of_variation, 0, 1e-4);
+  // The clusters' basis leaves the whole u2 part (their mean has none), by hand,
+  // relative to the nodes' variation about their own mean.
+  const Eigen::MatrixXd centred = tc.rowwise() - tc.colwise().mean();
+  EXPECT_NEAR(c->served.of_variation, std::sqrt(tc.col(1).squaredNorm() / centred.squaredNorm()), 1e-4);
+  EXPECT_NEAR(c->served.interpolation, 0, 1e-5);  // served at the exact projection: truncation alone
+  EXPECT_NEAR(c->served.total, c->served.truncation, 1e-6);
+  // Swapped halves the other way round: the picking fields along u1, u3 miss u2 as well.
+  HeldOutTruth cluster_like{{0, 1, 2, 3, 4, 5}, fields_along(6, 0, 2, pc)};
+  EXPECT_GT(compare_with_drawn_basis(served, cluster_like, test)->drawn.of_variation, 0.1);
+  // Too few picking fields to resolve r_a directions, or one reported node: nothing to compare.
+  EXPECT_FALSE(compare_with_drawn_basis(served, {{0, 1}, picking.fields.topRows(2)}, test).has_value());
+  EXPECT_FALSE(compare_with_drawn_basis(served, picking, {{6}, test.fields.topRows(1)}).has_value());
 }
 
 // The spread of the l2 figures over resampled nodes, checked against a dense

@@ -77,6 +77,7 @@ struct AppearanceStageReport {
   // the clusters' fields and on the held-out truth (none without held-out nodes).
   ResidualByPart clusters_residual;
   std::optional<ResidualByPart> held_out_residual;
+  std::optional<BasisComparison> basis_comparison;  // AppearanceModel's
 };
 
 // `count` distinct state nodes of 0..N-1 that are not in `exclude`, drawn

@@ -139,6 +139,28 @@ struct CandidateReport {
   TruthError test;  // on the second half: reported, never used to choose
 };
 
+// Is the truncation at the held-out states the clusters' fault? Two bases of
+// rank r_a measured at the reported half (the served one and one fitted to
+// the picking half's own true fields, equal weights about their own mean:
+// states drawn at random, not cluster representatives), with q_a the exact
+// projection, so `total` is each basis's truncation alone. Compare them by
+// of_variation and l2_of_variation, whose denominator no mean moves. When the
+// drawn basis does no better, more or other cluster states of the same count
+// would not help: the states' transfer has more directions than r_a.
+struct BasisComparison {
+  TruthError served;  // the clusters' basis, as served
+  TruthError drawn;   // the picking half's own basis
+  int drawn_fields = 0;
+};
+
+// Of `reduction` (the served basis) at `test`, against a basis of the same
+// rank from `picking`'s fields; none when `test` has fewer than two nodes or
+// `picking` resolves fewer than the served rank's directions (it needs more
+// than r_a fields).
+std::optional<BasisComparison> compare_with_drawn_basis(const TransferReduction& reduction,
+                                                        const HeldOutTruth& picking,
+                                                        const HeldOutTruth& test);
+
 struct AppearanceModel {
   core::Appearance appearance;              // /appearance/*
   MatrixXfR q_a;                            // N x r_a: /portrait/q_a, the interpolant at every state node
@@ -147,6 +169,7 @@ struct AppearanceModel {
   // the picking half, when both were judged there; cluster sizes are kept
   // only when it is beyond its noise.
   std::optional<PairedGain> weighting_gain;
+  std::optional<BasisComparison> basis_comparison;  // at the reported half (compare_with_drawn_basis)
 };
 
 //   @param[in] q_u       #N by r_u all state nodes
