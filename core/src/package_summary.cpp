@@ -38,8 +38,8 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   s.sigma_ratio_a_at_paper_rank = sigma_ratio(a.singular_values, a.paper_rank);
   s.singular_values_a.assign(a.singular_values.data(), a.singular_values.data() + a.singular_values.size());
   const auto& v = a.interpolant_parameters;
-  if (a.interpolant == "affine-knn" && v.size() >= 1) {
-    s.interpolant = fmt::format("affine-knn (k = {}, ridge {:g})", v[0], a.nrbf_regularization);
+  if ((a.interpolant == "affine-knn" || a.interpolant == "affine-knn-slope") && v.size() >= 1) {
+    s.interpolant = fmt::format("{} (k = {}, ridge {:g})", a.interpolant, v[0], a.nrbf_regularization);
   } else if (a.interpolant == "knn" && v.size() >= 1) {
     s.interpolant = fmt::format("knn (k = {})", v[0]);
   } else if (v.size() >= 2) {

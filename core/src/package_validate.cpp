@@ -192,15 +192,17 @@ void check_appearance_shapes(const ShapeChecker& s) {
   if (s.has("/appearance/interpolant")) s.length("/appearance/interpolant", 1, "1 (the interpolant's name)");
   if (s.has("/appearance/transfer_weighting"))
     s.length("/appearance/transfer_weighting", 1, "1 (the weighting's name)");
-  // At most 2 (nrbf, knn), or affine-knn's k and its (1 + r_u) x r_a map.
+  // At most 2 (nrbf, knn), or affine-knn's (and affine-knn-slope's) k and its (1 + r_u) x r_a map.
   const std::uint64_t affine_knn = 1 + (1 + s.dim("/reduction/U_u", 1)) * r_a;
   if (s.has("/appearance/interpolant_parameters")) {
     const std::uint64_t m = s.dim("/appearance/interpolant_parameters", 0);
     if (m > 2 && m != affine_knn) {
-      s.checker().fail("/appearance/interpolant_parameters",
-                       fmt::format("expected at most 2 values, or {} (affine-knn: k and a (1 + r_u) x r_a "
-                                   "map), got {}",
-                                   affine_knn, m));
+      s.checker().fail(
+          "/appearance/interpolant_parameters",
+          fmt::format(
+              "expected at most 2 values, or {} (affine-knn, affine-knn-slope: k and a (1 + r_u) x r_a "
+              "map), got {}",
+              affine_knn, m));
     }
   }
   if (s.has("/appearance/held_out_error")) {
@@ -395,19 +397,29 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
     c.fail("/appearance/nrbf_regularization",
            fmt::format("expected a finite value >= 0, got {}", a.nrbf_regularization));
   }
-  if (a.interpolant != "nrbf" && a.interpolant != "knn" && a.interpolant != "affine-knn") {
+  const bool affine = a.interpolant == "affine-knn" || a.interpolant == "affine-knn-slope";
+  if (a.interpolant != "nrbf" && a.interpolant != "knn" && !affine) {
     c.fail("/appearance/interpolant",
-           fmt::format("expected \"nrbf\", \"knn\" or \"affine-knn\", got \"{}\"", a.interpolant));
+           fmt::format("expected \"nrbf\", \"knn\", \"affine-knn\" or \"affine-knn-slope\", got \"{}\"",
+                       a.interpolant));
   }
   const Eigen::Index affine_knn = 1 + (1 + a.nrbf_centers.cols()) * a.U_a.cols();
   const Eigen::Index m = a.interpolant_parameters.size();
-  if (a.interpolant == "affine-knn" ? m != affine_knn : m > 2) {
+  if (affine ? m != affine_knn : m > 2) {
     c.fail("/appearance/interpolant_parameters",
            fmt::format("expected {} for interpolant \"{}\", got {} values",
-                       a.interpolant == "affine-knn"
-                           ? fmt::format("{} (k and a (1 + r_u) x r_a map)", affine_knn)
-                           : std::string("at most 2"),
+                       affine ? fmt::format("{} (k and a (1 + r_u) x r_a map)", affine_knn)
+                              : std::string("at most 2"),
                        a.interpolant, m));
+  }
+  // knn's k counts neighbours among the N_a centres.
+  if ((affine || a.interpolant == "knn") && m >= 1) {
+    const float k = a.interpolant_parameters[0];
+    if (!(k >= 1 && k <= static_cast<float>(a.nrbf_centers.rows()) && k == std::floor(k))) {
+      c.fail("/appearance/interpolant_parameters",
+             fmt::format("expected k (the first value) a whole number in 1..{} (N_a), got {}",
+                         a.nrbf_centers.rows(), k));
+    }
   }
   c.finite("/appearance/interpolant_parameters", a.interpolant_parameters);
   if (a.transfer_weighting != "equal" && a.transfer_weighting != "cluster size")

@@ -234,7 +234,7 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
                   kDefaultHeldOut));
   cmd->add_option("--interpolant", a.interpolant,
                   "q_a over q_u: best (lowest held-out error), nrbf (§4.3), knn or affine-knn "
-                  "(docs/transfer.md)")
+                  "(its neighbours in q_u or in the affine map's image, by leave-one-out; docs/transfer.md)")
       ->capture_default_str();
   cmd->add_option("--transfer-weighting", a.weighting,
                   "weights of the cluster fields in M-bar and the SVD (§4.2): best (cluster-size where "

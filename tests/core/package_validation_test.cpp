@@ -173,7 +173,7 @@ TEST_F(PackageFileRejection, InterpolantParametersOfNoInterpolantsLength) {
                                           std::vector<float>(3, 0.5f).data(), {3});
   EXPECT_THAT(package_rejection(path_),
               HasSubstr(fmt::format("/appearance/interpolant_parameters: expected at most 2 values, or {} "
-                                    "(affine-knn: k and a (1 + r_u) x r_a map), got 3",
+                                    "(affine-knn, affine-knn-slope: k and a (1 + r_u) x r_a map), got 3",
                                     affine)));
 }
 
@@ -304,8 +304,9 @@ TEST_F(PackageRule, TransferWeightingIsEqualOrClusterSize) {
                                     "got \"cluster-size\""));
 }
 
-// nrbf and knn keep at most 2 parameters, affine-knn its k and its
-// (1 + r_u) x r_a affine map, which nothing else can be mistaken for.
+// nrbf and knn keep at most 2 parameters, affine-knn (and affine-knn-slope)
+// its k and its (1 + r_u) x r_a affine map, which nothing else can be
+// mistaken for.
 TEST_F(PackageRule, InterpolantParametersFitTheInterpolant) {
   auto& a = *p.appearance;
   const Eigen::Index affine = 1 + (1 + a.nrbf_centers.cols()) * a.U_a.cols();
@@ -319,14 +320,27 @@ TEST_F(PackageRule, InterpolantParametersFitTheInterpolant) {
                                     "(1 + r_u) x r_a map) for interpolant \"affine-knn\", got 1 values",
                                     affine)));
   a.interpolant_parameters = VectorXf::Constant(affine, 0.5f);
+  a.interpolant_parameters[0] = 2;
+  EXPECT_EQ(invalid(p), "");
+  a.interpolant = "affine-knn-slope";  // the same layout, neighbours in the map's image
+  EXPECT_EQ(invalid(p), "");
+  // k counts centres: a whole number in 1..N_a.
+  const auto N_a = a.nrbf_centers.rows();
+  for (const float k : {0.0f, 2.5f, static_cast<float>(N_a + 1)}) {
+    a.interpolant_parameters[0] = k;
+    EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/interpolant_parameters: expected k (the first "
+                                                  "value) a whole number in 1..{} (N_a), got {}",
+                                                  N_a, k)));
+  }
+  a.interpolant_parameters[0] = static_cast<float>(N_a);
   EXPECT_EQ(invalid(p), "");
   a.interpolant = "nrbf";
   EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/interpolant_parameters: expected at most 2 for "
                                                 "interpolant \"nrbf\", got {} values",
                                                 affine)));
   a.interpolant = "spline";
-  EXPECT_THAT(invalid(p), HasSubstr("/appearance/interpolant: expected \"nrbf\", \"knn\" or \"affine-knn\", "
-                                    "got \"spline\""));
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/interpolant: expected \"nrbf\", \"knn\", \"affine-knn\" or "
+                                    "\"affine-knn-slope\", got \"spline\""));
 }
 
 TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {

@@ -100,11 +100,11 @@ std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, cons
   return out;
 }
 
-// nrbf: width scale, lambda; knn: k; affine-knn: k, then the affine map row by row.
+// nrbf: width scale, lambda; knn: k; affine-knn(-slope): k, then the affine map row by row.
 VectorXf interpolant_parameters(const Interpolant& f) {
   if (f.kind == InterpolantKind::nrbf)
     return (VectorXf(2) << f.width_scale, f.nrbf.regularization).finished();
-  VectorXf v(1 + (f.kind == InterpolantKind::affine_knn ? f.affine.size() : 0));
+  VectorXf v(1 + (f.kind == InterpolantKind::knn ? 0 : f.affine.size()));
   v[0] = static_cast<float>(f.neighbours);
   v.tail(v.size() - 1) = Eigen::Map<const VectorXf>(f.affine.data(), f.affine.size());
   return v;

@@ -58,8 +58,10 @@ Eigen::MatrixXd map_by_hand(const MatrixXfR& centers, const MatrixXfR& samples, 
   return map;
 }
 
+// slope: neighbours by |(x - y) B|^2 + 1e-6 |B|_F^2 / r_u |x - y|^2, B the map's slope.
 Eigen::RowVectorXd affine_knn_by_hand(const MatrixXfR& centers, const MatrixXfR& samples, double ridge, int k,
-                                      const Eigen::RowVectorXd& q, Eigen::Index skip = -1) {
+                                      const Eigen::RowVectorXd& q, Eigen::Index skip = -1,
+                                      bool slope = false) {
   MatrixXfR fit_centers = centers, fit_samples = samples;
   if (skip >= 0) {  // the map without the skipped sample
     for (Eigen::Index i = skip; i + 1 < centers.rows(); ++i)
@@ -71,9 +73,14 @@ Eigen::RowVectorXd affine_knn_by_hand(const MatrixXfR& centers, const MatrixXfR&
   const auto at = [&](const Eigen::RowVectorXd& x) {
     return Eigen::RowVectorXd(map.row(0) + x * map.bottomRows(x.size()));
   };
+  const Eigen::MatrixXd B = map.bottomRows(q.size());
+  const double eps = B.squaredNorm() > 0 ? 1e-6 * B.squaredNorm() / static_cast<double>(q.size()) : 1.0;
+  const auto distance2 = [&](const Eigen::RowVectorXd& dx) {
+    return slope ? (dx * B).squaredNorm() + eps * dx.squaredNorm() : dx.squaredNorm();
+  };
   std::vector<std::pair<double, Eigen::Index>> d;
   for (Eigen::Index c = 0; c < centers.rows(); ++c)
-    if (c != skip) d.emplace_back((centers.row(c).cast<double>() - q).squaredNorm(), c);
+    if (c != skip) d.emplace_back(distance2(centers.row(c).cast<double>() - q), c);
   std::sort(d.begin(), d.end());
   Eigen::RowVectorXd rest = Eigen::RowVectorXd::Zero(samples.cols());
   double total = 0;
@@ -89,7 +96,7 @@ Eigen::RowVectorXd affine_knn_by_hand(const MatrixXfR& centers, const MatrixXfR&
 TEST(AffineKnn, CarriesAnAffineFunctionExactlyBetweenSamples) {
   const MatrixXfR centers = random_points(20, 4, 1), queries = random_points(50, 4, 2);
   const Interpolant f = tune_affine_knn(centers, affine_of(centers));
-  EXPECT_EQ(f.kind, InterpolantKind::affine_knn);
+  EXPECT_TRUE(f.kind == InterpolantKind::affine_knn || f.kind == InterpolantKind::affine_knn_slope);
   EXPECT_LT(f.leave_one_out, 1e-5);
   EXPECT_EQ(f.nrbf.regularization, 0) << "an exact affine function wants no ridge";
   const MatrixXfR want = affine_of(queries);
@@ -128,32 +135,69 @@ TEST(AffineKnn, ReproducesEverySampleAndBeatsKnnOnANearlyAffineFunction) {
 TEST(AffineKnn, LeaveOneOutRefitsTheMapWithoutTheSample) {
   const MatrixXfR centers = random_points(5, 4, 5);
   MatrixXfR samples = random_points(5, 3, 6);
-  const Interpolant f = tune_affine_knn(centers, samples);
-  EXPECT_LT((evaluate_interpolant(f, centers) - samples).norm(), 1e-4f * samples.norm());
-  double err2 = 0;
-  for (Eigen::Index j = 0; j < 5; ++j) {
-    const Eigen::RowVectorXd guess = affine_knn_by_hand(centers, samples, f.nrbf.regularization, f.neighbours,
-                                                        centers.row(j).cast<double>(), j);
-    err2 += (guess - samples.row(j).cast<double>()).squaredNorm();
-  }
-  EXPECT_NEAR(f.leave_one_out, std::sqrt(err2 / samples.cast<double>().squaredNorm()), 1e-5);
-  EXPECT_GT(f.leave_one_out, 0.05);
-  // And what it serves off the samples is the hand-written interpolant too.
-  const MatrixXfR queries = random_points(10, 4, 7);
-  const MatrixXfR served = evaluate_interpolant(f, queries);
-  for (Eigen::Index i = 0; i < 10; ++i) {
-    const Eigen::RowVectorXd want = affine_knn_by_hand(centers, samples, f.nrbf.regularization, f.neighbours,
-                                                       queries.row(i).cast<double>());
-    EXPECT_LT((served.row(i).cast<double>() - want).norm(), 1e-4 * (1 + want.norm())) << "query " << i;
+  for (const auto metric : {NeighbourMetric::state, NeighbourMetric::slope}) {
+    const Interpolant f = tune_affine_knn(centers, samples, metric);
+    const bool slope = metric == NeighbourMetric::slope;
+    EXPECT_EQ(f.kind, slope ? InterpolantKind::affine_knn_slope : InterpolantKind::affine_knn);
+    EXPECT_LT((evaluate_interpolant(f, centers) - samples).norm(), 1e-4f * samples.norm());
+    double err2 = 0;
+    for (Eigen::Index j = 0; j < 5; ++j) {
+      const Eigen::RowVectorXd guess = affine_knn_by_hand(
+          centers, samples, f.nrbf.regularization, f.neighbours, centers.row(j).cast<double>(), j, slope);
+      err2 += (guess - samples.row(j).cast<double>()).squaredNorm();
+    }
+    EXPECT_NEAR(f.leave_one_out, std::sqrt(err2 / samples.cast<double>().squaredNorm()), 1e-5) << slope;
+    EXPECT_GT(f.leave_one_out, 0.05);
+    // And what it serves off the samples is the hand-written interpolant too.
+    const MatrixXfR queries = random_points(10, 4, 7);
+    const MatrixXfR served = evaluate_interpolant(f, queries);
+    for (Eigen::Index i = 0; i < 10; ++i) {
+      const Eigen::RowVectorXd want = affine_knn_by_hand(
+          centers, samples, f.nrbf.regularization, f.neighbours, queries.row(i).cast<double>(), -1, slope);
+      EXPECT_LT((served.row(i).cast<double>() - want).norm(), 1e-4 * (1 + want.norm()))
+          << "query " << i << " slope " << slope;
+    }
   }
   // Fewer samples than unknowns: the least-norm map still passes through them.
   const Interpolant few = tune_affine_knn(centers.topRows(3), samples.topRows(3));
   EXPECT_LT((evaluate_interpolant(few, centers.topRows(3)) - samples.topRows(3)).norm(),
             1e-4f * samples.topRows(3).norm());
   // One sample: a constant (the slope is left open, and the least-norm one is 0).
-  const Interpolant one = tune_affine_knn(centers.topRows(1), samples.topRows(1));
-  EXPECT_EQ(one.leave_one_out, 0);
-  EXPECT_LT((evaluate_interpolant(one, centers.bottomRows(1)) - samples.topRows(1)).norm(), 1e-5f);
+  for (const auto metric : {NeighbourMetric::state, NeighbourMetric::slope}) {
+    const Interpolant one = tune_affine_knn(centers.topRows(1), samples.topRows(1), metric);
+    EXPECT_EQ(one.leave_one_out, 0);
+    EXPECT_LT((evaluate_interpolant(one, centers.bottomRows(1)) - samples.topRows(1)).norm(), 1e-5f);
+  }
+}
+
+// q_a turns with the first coordinate only, while the second spreads ten
+// times wider and moves nothing: neighbours in q_u are mostly picked by the
+// second, neighbours in the map's image by the first. Leave-one-out keeps
+// the slope metric, which serves new states far better.
+TEST(AffineKnn, NeighboursInTheMapsImageIgnoreACoordinateThatMovesNothing) {
+  const auto spread = [](MatrixXfR q) {
+    q.col(1) *= 10.0f;
+    return q;
+  };
+  const MatrixXfR centers = spread(random_points(60, 2, 21)), queries = spread(random_points(300, 2, 22));
+  const auto truth = [](const MatrixXfR& q) {
+    MatrixXfR out(q.rows(), 2);
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+      const float x = q(i, 0);
+      out.row(i) << x + 0.5f * std::sin(4 * x), 0.3f * std::cos(3 * x);
+    }
+    return out;
+  };
+  const MatrixXfR samples = truth(centers), want = truth(queries);
+  const Interpolant best = tune_affine_knn(centers, samples);
+  EXPECT_EQ(best.kind, InterpolantKind::affine_knn_slope);
+  const Interpolant state = tune_affine_knn(centers, samples, NeighbourMetric::state);
+  EXPECT_LT(best.leave_one_out, state.leave_one_out);
+  const float slope_error = (evaluate_interpolant(best, queries) - want).norm() / want.norm();
+  const float state_error = (evaluate_interpolant(state, queries) - want).norm() / want.norm();
+  EXPECT_GT(slope_error, 1e-4f) << "not vacuous: the function is not affine";
+  EXPECT_LT(slope_error, 0.5f * state_error) << slope_error << " vs " << state_error;
+  EXPECT_STREQ(interpolant_name(best.kind), "affine-knn-slope");
 }
 
 // 12 noisy samples of an affine function of 8 coordinates: the plain fit

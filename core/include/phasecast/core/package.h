@@ -157,8 +157,8 @@ struct Appearance {
   float nrbf_regularization = 0;
   // Which interpolant made q_a (docs/transfer.md). Packages written before
   // the choice existed read as the NRBF with no parameters.
-  std::string interpolant = "nrbf";  // "nrbf" (§4.3), "knn" or "affine-knn"
-  VectorXf interpolant_parameters;   // nrbf: width scale, lambda; knn: k; affine-knn: k, then the
+  std::string interpolant = "nrbf";  // "nrbf" (§4.3), "knn", "affine-knn" or "affine-knn-slope"
+  VectorXf interpolant_parameters;   // nrbf: width scale, lambda; knn: k; affine-knn(-slope): k, then the
                                      // (1 + r_u) x r_a affine map row by row (nrbf_weights: its remainders)
   // The weights M-bar and U_a gave the cluster fields (docs/transfer.md):
   // "equal" (the paper's, and every package written before the choice) or

@@ -35,7 +35,7 @@ struct PackageSummary {
   // of A_a, at r_a and at the paper's r_a; NaN when not computed.
   double sigma_ratio_a_at_rank = 0, sigma_ratio_a_at_paper_rank = 0;
   std::vector<double> singular_values_a;        // every sigma of A_a (N_a)
-  std::string interpolant;                      // "nrbf", "knn" or "affine-knn", with its parameters
+  std::string interpolant;                      // "nrbf", "knn", "affine-knn" or "affine-knn-slope", with its parameters
   std::string transfer_weighting;               // "equal" or "cluster size"
   int transfer_rays = 0, transfer_bounces = 0;  // how the transfer was sampled (0 rays: unrecorded)
   int held_out_nodes = 0;                       // 0: no held-out truth in the package

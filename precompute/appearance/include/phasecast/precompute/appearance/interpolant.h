@@ -11,6 +11,9 @@
 //         plus knn of what it leaves at each sample. The transfer is mostly
 //         linear in q_u (docs/transfer.md): the map carries that part across
 //         the gaps between clusters, and knn only the remainder.
+//   affine-knn-slope  the same, with the neighbours found in the map's image:
+//         states are near when the map predicts them alike lighting, so a
+//         coordinate that barely moves the transfer does not pick them.
 //
 // knn and affine-knn reproduce every sample at its own centre, the NRBF
 // nearly (lambda > 0). The appearance stage keeps the one whose error against
@@ -24,7 +27,7 @@
 
 namespace phasecast::precompute {
 
-enum class InterpolantKind { nrbf, knn, affine_knn };
+enum class InterpolantKind { nrbf, knn, affine_knn, affine_knn_slope };
 const char* interpolant_name(InterpolantKind kind);
 
 struct Interpolant {
@@ -33,7 +36,7 @@ struct Interpolant {
                              // (affine-knn: what the affine map leaves of them as weights)
   float width_scale = 1.0f;  // nrbf: widths = scale x cluster spread (nrbf_widths)
   int neighbours = 0;        // knn, affine-knn: k (affine-knn's ridge: nrbf.regularization)
-  MatrixXfR affine;          // affine-knn: (1 + r_u) x r_a, q_a ~ [1 q_u] affine
+  MatrixXfR affine;          // affine-knn(-slope): (1 + r_u) x r_a, q_a ~ [1 q_u] affine
   double leave_one_out = 0;  // relative leave-one-out error of this choice on the samples
 };
 
@@ -49,13 +52,25 @@ Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<
 // Tunes k of the k-nearest-neighbour interpolant by leave-one-out.
 Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples);
 
+// Where affine-knn looks for neighbours: in q_u, in the map's image
+// (affine-knn-slope), or whichever leave-one-out prefers.
+enum class NeighbourMetric { state, slope, best };
+
 // The affine map by least squares with a ridge on its slope (none: the
 // least-norm one where fewer than 1 + r_u samples leave it open), plus knn of
-// its remainders; the ridge (kAffineRidges, kept in nrbf.regularization) and
-// k by leave-one-out, each left-out sample predicted by a map refitted
-// without it.
+// its remainders; the ridge (kAffineRidges, kept in nrbf.regularization), k
+// and the metric by leave-one-out, each left-out sample predicted by a map
+// refitted without it (and, in its image, neighbours measured with it).
 Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
-                            const Eigen::Ref<const MatrixXfR>& samples);
+                            const Eigen::Ref<const MatrixXfR>& samples,
+                            NeighbourMetric metric = NeighbourMetric::best);
+
+// The squared distance of affine-knn-slope is |(x - y) B|^2 + eps |x - y|^2,
+// B the map's r_u x r_a slope: q_u is mapped by [B, sqrt(eps) I]. The small
+// eps = kSlopeIsotropy |B|_F^2 / r_u keeps apart states the map cannot tell
+// apart (r_a < r_u leaves B a null space); with no slope at all, eps = 1.
+Eigen::MatrixXd slope_metric(const Eigen::Ref<const Eigen::MatrixXd>& slope);
+inline constexpr double kSlopeIsotropy = 1e-6;
 
 // q_a at every row of q (#M by r_u); returns #M by r_a.
 MatrixXfR evaluate_interpolant(const Interpolant& f, const Eigen::Ref<const MatrixXfR>& q);
