@@ -89,6 +89,24 @@ void print_residual_parts(const precompute::AppearanceStageReport& report) {
     fmt::print("  held-out nodes {:.4f}: {}\n", h->relative, residual_parts(*h));
 }
 
+// The served basis against one of the picking half's own fields, with the
+// paired verdict (a single draw's figures alone would call any difference).
+void print_basis_comparison(const precompute::BasisComparison& b, Eigen::Index clusters, Eigen::Index r) {
+  const auto& g = b.drawn_gain;
+  const std::string verdict =
+      g.beyond_noise()    ? "the drawn basis is the better one: other states would serve the basis better"
+      : -g.gain > g.noise ? "the clusters' basis is the better one: as many random states miss more"
+                          : "within noise of each other";
+  fmt::print(
+      "appearance: truncation alone at the reported half, relative to the nodes' own variation (Frobenius / "
+      "l2): the {} clusters' basis {:.4f} / {:.4f}; a rank-{} basis of the picking half's own {} fields "
+      "(random states) {:.4f} / {:.4f}, which leaves {:.1f} % {} squared error, noise {} (95 % t "
+      "interval of the paired differences): {}\n",
+      clusters, b.served.of_variation, b.served.l2_of_variation, r, b.drawn_fields, b.drawn.of_variation,
+      b.drawn.l2_of_variation, 100 * std::abs(g.gain), g.gain >= 0 ? "less" : "more",
+      std::isfinite(g.noise) ? fmt::format("{:.1f} %", 100 * g.noise) : "unbounded", verdict);
+}
+
 void print_appearance_report(const core::ScenePackage& p, const precompute::AppearanceStageReport& report) {
   const auto& a = *p.appearance;
   const auto r = p.rank_a();
@@ -154,17 +172,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
                                                     a.held_out_spread[4], a.held_out_spread[5])
                                       : std::string());
   }
-  if (const auto& b = report.basis_comparison) {
-    fmt::print(
-        "appearance: truncation alone at the reported half, relative to the nodes' own variation "
-        "(Frobenius / l2): the clusters' basis {:.4f} / {:.4f}; a rank-{} basis of the picking half's "
-        "own {} fields (random states) {:.4f} / {:.4f}{}\n",
-        b->served.of_variation, b->served.l2_of_variation, r, b->drawn_fields, b->drawn.of_variation,
-        b->drawn.l2_of_variation,
-        b->drawn.of_variation >= b->served.of_variation
-            ? " (no better than the clusters': what the clusters miss, as many other states miss too)"
-            : " (better than the clusters': other states would give a better basis)");
-  }
+  if (const auto& b = report.basis_comparison) print_basis_comparison(*b, a.clusters(), r);
   if (r > 0) print_residual_parts(report);
 }
 
@@ -233,8 +241,8 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
                   "the interpolant, half are reported (default: the scene's, else {}; 0: none)",
                   kDefaultHeldOut));
   cmd->add_option("--interpolant", a.interpolant,
-                  "q_a over q_u: best (lowest held-out error), nrbf (§4.3), knn or affine-knn "
-                  "(its neighbours in q_u or in the affine map's image, by leave-one-out; docs/transfer.md)")
+                  "q_a over q_u: best (lowest held-out error), nrbf (§4.3), knn, affine-knn or "
+                  "affine-knn-slope (its neighbours in the affine map's image) (docs/transfer.md)")
       ->capture_default_str();
   cmd->add_option("--transfer-weighting", a.weighting,
                   "weights of the cluster fields in M-bar and the SVD (§4.2): best (cluster-size where "
@@ -275,7 +283,8 @@ precompute::AppearanceStageOptions appearance_stage_options(const precompute::Sc
       {{"best", precompute::InterpolantChoice::best},
        {"nrbf", precompute::InterpolantChoice::nrbf},
        {"knn", precompute::InterpolantChoice::knn},
-       {"affine-knn", precompute::InterpolantChoice::affine_knn}});
+       {"affine-knn", precompute::InterpolantChoice::affine_knn},
+       {"affine-knn-slope", precompute::InterpolantChoice::affine_knn_slope}});
   s.appearance.weighting = named_choice<precompute::WeightingChoice>(
       "--transfer-weighting", a.weighting,
       {{"best", precompute::WeightingChoice::best},

@@ -334,6 +334,14 @@ TEST_F(PackageRule, InterpolantParametersFitTheInterpolant) {
   }
   a.interpolant_parameters[0] = static_cast<float>(N_a);
   EXPECT_EQ(invalid(p), "");
+  a.interpolant = "knn";  // knn's k alike, NaN included
+  for (const float k : {0.0f, -1.0f, std::nanf("")}) {
+    a.interpolant_parameters = VectorXf::Constant(1, k);
+    EXPECT_THAT(invalid(p), HasSubstr("/appearance/interpolant_parameters: expected k (the first value) a "
+                                      "whole number in 1.."))
+        << k;
+  }
+  a.interpolant_parameters = VectorXf::Constant(affine, 0.5f);
   a.interpolant = "nrbf";
   EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/interpolant_parameters: expected at most 2 for "
                                                 "interpolant \"nrbf\", got {} values",

@@ -4,7 +4,6 @@
 #include <Eigen/QR>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -83,8 +82,9 @@ void check_samples(const char* name, const Eigen::Ref<const MatrixXfR>& centers,
 
 // The points where affine-knn looks for neighbours: q_u, or its image under
 // slope_metric of `map`'s slope.
-MatrixXfR neighbour_space(const Eigen::Ref<const MatrixXfR>& q, const Eigen::MatrixXd& map, bool slope) {
-  if (!slope) return q;
+MatrixXfR neighbour_space(const Eigen::Ref<const MatrixXfR>& q, const Eigen::MatrixXd& map,
+                          NeighbourMetric metric) {
+  if (metric == NeighbourMetric::state) return q;
   const Eigen::MatrixXd W = slope_metric(map.bottomRows(map.rows() - 1));
   MatrixXfR out(q.rows(), W.cols());
   // Row by row, so that a query equal to a centre lands exactly on it (knn_at).
@@ -92,30 +92,27 @@ MatrixXfR neighbour_space(const Eigen::Ref<const MatrixXfR>& q, const Eigen::Mat
   return out;
 }
 
-// Leave-one-out of affine-knn for every metric, ridge and k of the grids at
-// once (err2[metric][ridge][k], metric 0: state, 1: slope): each sample is
-// left out of the map's fit, of the knn and of the metric.
-using AffineErrors = std::array<std::vector<std::vector<double>>, 2>;
-AffineErrors affine_knn_leave_one_out(const Eigen::Ref<const MatrixXfR>& centers,
-                                      const Eigen::Ref<const MatrixXfR>& samples,
-                                      const std::vector<int>& ks) {
+// Leave-one-out of affine-knn for every ridge and k of the grids at once
+// (err2[ridge][k]): each sample is left out of the map's fit, of the knn
+// and of the metric.
+std::vector<std::vector<double>> affine_knn_leave_one_out(const Eigen::Ref<const MatrixXfR>& centers,
+                                                          const Eigen::Ref<const MatrixXfR>& samples,
+                                                          const std::vector<int>& ks,
+                                                          NeighbourMetric metric) {
   const Eigen::Index Na = centers.rows();
   const Eigen::MatrixXd X = with_ones(centers), Y = samples.cast<double>();
-  AffineErrors err2;
-  for (auto& e : err2) e.assign(std::size(kAffineRidges), std::vector<double>(ks.size(), 0.0));
+  std::vector<std::vector<double>> err2(std::size(kAffineRidges), std::vector<double>(ks.size(), 0.0));
   for (Eigen::Index j = 0; j < Na; ++j) {
     Eigen::MatrixXd Xo(Na - 1, X.cols()), Yo(Na - 1, Y.cols());
     for (Eigen::Index i = 0, o = 0; i < Na; ++i)
       if (i != j) Xo.row(o) = X.row(i), Yo.row(o++) = Y.row(i);
-    for (size_t r = 0; r < std::size(kAffineRidges); ++r) {
+    for (size_t r = 0; r < err2.size(); ++r) {
       const Eigen::MatrixXd map = fit_affine(Xo, Yo, kAffineRidges[r]);
       const MatrixXfR rest = (Y - X * map).cast<float>();  // row j unused: knn skips it
-      for (size_t m = 0; m < 2; ++m) {
-        const MatrixXfR points = neighbour_space(centers, map, m == 1);
-        for (size_t n = 0; n < ks.size(); ++n) {
-          const Eigen::RowVectorXd guess = X.row(j) * map + knn_at(points, rest, ks[n], points.row(j), j);
-          err2[m][r][n] += (guess - Y.row(j)).squaredNorm();
-        }
+      const MatrixXfR points = neighbour_space(centers, map, metric);
+      for (size_t m = 0; m < ks.size(); ++m) {
+        const Eigen::RowVectorXd guess = X.row(j) * map + knn_at(points, rest, ks[m], points.row(j), j);
+        err2[r][m] += (guess - Y.row(j)).squaredNorm();
       }
     }
   }
@@ -185,6 +182,10 @@ Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Re
   return best;
 }
 
+bool has_affine_map(InterpolantKind kind) {
+  return kind == InterpolantKind::affine_knn || kind == InterpolantKind::affine_knn_slope;
+}
+
 Eigen::MatrixXd slope_metric(const Eigen::Ref<const Eigen::MatrixXd>& slope) {
   const Eigen::Index r_u = slope.rows();
   const double norm2 = slope.squaredNorm();
@@ -200,25 +201,20 @@ Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
   check_samples("affine-knn", centers, samples);
   const Eigen::MatrixXd X = with_ones(centers), Y = samples.cast<double>();
   const std::vector<int> ks = neighbour_grid(centers.rows());
-  // Grid indices; one sample: no ridge, the first k, the metric asked for (state for best).
-  size_t slope = metric == NeighbourMetric::slope ? 1 : 0, ridge = 0, k = 0;
+  size_t ridge = 0, k = 0;  // grid indices; one sample: no ridge, the first k
   double loo = 0;
   if (centers.rows() >= 2) {
-    const auto err2 = affine_knn_leave_one_out(centers, samples, ks);
+    const auto err2 = affine_knn_leave_one_out(centers, samples, ks, metric);
     double least = std::numeric_limits<double>::infinity();
-    for (size_t m = 0; m < 2; ++m) {
-      if ((metric == NeighbourMetric::state && m == 1) || (metric == NeighbourMetric::slope && m == 0))
-        continue;
-      for (size_t r = 0; r < err2[m].size(); ++r)
-        for (size_t n = 0; n < ks.size(); ++n)
-          if (err2[m][r][n] < least)
-            least = err2[m][r][n], slope = m, ridge = r, k = n;  // ties: state, smaller ridge, then k
-    }
+    for (size_t r = 0; r < err2.size(); ++r)
+      for (size_t m = 0; m < ks.size(); ++m)
+        if (err2[r][m] < least) least = err2[r][m], ridge = r, k = m;  // ties: smaller ridge, then k
     const double norm2 = Y.squaredNorm();
     loo = norm2 > 0 ? std::sqrt(least / norm2) : 0;
   }
   Interpolant best;
-  best.kind = slope == 1 ? InterpolantKind::affine_knn_slope : InterpolantKind::affine_knn;
+  best.kind =
+      metric == NeighbourMetric::slope ? InterpolantKind::affine_knn_slope : InterpolantKind::affine_knn;
   best.affine = fit_affine(X, Y, kAffineRidges[ridge]).cast<float>();
   best.nrbf.centers = centers;
   // Against the stored (float) map, so that map and remainders give back each sample.
@@ -232,18 +228,25 @@ Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
 
 MatrixXfR evaluate_interpolant(const Interpolant& f, const Eigen::Ref<const MatrixXfR>& q) {
   if (f.kind == InterpolantKind::nrbf) return evaluate_nrbf(f.nrbf, q);
-  if (q.cols() != f.nrbf.centers.cols()) {
+  const Eigen::Index r_u = f.nrbf.centers.cols(), r_a = f.nrbf.weights.cols();
+  if (q.cols() != r_u) {
     throw std::invalid_argument(fmt::format("{}: queries must have {} columns (r_u), got {}",
-                                            interpolant_name(f.kind), f.nrbf.centers.cols(), q.cols()));
+                                            interpolant_name(f.kind), r_u, q.cols()));
   }
-  const bool affine = f.kind != InterpolantKind::knn;
-  const bool slope = f.kind == InterpolantKind::affine_knn_slope;
+  const bool affine = has_affine_map(f.kind);
+  if (affine && (f.affine.rows() != 1 + r_u || f.affine.cols() != r_a)) {
+    throw std::invalid_argument(fmt::format("{}: expected a {} x {} affine map (1 + r_u, r_a), got {} x {}",
+                                            interpolant_name(f.kind), 1 + r_u, r_a, f.affine.rows(),
+                                            f.affine.cols()));
+  }
   const Eigen::MatrixXd map = f.affine.cast<double>();
   const Eigen::MatrixXd trend =
-      affine ? Eigen::MatrixXd(with_ones(q) * map) : Eigen::MatrixXd::Zero(q.rows(), f.nrbf.weights.cols());
-  const MatrixXfR points = neighbour_space(f.nrbf.centers, map, slope);
-  const MatrixXfR queries = neighbour_space(q, map, slope);
-  MatrixXfR out(q.rows(), f.nrbf.weights.cols());
+      affine ? Eigen::MatrixXd(with_ones(q) * map) : Eigen::MatrixXd::Zero(q.rows(), r_a);
+  const auto metric =
+      f.kind == InterpolantKind::affine_knn_slope ? NeighbourMetric::slope : NeighbourMetric::state;
+  const MatrixXfR points = neighbour_space(f.nrbf.centers, map, metric);
+  const MatrixXfR queries = neighbour_space(q, map, metric);
+  MatrixXfR out(q.rows(), r_a);
   for (Eigen::Index i = 0; i < q.rows(); ++i)
     out.row(i) = (trend.row(i) + knn_at(points, f.nrbf.weights, f.neighbours, queries.row(i))).cast<float>();
   return out;

@@ -97,6 +97,8 @@ std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, cons
     out.push_back(tune_nrbf(q_u, clusters.labels, centers, samples));
   if (all || choice == InterpolantChoice::knn) out.push_back(tune_knn(centers, samples));
   if (all || choice == InterpolantChoice::affine_knn) out.push_back(tune_affine_knn(centers, samples));
+  if (all || choice == InterpolantChoice::affine_knn_slope)
+    out.push_back(tune_affine_knn(centers, samples, NeighbourMetric::slope));
   return out;
 }
 
@@ -104,7 +106,7 @@ std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, cons
 VectorXf interpolant_parameters(const Interpolant& f) {
   if (f.kind == InterpolantKind::nrbf)
     return (VectorXf(2) << f.width_scale, f.nrbf.regularization).finished();
-  VectorXf v(1 + (f.kind == InterpolantKind::knn ? 0 : f.affine.size()));
+  VectorXf v(1 + (has_affine_map(f.kind) ? f.affine.size() : 0));
   v[0] = static_cast<float>(f.neighbours);
   v.tail(v.size() - 1) = Eigen::Map<const VectorXf>(f.affine.data(), f.affine.size());
   return v;
@@ -363,16 +365,28 @@ TruthErrorSpread truth_error_spread(const TransferReduction& r, const HeldOutTru
 }
 
 namespace {
-// q_a = U_a^T (M - M-bar) at every node: the served basis's best coordinates.
+// q_a = U_a^T (M - M-bar) at every node, in double like the truth's own
+// coordinates (held_out_grams): the served basis's best coordinates.
 MatrixXfR projections(const TransferReduction& r, const HeldOutTruth& truth) {
-  const MatrixXfR centred = truth.fields.rowwise() - r.mean_transfer.transpose();
-  return centred * r.U_a;
+  const Eigen::MatrixXd U = r.U_a.cast<double>();
+  const Eigen::RowVectorXd mean = r.mean_transfer.transpose().cast<double>();
+  MatrixXfR out(truth.fields.rows(), r.rank());
+  for (Eigen::Index h = 0; h < truth.fields.rows(); ++h)
+    out.row(h) = ((truth.fields.row(h).cast<double>() - mean) * U).cast<float>();
+  return out;
 }
 }  // namespace
 
 std::optional<BasisComparison> compare_with_drawn_basis(const TransferReduction& reduction,
                                                         const HeldOutTruth& picking,
                                                         const HeldOutTruth& test) {
+  for (const HeldOutTruth* h : {&picking, &test}) {
+    if (h->fields.rows() > 0 && h->fields.cols() != reduction.mean_transfer.size()) {
+      throw std::invalid_argument(
+          fmt::format("compare_with_drawn_basis: expected fields of width {} (48S), got {}",
+                      reduction.mean_transfer.size(), h->fields.cols()));
+    }
+  }
   const int rank = reduction.rank();
   if (test.nodes.size() < 2 || rank == 0 || picking.fields.rows() <= rank) return std::nullopt;
   const TransferReduction drawn = reduce_transfer(picking.fields, {.eps_a = 0, .rank = rank});
@@ -381,6 +395,7 @@ std::optional<BasisComparison> compare_with_drawn_basis(const TransferReduction&
   c.served = truth_error(reduction, test, projections(reduction, test));
   c.drawn = truth_error(drawn, test, projections(drawn, test));
   c.drawn_fields = static_cast<int>(picking.fields.rows());
+  c.drawn_gain = paired_gain(c.served.node_error2, c.drawn.node_error2);
   return c;
 }
 

@@ -202,7 +202,7 @@ TEST(AppearanceStage, RunComparesTheClustersBasisWithOneOfThePickingHalf) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto p = core::read_package(pkg);
   ASSERT_EQ(p.rank_a(), 1);
-  const std::string served = "(Frobenius / l2): the clusters' basis ";
+  const std::string served = "(Frobenius / l2): the 4 clusters' basis ";
   const auto at = r.out.find(served);
   ASSERT_NE(at, std::string::npos) << r.out;
   EXPECT_NE(r.out.find("a rank-1 basis of the picking half's own 3 fields (random states) ", at),
@@ -210,7 +210,8 @@ TEST(AppearanceStage, RunComparesTheClustersBasisWithOneOfThePickingHalf) {
       << r.out;
   const double truncation = std::stod(r.out.substr(at + served.size(), 6));
   EXPECT_GT(truncation, 0);
-  EXPECT_LE(truncation, p.appearance->held_out_error[8] + 1e-4) << r.out;  // part of the total error
+  EXPECT_LE(truncation, p.appearance->held_out_error[8] + 1e-4) << r.out;           // part of the total error
+  EXPECT_NE(r.out.find(" squared error, noise ", at), std::string::npos) << r.out;  // and the paired verdict
 }
 
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
@@ -423,7 +424,7 @@ TEST(AppearanceStage, BadOptionsAreOneLineErrorsBeforeSampling) {
       {{"--eps-a", "1.5"}, "appearance: expected --eps-a in (0, 1), got 1.5"},
       {{"--rank-a", "-2"}, "appearance: expected --rank-a >= 0 (0: use --eps-a), got -2"},
       {{"--held-out", "-1"}, "appearance: expected --held-out >= 0, got -1"},
-      {{"--interpolant", "spline"}, "--interpolant 'spline': expected best, nrbf, knn or affine-knn"},
+      {{"--interpolant", "spline"}, "--interpolant 'spline': expected best, nrbf, knn, affine-knn or affine-knn-slope"},
       {{"--transfer-weighting", "density"},
        "--transfer-weighting 'density': expected best, equal or cluster-size"},
   };

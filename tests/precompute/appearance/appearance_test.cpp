@@ -3,12 +3,14 @@
 // SVD and NRBF, written into a package that validates and reads back.
 
 #include "phasecast/core/mesh_geometry.h"
+#include "phasecast/core/package_summary.h"
 #include "phasecast/precompute/appearance/appearance_stage.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_appearance.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <Eigen/Dense>
 
@@ -53,7 +55,7 @@ TEST(Appearance, FillsAValidPackage) {
   EXPECT_EQ(a.cluster_nodes, clusters.representatives);
   EXPECT_EQ(model.q_a.rows(), p.portrait.nodes());
   EXPECT_EQ(model.q_a.cols(), a.rank());
-  ASSERT_EQ(model.candidates.size(), 3u);  // nrbf, knn and affine-knn, tuned by leave-one-out
+  ASSERT_EQ(model.candidates.size(), 4u);  // nrbf, knn and affine-knn by both metrics, tuned by leave-one-out
   for (const auto& c : model.candidates) EXPECT_TRUE(std::isfinite(c.interpolant.leave_one_out));
   EXPECT_EQ(a.held_out_error.size(), 0);  // no held-out truth given
   // At a cluster node the k-nearest-neighbour interpolant returns that node's own q_a^j.
@@ -81,23 +83,29 @@ TEST(Appearance, FillsAValidPackage) {
 // A second reader of the stored affine-knn: q_a rebuilt by hand from what
 // the package holds (k, the (1 + r_u) x r_a map row by row, the remainders
 // as weights) is the q_a it serves.
-TEST(Appearance, AffineKnnIsStoredSoThatItsQaCanBeRebuilt) {
+// Both metrics: the stored map and remainders, with neighbours found in q_u
+// or in the map's image, give back the served q_a at every node.
+class AffineKnnPackage : public ::testing::TestWithParam<InterpolantChoice> {};
+
+TEST_P(AffineKnnPackage, IsStoredSoThatItsQaCanBeRebuilt) {
+  const bool slope = GetParam() == InterpolantChoice::affine_knn_slope;
   core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
   const auto clusters = kmeans(p.portrait.q_u, {.clusters = 8, .seed = 3});
-  const auto model =
-      fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
-                           {.reduction = {.eps_a = 1e-3}, .interpolant = InterpolantChoice::affine_knn});
+  const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
+                                          {.reduction = {.eps_a = 1e-3}, .interpolant = GetParam()});
   ASSERT_GE(model.appearance.rank(), 1);
   p.appearance = model.appearance;
   p.portrait.q_a = model.q_a;
   p.attributes.eps_a = 1e-3;
-  const auto path = testing::scratch_dir("appearance_affine_knn") / "plate.h5";
+  const auto path =
+      testing::scratch_dir(slope ? "appearance_affine_knn_slope" : "appearance_affine_knn") / "plate.h5";
   core::write_package(p, path);  // validates
   const auto back = core::read_package(path);
   const auto& a = *back.appearance;
-  // Either metric, as leave-one-out chose; the slope one measures neighbours in the map's image.
-  ASSERT_TRUE(a.interpolant == "affine-knn" || a.interpolant == "affine-knn-slope") << a.interpolant;
-  const bool slope = a.interpolant == "affine-knn-slope";
+  ASSERT_EQ(a.interpolant, slope ? "affine-knn-slope" : "affine-knn");
+  EXPECT_EQ(core::summarize(back, path).interpolant,
+            fmt::format("{} (k = {}, ridge {:g})", a.interpolant, a.interpolant_parameters[0],
+                        a.nrbf_regularization));
   const Eigen::Index r_u = a.nrbf_centers.cols(), r_a = a.U_a.cols();
   ASSERT_EQ(a.interpolant_parameters.size(), 1 + (1 + r_u) * r_a);
   const int k = static_cast<int>(a.interpolant_parameters[0]);
@@ -139,6 +147,10 @@ TEST(Appearance, AffineKnnIsStoredSoThatItsQaCanBeRebuilt) {
     EXPECT_LT((got - r.Q_a.col(j)).norm(), 1e-5f * r.Q_a.norm()) << "cluster " << j;
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(BothMetrics, AffineKnnPackage,
+                         ::testing::Values(InterpolantChoice::affine_knn,
+                                           InterpolantChoice::affine_knn_slope));
 
 TEST(Appearance, OneClusterHasRankZero) {
   core::ScenePackage p = testing::make_plate_package({.grid = 4, .appearance = false});
@@ -216,8 +228,8 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   EXPECT_NEAR(a.held_out_error[0] * a.held_out_error[0],
               a.held_out_error[1] * a.held_out_error[1] + a.held_out_error[2] * a.held_out_error[2], 1e-5);
   // The kept interpolant is the one the picking half preferred.
-  ASSERT_EQ(model.candidates.size(), 3u);
-  for (size_t i = 1; i < 3; ++i)
+  ASSERT_EQ(model.candidates.size(), 4u);
+  for (size_t i = 1; i < 4; ++i)
     EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[i].selection.of_transfer);
   EXPECT_EQ(a.interpolant, interpolant_name(model.candidates[0].interpolant.kind));
   // The basis comparison measures the served basis at the reported half: its
@@ -282,8 +294,8 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
   const MatrixXfR fields = feature_fields(q_u, clusters.representatives);
   const AppearanceOptions best{.reduction = {.rank = 2}};
   const auto model = fit_appearance_model(q_u, clusters, fields, best, truth);
-  ASSERT_EQ(model.candidates.size(), 6u);  // both weightings, three interpolants
-  for (size_t i = 1; i < 6; ++i)
+  ASSERT_EQ(model.candidates.size(), 8u);  // both weightings, four interpolants
+  for (size_t i = 1; i < 8; ++i)
     EXPECT_LE(model.candidates[0].selection.of_transfer, model.candidates[i].selection.of_transfer);
   EXPECT_EQ(model.candidates[0].weighting, TransferWeighting::cluster_size);
   EXPECT_EQ(model.appearance.transfer_weighting, "cluster size");
@@ -312,7 +324,7 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
   EXPECT_LT(weighted_error, 0.9f * equal_error) << weighted_error << " vs " << equal_error;
   // Without held-out truth nothing compares the two: equal weights, as the paper.
   const auto unjudged = fit_appearance_model(q_u, clusters, fields, best);
-  ASSERT_EQ(unjudged.candidates.size(), 3u);
+  ASSERT_EQ(unjudged.candidates.size(), 4u);
   EXPECT_EQ(unjudged.appearance.transfer_weighting, "equal");
   // Asked for, cluster sizes are used without held-out truth too.
   const auto asked = fit_appearance_model(
@@ -490,7 +502,9 @@ TEST(Appearance, DrawnBasisComparisonMeasuresBothBasesAtTheReportedHalf) {
   Eigen::MatrixXd cc, pc, tc;
   const auto served = reduce_transfer(fields_along(8, 0, 2, cc), {.rank = 2});
   HeldOutTruth picking{{0, 1, 2, 3, 4, 5}, fields_along(6, 0, 1, pc)};
-  HeldOutTruth test{{6, 7, 8, 9, 10, 11, 12}, fields_along(7, 0, 1, tc)};
+  HeldOutTruth test;  // 20 reported nodes: enough for the paired verdict below
+  test.fields = fields_along(20, 0, 1, tc);
+  for (int h = 0; h < 20; ++h) test.nodes.push_back(6 + h);
   const auto c = compare_with_drawn_basis(served, picking, test);
   ASSERT_TRUE(c.has_value());
   EXPECT_EQ(c->drawn_fields, 6);
@@ -506,9 +520,24 @@ TEST(Appearance, DrawnBasisComparisonMeasuresBothBasesAtTheReportedHalf) {
   // Swapped halves the other way round: the picking fields along u1, u3 miss u2 as well.
   HeldOutTruth cluster_like{{0, 1, 2, 3, 4, 5}, fields_along(6, 0, 2, pc)};
   EXPECT_GT(compare_with_drawn_basis(served, cluster_like, test)->drawn.of_variation, 0.1);
-  // Too few picking fields to resolve r_a directions, or one reported node: nothing to compare.
+  // The paired verdict: the drawn basis saves all of the clusters' squared
+  // truncation at every node, beyond the noise of the paired differences.
+  EXPECT_NEAR(c->drawn_gain.gain, 1.0, 1e-4);
+  EXPECT_TRUE(c->drawn_gain.beyond_noise());
+  // Too few picking fields to resolve r_a directions (two, or three alike), or
+  // one reported node: nothing to compare.
   EXPECT_FALSE(compare_with_drawn_basis(served, {{0, 1}, picking.fields.topRows(2)}, test).has_value());
+  MatrixXfR alike(3, width);
+  alike.rowwise() = picking.fields.row(0);
+  EXPECT_FALSE(compare_with_drawn_basis(served, {{0, 1, 2}, alike}, test).has_value());
   EXPECT_FALSE(compare_with_drawn_basis(served, picking, {{6}, test.fields.topRows(1)}).has_value());
+  // Fields of another width are an error naming both widths.
+  try {
+    compare_with_drawn_basis(served, {{0, 1, 2}, MatrixXfR::Zero(3, 48)}, test);
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "compare_with_drawn_basis: expected fields of width 144 (48S), got 48");
+  }
 }
 
 // The spread of the l2 figures over resampled nodes, checked against a dense

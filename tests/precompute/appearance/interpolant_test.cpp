@@ -96,7 +96,7 @@ Eigen::RowVectorXd affine_knn_by_hand(const MatrixXfR& centers, const MatrixXfR&
 TEST(AffineKnn, CarriesAnAffineFunctionExactlyBetweenSamples) {
   const MatrixXfR centers = random_points(20, 4, 1), queries = random_points(50, 4, 2);
   const Interpolant f = tune_affine_knn(centers, affine_of(centers));
-  EXPECT_TRUE(f.kind == InterpolantKind::affine_knn || f.kind == InterpolantKind::affine_knn_slope);
+  EXPECT_EQ(f.kind, InterpolantKind::affine_knn);
   EXPECT_LT(f.leave_one_out, 1e-5);
   EXPECT_EQ(f.nrbf.regularization, 0) << "an exact affine function wants no ridge";
   const MatrixXfR want = affine_of(queries);
@@ -172,8 +172,8 @@ TEST(AffineKnn, LeaveOneOutRefitsTheMapWithoutTheSample) {
 
 // q_a turns with the first coordinate only, while the second spreads ten
 // times wider and moves nothing: neighbours in q_u are mostly picked by the
-// second, neighbours in the map's image by the first. Leave-one-out keeps
-// the slope metric, which serves new states far better.
+// second, neighbours in the map's image by the first. The image metric reads
+// better in leave-one-out and serves new states far better.
 TEST(AffineKnn, NeighboursInTheMapsImageIgnoreACoordinateThatMovesNothing) {
   const auto spread = [](MatrixXfR q) {
     q.col(1) *= 10.0f;
@@ -189,15 +189,16 @@ TEST(AffineKnn, NeighboursInTheMapsImageIgnoreACoordinateThatMovesNothing) {
     return out;
   };
   const MatrixXfR samples = truth(centers), want = truth(queries);
-  const Interpolant best = tune_affine_knn(centers, samples);
-  EXPECT_EQ(best.kind, InterpolantKind::affine_knn_slope);
-  const Interpolant state = tune_affine_knn(centers, samples, NeighbourMetric::state);
-  EXPECT_LT(best.leave_one_out, state.leave_one_out);
-  const float slope_error = (evaluate_interpolant(best, queries) - want).norm() / want.norm();
+  const Interpolant slope = tune_affine_knn(centers, samples, NeighbourMetric::slope);
+  EXPECT_EQ(slope.kind, InterpolantKind::affine_knn_slope);
+  const Interpolant state = tune_affine_knn(centers, samples);
+  EXPECT_EQ(state.kind, InterpolantKind::affine_knn);
+  EXPECT_LT(slope.leave_one_out, state.leave_one_out);
+  const float slope_error = (evaluate_interpolant(slope, queries) - want).norm() / want.norm();
   const float state_error = (evaluate_interpolant(state, queries) - want).norm() / want.norm();
   EXPECT_GT(slope_error, 1e-4f) << "not vacuous: the function is not affine";
   EXPECT_LT(slope_error, 0.5f * state_error) << slope_error << " vs " << state_error;
-  EXPECT_STREQ(interpolant_name(best.kind), "affine-knn-slope");
+  EXPECT_STREQ(interpolant_name(slope.kind), "affine-knn-slope");
 }
 
 // 12 noisy samples of an affine function of 8 coordinates: the plain fit
@@ -238,6 +239,14 @@ TEST(AffineKnnRejects, MismatchedInput) {
   }
   const Interpolant f = tune_affine_knn(centers, random_points(5, 3, 8));
   EXPECT_THROW(evaluate_interpolant(f, random_points(2, 3, 9)), std::invalid_argument);
+  Interpolant no_map = tune_affine_knn(centers, random_points(5, 3, 8), NeighbourMetric::slope);
+  no_map.affine.resize(0, 0);
+  try {
+    evaluate_interpolant(no_map, random_points(2, 4, 9));
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "affine-knn-slope: expected a 5 x 3 affine map (1 + r_u, r_a), got 0 x 0");
+  }
 }
 
 }  // namespace

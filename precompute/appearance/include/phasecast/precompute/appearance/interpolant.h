@@ -15,7 +15,7 @@
 //         states are near when the map predicts them alike lighting, so a
 //         coordinate that barely moves the transfer does not pick them.
 //
-// knn and affine-knn reproduce every sample at its own centre, the NRBF
+// knn and affine-knn(-slope) reproduce every sample at its own centre, the NRBF
 // nearly (lambda > 0). The appearance stage keeps the one whose error against
 // held-out true transfer is lowest.
 
@@ -29,6 +29,9 @@ namespace phasecast::precompute {
 
 enum class InterpolantKind { nrbf, knn, affine_knn, affine_knn_slope };
 const char* interpolant_name(InterpolantKind kind);
+
+// Whether the kind carries an affine map (Interpolant::affine).
+bool has_affine_map(InterpolantKind kind);
 
 struct Interpolant {
   InterpolantKind kind = InterpolantKind::nrbf;
@@ -52,21 +55,23 @@ Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<
 // Tunes k of the k-nearest-neighbour interpolant by leave-one-out.
 Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples);
 
-// Where affine-knn looks for neighbours: in q_u, in the map's image
-// (affine-knn-slope), or whichever leave-one-out prefers.
-enum class NeighbourMetric { state, slope, best };
+// Where affine-knn looks for neighbours: in q_u (affine-knn) or in the map's
+// image (affine-knn-slope).
+enum class NeighbourMetric { state, slope };
 
 // The affine map by least squares with a ridge on its slope (none: the
 // least-norm one where fewer than 1 + r_u samples leave it open), plus knn of
-// its remainders; the ridge (kAffineRidges, kept in nrbf.regularization), k
-// and the metric by leave-one-out, each left-out sample predicted by a map
-// refitted without it (and, in its image, neighbours measured with it).
+// its remainders, neighbours found by `metric`; the ridge (kAffineRidges,
+// kept in nrbf.regularization) and k by leave-one-out, each left-out sample
+// predicted by a map refitted without it (and, in its image, neighbours
+// measured with it).
 Interpolant tune_affine_knn(const Eigen::Ref<const MatrixXfR>& centers,
                             const Eigen::Ref<const MatrixXfR>& samples,
-                            NeighbourMetric metric = NeighbourMetric::best);
+                            NeighbourMetric metric = NeighbourMetric::state);
 
-// The squared distance of affine-knn-slope is |(x - y) B|^2 + eps |x - y|^2,
-// B the map's r_u x r_a slope: q_u is mapped by [B, sqrt(eps) I]. The small
+// The squared distance of affine-knn-slope (neighbours and their inverse-square
+// weights) is |(x - y) B|^2 + eps |x - y|^2, B the map's r_u x r_a slope: q_u
+// is mapped by [B, sqrt(eps) I]. The small
 // eps = kSlopeIsotropy |B|_F^2 / r_u keeps apart states the map cannot tell
 // apart (r_a < r_u leaves B a null space); with no slope at all, eps = 1.
 Eigen::MatrixXd slope_metric(const Eigen::Ref<const Eigen::MatrixXd>& slope);

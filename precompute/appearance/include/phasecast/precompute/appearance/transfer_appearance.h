@@ -23,8 +23,8 @@
 
 namespace phasecast::precompute {
 
-// best: the lowest held-out error of all three (else of leave-one-out)
-enum class InterpolantChoice { best, nrbf, knn, affine_knn };
+// best: the lowest held-out error of all four (else of leave-one-out)
+enum class InterpolantChoice { best, nrbf, knn, affine_knn, affine_knn_slope };
 
 // The weights M-bar and the SVD of §4.2 give the N_a cluster fields: equal,
 // as in the paper, or each cluster's share of the state nodes, so that the
@@ -144,19 +144,24 @@ struct CandidateReport {
 // the picking half's own true fields, equal weights about their own mean:
 // states drawn at random, not cluster representatives), with q_a the exact
 // projection, so `total` is each basis's truncation alone. Compare them by
-// of_variation and l2_of_variation, whose denominator no mean moves. When the
-// drawn basis does no better, more or other cluster states of the same count
-// would not help: the states' transfer has more directions than r_a.
+// of_variation and l2_of_variation, whose denominator no mean moves, and by
+// the paired gain. When the drawn basis does no better, other states of that
+// count would not help: the states' transfer has more directions than r_a.
 struct BasisComparison {
   TruthError served;  // the clusters' basis, as served
   TruthError drawn;   // the picking half's own basis
   int drawn_fields = 0;
+  // The squared truncation the drawn basis saves over the clusters' at the
+  // reported nodes, with its 95 % t interval (paired_gain, the clusters'
+  // basis the baseline; < 0: the drawn one leaves more).
+  PairedGain drawn_gain;
 };
 
 // Of `reduction` (the served basis) at `test`, against a basis of the same
-// rank from `picking`'s fields; none when `test` has fewer than two nodes or
-// `picking` resolves fewer than the served rank's directions (it needs more
-// than r_a fields).
+// rank from `picking`'s fields; none when r_a is 0, `test` has fewer than two
+// nodes, or `picking` resolves fewer than r_a directions (it needs more than
+// r_a fields that differ). Throws std::invalid_argument when a field's width
+// is not M-bar's.
 std::optional<BasisComparison> compare_with_drawn_basis(const TransferReduction& reduction,
                                                         const HeldOutTruth& picking,
                                                         const HeldOutTruth& test);
