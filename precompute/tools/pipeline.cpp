@@ -94,7 +94,7 @@ void print_residual_parts(const precompute::AppearanceStageReport& report) {
 void print_basis_comparison(const precompute::BasisComparison& b, Eigen::Index clusters, Eigen::Index r) {
   const auto& g = b.drawn_gain;
   const std::string verdict =
-      g.beyond_noise()    ? "the drawn basis is the better one: other states would serve the basis better"
+      g.beyond_noise()    ? "the drawn basis is the better one: other states would give a better basis"
       : -g.gain > g.noise ? "the clusters' basis is the better one: as many random states miss more"
                           : "within noise of each other";
   fmt::print(
@@ -124,9 +124,9 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
     const std::string params =
         f.kind == precompute::InterpolantKind::nrbf
             ? fmt::format("width scale {}, lambda {:g}", f.width_scale, f.nrbf.regularization)
-        : f.kind == precompute::InterpolantKind::knn
-            ? fmt::format("k = {}", f.neighbours)
-            : fmt::format("k = {}, ridge {:g}", f.neighbours, f.nrbf.regularization);
+        : precompute::has_affine_map(f.kind)
+            ? fmt::format("k = {}, ridge {:g}", f.neighbours, f.nrbf.regularization)
+            : fmt::format("k = {}", f.neighbours);
     fmt::print("  {} weights, interpolant {} ({}): leave-one-out {:.4f}",
                precompute::weighting_name(c.weighting), precompute::interpolant_name(f.kind), params,
                f.leave_one_out);

@@ -145,8 +145,9 @@ struct CandidateReport {
 // states drawn at random, not cluster representatives), with q_a the exact
 // projection, so `total` is each basis's truncation alone. Compare them by
 // of_variation and l2_of_variation, whose denominator no mean moves, and by
-// the paired gain. When the drawn basis does no better, other states of that
-// count would not help: the states' transfer has more directions than r_a.
+// the paired gain. When the drawn basis is not better beyond the noise,
+// other states of that count would not help: the states' transfer has more
+// directions than r_a.
 struct BasisComparison {
   TruthError served;  // the clusters' basis, as served
   TruthError drawn;   // the picking half's own basis
