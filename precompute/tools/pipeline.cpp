@@ -101,10 +101,15 @@ void print_basis_comparison(const precompute::BasisComparison& b, Eigen::Index c
       "appearance: truncation alone at the reported half, relative to the nodes' own variation (Frobenius / "
       "l2): the {} clusters' basis {:.4f} / {:.4f}; a rank-{} basis of the picking half's own {} fields "
       "(random states) {:.4f} / {:.4f}, which leaves {:.1f} % {} squared error, noise {} (95 % t "
-      "interval of the paired differences): {}\n",
+      "interval of the paired differences): {}{}\n",
       clusters, b.served.of_variation, b.served.l2_of_variation, r, b.drawn_fields, b.drawn.of_variation,
       b.drawn.l2_of_variation, 100 * std::abs(g.gain), g.gain >= 0 ? "less" : "more",
-      std::isfinite(g.noise) ? fmt::format("{:.1f} %", 100 * g.noise) : "unbounded", verdict);
+      std::isfinite(g.noise) ? fmt::format("{:.1f} %", 100 * g.noise) : "unbounded", verdict,
+      b.drawn_fields < clusters
+          ? fmt::format(" (from fewer fields than the {} clusters: --held-out {} compares "
+                        "like with like)",
+                        clusters, 2 * clusters)
+          : std::string());
 }
 
 void print_appearance_report(const core::ScenePackage& p, const precompute::AppearanceStageReport& report) {

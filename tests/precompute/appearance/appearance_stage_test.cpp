@@ -223,6 +223,10 @@ TEST(AppearanceStage, RunComparesTheClustersBasisWithOneOfThePickingHalf) {
                 verdict("within noise of each other"),
             1)
       << r.out;
+  // 3 drawn fields against 4 clusters: the line says it is not like with like.
+  EXPECT_NE(r.out.find("(from fewer fields than the 4 clusters: --held-out 8 compares like with like)", at),
+            std::string::npos)
+      << r.out;
 }
 
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
