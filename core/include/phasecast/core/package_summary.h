@@ -34,9 +34,9 @@ struct PackageSummary {
   // The paper's relErr of the appearance (§2.3.1, Table 1): sigma_{r+1}/sigma_1
   // of A_a, at r_a and at the paper's r_a; NaN when not computed.
   double sigma_ratio_a_at_rank = 0, sigma_ratio_a_at_paper_rank = 0;
-  std::vector<double> singular_values_a;        // every sigma of A_a (N_a)
-  std::string interpolant;                      // "nrbf", "knn", "affine-knn" or "affine-knn-slope", with its parameters
-  std::string transfer_weighting;               // "equal" or "cluster size"
+  std::vector<double> singular_values_a;  // every sigma of A_a (N_a)
+  std::string interpolant;                // its name ("nrbf", "knn", "affine-knn(-slope)") and parameters
+  std::string transfer_weighting;         // "equal" or "cluster size"
   int transfer_rays = 0, transfer_bounces = 0;  // how the transfer was sampled (0 rays: unrecorded)
   int held_out_nodes = 0;                       // 0: no held-out truth in the package
   double held_out_total = 0, held_out_truncation = 0, held_out_interpolation = 0, held_out_of_transfer = 0;
