@@ -93,10 +93,15 @@ constexpr DatasetSpec kAppearance[] = {
 // Optional inside /appearance: the interpolant's name and parameters, the
 // held-out truth and the paper's r_a (packages before them have none).
 constexpr DatasetSpec kAppearanceOptional[] = {
-    {"/appearance/interpolant", Dtype::string, 1},  {"/appearance/interpolant_parameters", Dtype::f32, 1},
-    {"/appearance/held_out_nodes", Dtype::i32, 1},  {"/appearance/held_out_error", Dtype::f32, 1},
-    {"/appearance/paper_rank", Dtype::i32, 1},      {"/appearance/transfer_sampling", Dtype::i32, 1},
-    {"/appearance/held_out_spread", Dtype::f32, 1}, {"/appearance/transfer_weighting", Dtype::string, 1},
+    {"/appearance/interpolant", Dtype::string, 1},
+    {"/appearance/interpolant_parameters", Dtype::f32, 1},
+    {"/appearance/held_out_nodes", Dtype::i32, 1},
+    {"/appearance/held_out_error", Dtype::f32, 1},
+    {"/appearance/paper_rank", Dtype::i32, 1},
+    {"/appearance/transfer_sampling", Dtype::i32, 1},
+    {"/appearance/held_out_spread", Dtype::f32, 1},
+    {"/appearance/transfer_weighting", Dtype::string, 1},
+    {"/appearance/held_out_truncation_curve", Dtype::f32, 1},
 };
 
 // The extents the file declares, each checked against what the file stores,
@@ -164,6 +169,8 @@ Appearance read_appearance(const Reader& r) {
   if (exists("/appearance/held_out_error")) a.held_out_error = r.column<float>("/appearance/held_out_error");
   if (exists("/appearance/held_out_spread"))
     a.held_out_spread = r.column<float>("/appearance/held_out_spread");
+  if (exists("/appearance/held_out_truncation_curve"))
+    a.held_out_truncation_curve = r.column<float>("/appearance/held_out_truncation_curve");
   if (exists("/appearance/paper_rank")) a.paper_rank = r.vector<std::int32_t>("/appearance/paper_rank").at(0);
   if (exists("/appearance/transfer_sampling")) {
     const auto sampling = r.vector<std::int32_t>("/appearance/transfer_sampling");
@@ -272,6 +279,8 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
       f.write("/appearance/held_out_nodes", ap->held_out_nodes);
       f.write("/appearance/held_out_error", ap->held_out_error);
       if (ap->held_out_spread.size() > 0) f.write("/appearance/held_out_spread", ap->held_out_spread);
+      if (ap->held_out_truncation_curve.size() > 0)
+        f.write("/appearance/held_out_truncation_curve", ap->held_out_truncation_curve);
     }
     if (ap->paper_rank > 0) f.write("/appearance/paper_rank", std::vector<std::int32_t>{ap->paper_rank});
     if (ap->transfer_rays > 0)

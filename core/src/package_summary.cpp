@@ -7,7 +7,11 @@
 #include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <set>
+#include <string>
+#include <vector>
 
 namespace phasecast::core {
 namespace {
@@ -38,7 +42,7 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   s.sigma_ratio_a_at_paper_rank = sigma_ratio(a.singular_values, a.paper_rank);
   s.singular_values_a.assign(a.singular_values.data(), a.singular_values.data() + a.singular_values.size());
   const auto& v = a.interpolant_parameters;
-  if ((a.interpolant == "affine-knn" || a.interpolant == "affine-knn-slope") && v.size() >= 1) {
+  if (is_affine_interpolant(a.interpolant) && v.size() >= 1) {
     s.interpolant = fmt::format("{} (k = {}, ridge {:g})", a.interpolant, v[0], a.nrbf_regularization);
   } else if (a.interpolant == "knn" && v.size() >= 1) {
     s.interpolant = fmt::format("knn (k = {})", v[0]);
@@ -68,6 +72,8 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   s.held_out_l2_of_variation = of_variation ? a.held_out_error[9] : std::nan("");
   s.held_out_l2_floor_of_variation = of_variation ? a.held_out_error[10] : std::nan("");
   s.held_out_l2_spread.assign(a.held_out_spread.data(), a.held_out_spread.data() + a.held_out_spread.size());
+  const VectorXf& curve = a.held_out_truncation_curve;
+  s.held_out_l2_truncation_curve.assign(curve.data(), curve.data() + curve.size());
 }
 
 std::string percent_or_na(double ratio) {
@@ -87,6 +93,31 @@ std::string curve_text(const PackageSummary& s) {
 }
 
 }  // namespace
+
+std::string held_out_curve_text(const std::vector<double>& curve, int rank_a, int paper_rank_a,
+                                double in_sample) {
+  const auto K = static_cast<int>(curve.size());
+  if (K == 0) return {};
+  std::set<int> ranks{rank_a, paper_rank_a};
+  for (int r = 1; r < K; r = r < 4 ? r + 1 : r * 2) ranks.insert(r);
+  std::vector<std::string> points;
+  for (int r : ranks) {
+    if (r < 1 || r >= K) continue;
+    const std::string name = r == rank_a         ? fmt::format("r_a = {}", r)
+                             : r == paper_rank_a ? fmt::format("the paper's r_a = {}", r)
+                                                 : fmt::format("{}", r);
+    points.push_back(fmt::format("{}: {:.3g}%", name, 100 * curve[static_cast<size_t>(r - 1)]));
+  }
+  std::string out = fmt::format("{}{}all {} directions of the clusters: {:.3g}%", fmt::join(points, ", "),
+                                points.empty() ? "" : ", ", K, 100 * curve.back());
+  if (!std::isfinite(in_sample)) return out;
+  // Where the held-out states first fit as well as the clusters fit themselves at r_a.
+  const auto reached = std::find_if(curve.begin(), curve.end(), [&](double e) { return e <= in_sample; });
+  return out + (reached == curve.end()
+                    ? fmt::format("; never as low as the clusters' own {:.3g}% at r_a", 100 * in_sample)
+                    : fmt::format("; as low as the clusters' own {:.3g}% at r_a from rank {}",
+                                  100 * in_sample, 1 + (reached - curve.begin())));
+}
 
 PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& file, int rank) {
   PackageSummary s;
@@ -198,6 +229,10 @@ std::string to_text(const PackageSummary& s) {
             "             of their own variation over resampled nodes (10th-90th percentile): relative l2 "
             "{:.3g}-{:.3g}%",
             100 * s.held_out_l2_spread[4], 100 * s.held_out_l2_spread[5]);
+      if (!s.held_out_l2_truncation_curve.empty())
+        line("             held-out truncation by rank (Fig. 12 out of sample, relative l2): {}",
+             held_out_curve_text(s.held_out_l2_truncation_curve, s.rank_a, s.paper_rank_a,
+                                 s.sigma_ratio_a_at_rank));
     }
   } else {
     line("appearance   none");
@@ -259,7 +294,10 @@ nlohmann::json to_json(const PackageSummary& s) {
                             {"l2_floor_of_variation", number_or_null(s.held_out_l2_floor_of_variation)},
                             {"l2_spread", s.held_out_l2_spread.empty()
                                               ? nlohmann::json()
-                                              : nlohmann::json(s.held_out_l2_spread)}}
+                                              : nlohmann::json(s.held_out_l2_spread)},
+                            {"l2_truncation_curve", s.held_out_l2_truncation_curve.empty()
+                                                        ? nlohmann::json()
+                                                        : nlohmann::json(s.held_out_l2_truncation_curve)}}
            : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},

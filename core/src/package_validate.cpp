@@ -237,6 +237,17 @@ void check_appearance_shapes(const ShapeChecker& s) {
   }
   if (s.has("/appearance/transfer_sampling"))
     s.length("/appearance/transfer_sampling", 2, "2 (rays, bounces)");
+  if (s.has("/appearance/held_out_truncation_curve")) {
+    // One value per rank the clusters' SVD resolves: at least r_a, at most N_a.
+    const std::uint64_t K = s.dim("/appearance/held_out_truncation_curve", 0);
+    if (K < std::max<std::uint64_t>(r_a, 1) || K > Na)
+      s.checker().fail("/appearance/held_out_truncation_curve",
+                       fmt::format("expected one value per rank {}..{} (r_a..N_a), got {}",
+                                   std::max<std::uint64_t>(r_a, 1), Na, K));
+    if (!s.has("/appearance/held_out_error"))
+      s.checker().fail("/appearance/held_out_truncation_curve",
+                       "expected /appearance/held_out_error beside it");
+  }
 }
 
 Extent extent(Eigen::Index rows, Eigen::Index cols) {
@@ -266,6 +277,8 @@ void add_appearance_shapes(const Appearance& a, PackageShapes& s) {
     s["/appearance/held_out_error"] = extent(a.held_out_error);
     if (a.held_out_spread.size() > 0) s["/appearance/held_out_spread"] = extent(a.held_out_spread);
   }
+  if (a.held_out_truncation_curve.size() > 0)
+    s["/appearance/held_out_truncation_curve"] = extent(a.held_out_truncation_curve);
   if (a.paper_rank > 0) s["/appearance/paper_rank"] = {1};
   if (a.transfer_rays > 0) s["/appearance/transfer_sampling"] = {2};
 }
@@ -378,6 +391,30 @@ void check_portrait(const Checker& c, const PhasePortrait& p, int D) {
   c.finite("/portrait/support", p.support);
 }
 
+// Fig. 12 out of sample: relative l2 norms in [0, 1] that never rise with the
+// rank (a larger basis spans the smaller), and that agree at r_a with the
+// truncation held_out_error reports from the stored U_a (float round-off aside).
+void check_held_out_truncation_curve(const Checker& c, const Appearance& a) {
+  const VectorXf& curve = a.held_out_truncation_curve;
+  const char* where = "/appearance/held_out_truncation_curve";
+  if (curve.size() > 0 && a.held_out_error.size() == 0)
+    c.fail(where, "expected /appearance/held_out_error beside it");
+  if (curve.size() > 0 && curve.size() < std::max(a.rank(), 1))
+    c.fail(where, fmt::format("expected at least r_a = {} values, got {}", a.rank(), curve.size()));
+  constexpr float kRoundOff = 1e-3f;
+  for (Eigen::Index i = 0; i < curve.size(); ++i) {
+    if (!(curve[i] >= 0 && curve[i] <= 1 + kRoundOff))
+      c.fail(where, fmt::format("expected relative errors in [0, 1], got {} at rank {}", curve[i], i + 1));
+    if (i > 0 && curve[i] > curve[i - 1] + kRoundOff)
+      c.fail(where, fmt::format("expected no rise with the rank, got {} at rank {} after {}", curve[i], i + 1,
+                                curve[i - 1]));
+  }
+  if (curve.size() > 0 && a.rank() > 0 && a.held_out_error.size() >= 6 &&
+      std::abs(curve[a.rank() - 1] - a.held_out_error[5]) > kRoundOff)
+    c.fail(where, fmt::format("expected {} at r_a = {} (held_out_error's l2 truncation), got {}",
+                              a.held_out_error[5], a.rank(), curve[a.rank() - 1]));
+}
+
 void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
   c.finite("/appearance/mean_transfer", a.mean_transfer);
   c.finite("/appearance/U_a", a.U_a);
@@ -397,7 +434,7 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
     c.fail("/appearance/nrbf_regularization",
            fmt::format("expected a finite value >= 0, got {}", a.nrbf_regularization));
   }
-  const bool affine = a.interpolant == "affine-knn" || a.interpolant == "affine-knn-slope";
+  const bool affine = is_affine_interpolant(a.interpolant);
   if (a.interpolant != "nrbf" && a.interpolant != "knn" && !affine) {
     c.fail("/appearance/interpolant",
            fmt::format("expected \"nrbf\", \"knn\", \"affine-knn\" or \"affine-knn-slope\", got \"{}\"",
@@ -442,6 +479,7 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
   for (Eigen::Index i = 0; i + 1 < a.held_out_spread.size(); i += 2)
     if (a.held_out_spread[i] > a.held_out_spread[i + 1])
       c.fail("/appearance/held_out_spread", "expected each 10th percentile <= its 90th");
+  check_held_out_truncation_curve(c, a);
   if (a.paper_rank < 0)
     c.fail("/appearance/paper_rank", fmt::format("expected r_a >= 0, got {}", a.paper_rank));
   if (a.transfer_rays < 0 || a.transfer_bounces < 0 || (a.transfer_rays == 0 && a.transfer_bounces > 0))

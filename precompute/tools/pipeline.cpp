@@ -3,6 +3,7 @@
 #include "contact_report.h"
 
 #include "phasecast/core/package.h"
+#include "phasecast/core/package_summary.h"
 #include "phasecast/core/process_memory.h"
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/distributed/ranks.h"
@@ -176,6 +177,12 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
         a.held_out_spread.size() == 6 ? fmt::format("; relative l2 of their own variation {:.4f}-{:.4f}",
                                                     a.held_out_spread[4], a.held_out_spread[5])
                                       : std::string());
+  }
+  if (const auto& curve = a.held_out_truncation_curve; curve.size() > 0) {
+    fmt::print("appearance: held-out truncation by rank (Fig. 12 out of sample, relative l2): {}\n",
+               core::held_out_curve_text(
+                   std::vector<double>(curve.data(), curve.data() + curve.size()), r, a.paper_rank,
+                   has_next ? a.singular_values[r] / a.singular_values[0] : std::nan("")));
   }
   if (const auto& b = report.basis_comparison) print_basis_comparison(*b, a.clusters(), r);
   if (r > 0) print_residual_parts(report);

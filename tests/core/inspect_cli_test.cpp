@@ -2,6 +2,7 @@
 
 #include "phasecast/core/hdf5_file.h"
 #include "phasecast/core/package.h"
+#include "phasecast/core/package_summary.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
 
@@ -94,6 +95,52 @@ TEST_F(InspectCli, OlderHeldOutFiguresReadAsEqualWeightsAndUnknownVariation) {
   EXPECT_THAT(text.out, HasSubstr("over resampled nodes (10th-90th percentile): 20-30%, truncation 15-25%"));
   EXPECT_THAT(text.out, ::testing::Not(HasSubstr("of their own variation over resampled nodes")));
   EXPECT_EQ(j["held_out"]["l2_spread"].size(), 4u);
+}
+
+// Fig. 12 out of sample, as stored: the text names r_a and the paper's r_a
+// among the powers of two, the whole span, and the first rank that fits the
+// held-out states as well as the clusters fit themselves at r_a.
+TEST(HeldOutCurveText, NamesTheRanksAndWhereTheInSampleFigureIsReached) {
+  const std::vector<double> curve{0.5, 0.3, 0.2, 0.12, 0.1, 0.08, 0.07, 0.06, 0.055, 0.05};
+  const std::string ranks =
+      "1: 50%, 2: 30%, r_a = 3: 20%, 4: 12%, the paper's r_a = 6: 8%, 8: 6%, all 10 directions of the "
+      "clusters: 5%";
+  EXPECT_EQ(core::held_out_curve_text(curve, 3, 6, 0.09),
+            ranks + "; as low as the clusters' own 9% at r_a from rank 6");
+  EXPECT_EQ(core::held_out_curve_text(curve, 3, 6, 0.01),
+            ranks + "; never as low as the clusters' own 1% at r_a");
+  EXPECT_EQ(core::held_out_curve_text(curve, 3, 6, std::nan("")), ranks);
+  EXPECT_EQ(core::held_out_curve_text({0.4}, 1, 0, 0.5),
+            "all 1 directions of the clusters: 40%; as low as the "
+            "clusters' own 50% at r_a from rank 1");
+  EXPECT_EQ(core::held_out_curve_text({}, 3, 6, 0.1), "");
+}
+
+TEST_F(InspectCli, HeldOutTruncationCurveIsPrintedAndInTheJson) {
+  auto& a = *package_.appearance;
+  const int r_a = a.rank(), Na = a.clusters();
+  a.held_out_nodes = {1, 2};
+  a.held_out_error = VectorXf::Constant(11, 0.1f);
+  a.held_out_truncation_curve = VectorXf::LinSpaced(Na, 0.1f, 0.01f);
+  a.held_out_error[5] = a.held_out_truncation_curve[r_a - 1];
+  const auto path = dir_ / "curve.h5";
+  core::write_package(package_, path);
+  EXPECT_EQ(core::read_package(path).appearance->held_out_truncation_curve, a.held_out_truncation_curve);
+  const auto j = nlohmann::json::parse(testing::run_tool("phasecast-inspect", {path.string(), "--json"}).out);
+  ASSERT_EQ(j["held_out"]["l2_truncation_curve"].size(), static_cast<size_t>(Na));
+  EXPECT_NEAR(j["held_out"]["l2_truncation_curve"][0].get<double>(), 0.1, 1e-7);
+  EXPECT_NEAR(j["held_out"]["l2_truncation_curve"][Na - 1].get<double>(), 0.01, 1e-7);
+  const auto text = testing::run_tool("phasecast-inspect", {path.string()});
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_THAT(text.out,
+              HasSubstr("held-out truncation by rank (Fig. 12 out of sample, relative l2): 1: 10%, "));
+  EXPECT_THAT(text.out, HasSubstr(fmt::format("all {} directions of the clusters: 1%", Na)));
+  // Without the curve (older packages) the line is left out, and the JSON says null.
+  const auto plain = nlohmann::json::parse(
+      testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string(), "--json"}).out);
+  EXPECT_THAT(testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string()}).out,
+              ::testing::Not(HasSubstr("held-out truncation by rank")));
+  EXPECT_TRUE(plain["held_out"].is_null() || plain["held_out"]["l2_truncation_curve"].is_null());
 }
 
 TEST_F(InspectCli, TruncatedPackageFailsWithOneLine) {

@@ -379,6 +379,49 @@ TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {
               HasSubstr("/appearance/held_out_spread: expected /appearance/held_out_error beside it"));
 }
 
+// Fig. 12 out of sample: relative errors that never rise with the rank, one
+// per rank r_a..N_a, agreeing at r_a with held_out_error's l2 truncation.
+TEST_F(PackageRule, HeldOutTruncationCurveFallsAndMeetsTheTruncationAtRa) {
+  auto& a = *p.appearance;
+  const int r_a = a.rank(), Na = a.clusters();
+  ASSERT_GE(r_a, 1);
+  ASSERT_GT(Na, r_a);
+  a.held_out_nodes = {1, 2};
+  a.held_out_error = VectorXf::Constant(11, 0.1f);
+  a.held_out_error[5] = 0.3f;
+  a.held_out_truncation_curve = VectorXf::LinSpaced(Na, 0.3f, 0.01f);
+  a.held_out_truncation_curve[r_a - 1] = 0.3f;
+  a.held_out_truncation_curve.head(r_a - 1).setConstant(0.4f);
+  EXPECT_EQ(invalid(p), "");
+  a.held_out_truncation_curve[r_a - 1] = 0.32f;
+  EXPECT_THAT(invalid(p),
+              HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected 0.3 at r_a = "
+                                    "{} (held_out_error's l2 truncation), got 0.32",
+                                    r_a)));
+  a.held_out_truncation_curve[r_a - 1] = 0.3f;
+  a.held_out_truncation_curve[Na - 1] = 0.2f;
+  EXPECT_THAT(invalid(p),
+              HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected no rise with the rank, "
+                                    "got 0.2 at rank {}",
+                                    Na)));
+  a.held_out_truncation_curve[Na - 1] = std::nanf("");
+  EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected relative "
+                                                "errors in [0, 1], got nan at rank {}",
+                                                Na)));
+  a.held_out_truncation_curve[Na - 1] = 0.0f;
+  a.held_out_truncation_curve.conservativeResize(Na + 1);
+  a.held_out_truncation_curve[Na] = 0.0f;
+  EXPECT_THAT(invalid(p),
+              HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected one value per "
+                                    "rank {}..{} (r_a..N_a), got {}",
+                                    r_a, Na, Na + 1)));
+  a.held_out_truncation_curve.conservativeResize(Na);
+  a.held_out_error.resize(0);
+  a.held_out_nodes.clear();
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out_truncation_curve: expected "
+                                    "/appearance/held_out_error beside it"));
+}
+
 TEST_F(PackageRule, TransferSamplingIsRaysAndBouncesOrUnrecorded) {
   for (auto [rays, bounces] : {std::pair{1024, 2}, std::pair{64, 0}, std::pair{0, 0}}) {
     p.appearance->transfer_rays = rays;

@@ -459,6 +459,7 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
     spread = truth_error_spread(reduction, test,
                                 evaluate_interpolant(chosen.interpolant, rows_of(q_u, test.nodes)));
   store_choice(a, chosen, test, reduction, spread);
+  a.held_out_truncation_curve = held_out_truncation_curve(fields, reduction, test.fields);
   m.basis_comparison = compare_with_drawn_basis(reduction, selection, test);
   return m;
 }

@@ -186,6 +186,44 @@ double cluster_truncation_l2(const TransferReduction& r, int columns, int draws,
   return *middle;
 }
 
+VectorXf held_out_truncation_curve(const Eigen::Ref<const MatrixXfR>& fields, const TransferReduction& r,
+                                   const Eigen::Ref<const MatrixXfR>& held_out) {
+  const Eigen::Index Na = fields.rows(), n = fields.cols(), H = held_out.rows();
+  if (r.mean_transfer.size() != n || (H > 0 && held_out.cols() != n) || r.right_vectors.rows() != Na ||
+      r.right_vectors.cols() != Na || r.singular_values.size() != Na || r.weights.size() != Na) {
+    throw std::invalid_argument(fmt::format(
+        "held_out_truncation_curve: expected the {} x {} fields of the reduction and held-out fields of {} "
+        "values, got a reduction of {} fields and {} values, and held-out fields of {}",
+        Na, n, n, r.right_vectors.rows(), r.mean_transfer.size(), held_out.cols()));
+  }
+  if (H == 0) return {};
+  const Eigen::VectorXd sigma = r.singular_values.cast<double>();
+  Eigen::Index K = 0;
+  while (K < Na && sigma[0] > 0 && sigma[K] > kResolvable * sigma[0]) ++K;
+  // C A^T and C C^T, C the held-out fields less M-bar, summed in double.
+  const Eigen::VectorXd mean = r.mean_transfer.cast<double>();
+  Eigen::MatrixXd cross = Eigen::MatrixXd::Zero(H, Na), gram = Eigen::MatrixXd::Zero(H, H);
+  for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
+    const Eigen::MatrixXd C = centred_block(held_out, mean, b, w);
+    cross.noalias() += C * centred_block(fields, mean, b, w).transpose();
+    gram.noalias() += C * C.transpose();
+  });
+  const auto largest = [](const Eigen::MatrixXd& g) {
+    return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+  };
+  const double data = largest(gram);
+  VectorXf curve = VectorXf::Zero(K);
+  if (!(data > 0)) return curve;
+  // Coordinates of C on the directions u_i = A^T W^1/2 v_i / sigma_i.
+  const Eigen::MatrixXd coordinates = cross * r.weights.cwiseSqrt().asDiagonal() *
+                                      r.right_vectors.leftCols(K) * sigma.head(K).cwiseInverse().asDiagonal();
+  for (Eigen::Index i = 0; i < K; ++i) {
+    gram.noalias() -= coordinates.col(i) * coordinates.col(i).transpose();
+    curve[i] = static_cast<float>(std::sqrt(std::max(0.0, largest(gram)) / data));
+  }
+  return curve;
+}
+
 ResidualByPart residual_by_part(const Eigen::Ref<const MatrixXfR>& X, const VectorXf& mean_f,
                                 const MatrixXfR& U_a, const std::vector<std::uint8_t>& deformable) {
   const Eigen::Index n = X.cols();

@@ -6,6 +6,7 @@
 #include "phasecast/precompute/appearance/appearance_stage.h"
 #include "phasecast/core/mesh_geometry.h"
 #include "phasecast/core/package.h"
+#include "phasecast/core/package_summary.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/package/package_builder.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
@@ -143,6 +144,23 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   // inspect and the JSON.
   EXPECT_NEAR(held_out["l2_floor"].get<double>(), p.appearance->held_out_error[7], 1e-6);
   EXPECT_LE(p.appearance->held_out_error[7], p.appearance->held_out_error[5] + 1e-6);
+  // Fig. 12 out of sample reaches the package, the run's output and inspect alike.
+  const VectorXf& curve = p.appearance->held_out_truncation_curve;
+  ASSERT_GE(curve.size(), p.rank_a());
+  ASSERT_LE(curve.size(), 3);
+  EXPECT_NEAR(curve[p.rank_a() - 1], p.appearance->held_out_error[5], 1e-4);
+  const auto& sigma = p.appearance->singular_values;
+  const std::string curve_line =
+      core::held_out_curve_text(std::vector<double>(curve.data(), curve.data() + curve.size()), p.rank_a(),
+                                12, p.rank_a() < sigma.size() ? sigma[p.rank_a()] / sigma[0] : std::nan(""));
+  EXPECT_NE(r.out.find("appearance: held-out truncation by rank (Fig. 12 out of sample, relative l2): " +
+                       curve_line + "\n"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(inspect.out.find(
+                "held-out truncation by rank (Fig. 12 out of sample, relative l2): " + curve_line + "\n"),
+            std::string::npos)
+      << inspect.out;
   EXPECT_NE(inspect.out.find(fmt::format("the least any rank-{} model about M-bar reaches at those nodes "
                                          "(sigma_{{r+1}}/sigma_1 of their M - M-bar): {:.3g}%",
                                          p.appearance->U_a.cols(), 100 * p.appearance->held_out_error[7])),

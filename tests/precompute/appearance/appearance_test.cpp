@@ -222,6 +222,18 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   EXPECT_NEAR(a.held_out_error[7], sigma_d[3] / sigma_d[0], 1e-4);
   EXPECT_GT(a.held_out_error[7], 1e-3);  // six nodes, rank 3: not vacuous
   EXPECT_LE(a.held_out_error[7], a.held_out_error[5] + 1e-6);
+  // Fig. 12 out of sample: at r_a, the truncation above; with all N_a - 1 = 5
+  // directions in, what the cluster fields' span leaves (by a QR of them here).
+  ASSERT_EQ(a.held_out_truncation_curve.size(), 5);
+  EXPECT_NEAR(a.held_out_truncation_curve[2], a.held_out_error[5], 1e-4);
+  const Eigen::MatrixXd F =
+      (transfer_fields(p, clusters).rowwise() - a.mean_transfer.transpose()).transpose().cast<double>();
+  const Eigen::MatrixXd Q =
+      Eigen::HouseholderQR<Eigen::MatrixXd>(F).householderQ() * Eigen::MatrixXd::Identity(F.rows(), F.cols());
+  const double span = l2(D - Q * (Q.transpose() * D)) / l2(D);
+  EXPECT_NEAR(a.held_out_truncation_curve[4], span, 1e-4);
+  EXPECT_GT(span, 1e-3) << "not vacuous: the held-out fields leave the clusters' span";
+  EXPECT_LT(span, a.held_out_error[5]) << "more directions leave less";
   EXPECT_NEAR(a.held_out_error[3], std::sqrt(err2 / truth2), 1e-5);
   // Of the nodes' own variation: M less their own mean, which no model moves.
   const Eigen::MatrixXd V = D.colwise() - D.rowwise().mean();
@@ -377,6 +389,7 @@ TEST(Appearance, OneReportedNodeKeepsTheFirstEightFigures) {
   EXPECT_EQ(a.held_out_error.size(), 8);
   EXPECT_GT(a.held_out_error[0], 1e-3);  // the served error itself is still measured
   EXPECT_EQ(a.held_out_spread.size(), 0);
+  EXPECT_EQ(a.held_out_truncation_curve.size(), 5);  // one node still has a curve
   core::ScenePackage out = p;
   out.appearance = a;
   out.portrait.q_a = model.q_a;

@@ -254,6 +254,57 @@ TEST(WeightedTransferReduction, IsTheReductionOfRepeatedFields) {
   EXPECT_LT((ones.U_a - none.U_a).norm(), 1e-5f);
 }
 
+// Fig. 12 out of sample, read by a second route: at every rank r, the
+// reduction cut at r (its own U_a, orthonormalised apart) measured on the
+// held-out fields directly. Equal and cluster-like weights; fresh fields of
+// the same population read above the clusters' own sigma_{r+1} / sigma_1 past
+// the leading directions.
+TEST(HeldOutTruncationCurve, MatchesTheBasisOfEveryRankMeasuredDirectly) {
+  const MatrixXfR X = flat_spectrum_fields(24, 8), Y = flat_spectrum_fields(9, 9);
+  Eigen::VectorXd weights(24);
+  for (int j = 0; j < 24; ++j) weights[j] = 0.25 + 0.125 * (j % 12);
+  weights /= weights.mean();
+  for (const Eigen::VectorXd& w : {Eigen::VectorXd(), weights}) {
+    const auto full = reduce_transfer(X, {.eps_a = 0, .rank = 3}, w);
+    const VectorXf curve = precompute::held_out_truncation_curve(X, full, Y);
+    ASSERT_EQ(curve.size(), 23) << "N_a - 1 centred fields resolve N_a - 1 directions";
+    const Eigen::MatrixXd C = (Y.rowwise() - full.mean_transfer.transpose()).transpose().cast<double>();
+    for (int r = 1; r <= 23; ++r) {
+      const auto cut = reduce_transfer(X, {.eps_a = 0, .rank = r}, w);
+      EXPECT_NEAR(curve[r - 1], truncation_l2(cut, C), 2e-4) << "rank " << r;
+      if (r >= 8 && r < 23) {  // past the leading directions the unseen fields read above the clusters
+        EXPECT_GT(curve[r - 1], cut.singular_values[r] / cut.singular_values[0]) << "rank " << r;
+      }
+    }
+    EXPECT_GT(curve[22], 0.3) << "the clusters' span leaves most of a 120-direction population";
+  }
+}
+
+// Closed forms: a held-out field in the clusters' span leaves nothing once
+// every direction is in; one orthogonal to it loses all at every rank; M-bar
+// itself has nothing to lose.
+TEST(HeldOutTruncationCurve, ClosedFormsAndBadSizes) {
+  const MatrixXfR X = rank3_fields();
+  const auto r = reduce_transfer(X, {.eps_a = 0, .rank = 1});
+  const MatrixXfR inside = 0.5f * (X.row(2) + X.row(7));
+  // M-bar plus e_0 less its part in the clusters' span.
+  const Eigen::MatrixXd U = reduce_transfer(X, {.eps_a = 0, .rank = 3}).U_a.cast<double>();
+  const Eigen::VectorXd e = Eigen::VectorXd::Unit(X.cols(), 0) - U * U.row(0).transpose();
+  const MatrixXfR outside = (r.mean_transfer.cast<double>() + e / e.norm()).transpose().cast<float>();
+  const VectorXf in = precompute::held_out_truncation_curve(X, r, inside);
+  ASSERT_EQ(in.size(), 3) << "rank 3: three resolved directions";
+  EXPECT_GT(in[0], 0.01f);
+  EXPECT_NEAR(in[2], 0, 1e-3);
+  const VectorXf out = precompute::held_out_truncation_curve(X, r, outside);
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(out[i], 1, 1e-4) << i;
+  const VectorXf none = precompute::held_out_truncation_curve(X, r, r.mean_transfer.transpose());
+  EXPECT_EQ(none, VectorXf::Zero(3));
+  EXPECT_EQ(precompute::held_out_truncation_curve(X, r, MatrixXfR(0, X.cols())).size(), 0);
+  EXPECT_EQ(precompute::held_out_truncation_curve(X, r, MatrixXfR()).size(), 0);  // no nodes, no width
+  EXPECT_THROW(precompute::held_out_truncation_curve(X, r, MatrixXfR::Zero(1, 48)), std::invalid_argument);
+  EXPECT_THROW(precompute::held_out_truncation_curve(X.topRows(5), r, inside), std::invalid_argument);
+}
+
 std::string failure_of(const MatrixXfR& X, TransferReductionOptions o, const Eigen::VectorXd& weights = {}) {
   try {
     reduce_transfer(X, o, weights);

@@ -179,6 +179,12 @@ struct Appearance {
   // then of the truncation, then of the total relative to the nodes' own
   // variation, over bootstrap resamples of the held-out nodes (older: the first 4).
   VectorXf held_out_spread;
+  // Fig. 12's red curve out of sample (empty: not measured): the reported
+  // held-out nodes' truncation alone, as a relative l2 norm (the paper's
+  // relErr), at rank 1..K of the SVD U_a was cut from, K the directions it
+  // resolves. Its entry r_a - 1 is held_out_error[5]; its last entry is what
+  // the clusters' whole span leaves, which no rank of them can beat.
+  VectorXf held_out_truncation_curve;
   std::int32_t paper_rank = 0;  // the paper's r_a for this scene (Table 1; 0: none)
   // How the cluster and held-out transfers were sampled, so that a figure can
   // be reproduced: ray directions of the fixed sphere set and interreflection
@@ -188,6 +194,12 @@ struct Appearance {
   int rank() const { return static_cast<int>(U_a.cols()); }
   int clusters() const { return static_cast<int>(cluster_nodes.size()); }
 };
+
+// Whether the interpolant named so stores an affine map with its k
+// ("affine-knn", "affine-knn-slope").
+inline bool is_affine_interpolant(const std::string& name) {
+  return name == "affine-knn" || name == "affine-knn-slope";
+}
 
 struct ScenePackage {
   PackageAttributes attributes;

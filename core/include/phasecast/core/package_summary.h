@@ -57,6 +57,9 @@ struct PackageSummary {
   // then of held_out_l2_of_variation, over bootstrap resamples of the held-out
   // nodes; empty (or without the last two) in older packages.
   std::vector<double> held_out_l2_spread;
+  // Fig. 12's red curve out of sample: the held-out truncation as a relative
+  // l2 norm at rank 1..K of the clusters' SVD; empty in older packages.
+  std::vector<double> held_out_l2_truncation_curve;
   std::uint64_t client_download_bytes = 0;    // sum of basis parts
   std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
   std::uint64_t full_vertex_frame_bytes = 0;  // streaming vertices instead
@@ -66,6 +69,11 @@ struct PackageSummary {
 PackageSummary summarize(const ScenePackage& package, const std::filesystem::path& file, int rank = 0);
 
 std::string to_text(const PackageSummary& s);
+// The held-out truncation curve at ranks 1, 2, 4, 8, ..., r_a, the paper's
+// r_a and all K, and the first rank at which it reaches `in_sample` (the
+// clusters' own relErr at r_a, NaN: not said). Empty for an empty curve.
+std::string held_out_curve_text(const std::vector<double>& curve, int rank_a, int paper_rank_a,
+                                double in_sample);
 nlohmann::json to_json(const PackageSummary& s);
 
 }  // namespace phasecast::core

@@ -66,6 +66,25 @@ double cluster_truncation_l2(const TransferReduction& reduction, const std::vect
 double cluster_truncation_l2(const TransferReduction& reduction, int columns, int draws = 255,
                              std::uint64_t seed = 1);
 
+// Fig. 12's red curve out of sample: the truncation error of held-out fields
+// at every rank r = 1..K of the same SVD, K the directions it resolves, as
+// |(I - U_r U_r^T) C|_2 / |C|_2 with C the held-out fields less M-bar (the
+// paper's relErr over those fields). Entry r_a - 1 is the held-out truncation
+// of U_a itself; the last is what the clusters' whole span leaves, a floor no
+// rank of this basis passes, so a target below it needs other samples, not a
+// larger r_a.
+//   @param[in] fields     #N_a by 48S: the fields `reduction` was made from
+//   @param[in] reduction  reduce_transfer(fields, ...)
+//   @param[in] held_out   #H by 48S: true fields at other state nodes
+//   @return               K values (all 0 when the held-out fields equal
+//                         M-bar; empty for H = 0, of any width)
+// Needs no basis beyond r_a: C's coordinates on direction i are
+// C A^T W^1/2 v_i / sigma_i, and |.|_2 of the residual comes from the H x H
+// Gram matrix C C^T less those coordinates' outer products.
+// Throws std::invalid_argument when the sizes disagree.
+VectorXf held_out_truncation_curve(const Eigen::Ref<const MatrixXfR>& fields,
+                                   const TransferReduction& reduction,
+                                   const Eigen::Ref<const MatrixXfR>& held_out);
 // Where a rank-r_a model's truncation error lives: the fields' variation
 // about M-bar, A = M - M-bar, and what the basis leaves of it, R = (I - U_a U_a^T) A,
 // summed over parts of the 48 values of each scene point.
