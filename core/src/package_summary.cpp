@@ -102,7 +102,7 @@ std::string held_out_curve_text(const std::vector<double>& curve, int rank_a, in
   for (int r = 1; r < K; r = r < 4 ? r + 1 : r * 2) ranks.insert(r);
   std::vector<std::string> points;
   for (int r : ranks) {
-    if (r < 1 || r >= K) continue;
+    if (r < 1 || r > K || (r == K && r != rank_a)) continue;  // "all K" reads rank K
     const std::string name = r == rank_a         ? fmt::format("r_a = {}", r)
                              : r == paper_rank_a ? fmt::format("the paper's r_a = {}", r)
                                                  : fmt::format("{}", r);
@@ -113,10 +113,11 @@ std::string held_out_curve_text(const std::vector<double>& curve, int rank_a, in
   if (!std::isfinite(in_sample)) return out;
   // Where the held-out states first fit as well as the clusters fit themselves at r_a.
   const auto reached = std::find_if(curve.begin(), curve.end(), [&](double e) { return e <= in_sample; });
+  const std::string own =
+      fmt::format("the clusters' own truncation at r_a measured alike ({:.3g}%)", 100 * in_sample);
   return out + (reached == curve.end()
-                    ? fmt::format("; never as low as the clusters' own {:.3g}% at r_a", 100 * in_sample)
-                    : fmt::format("; as low as the clusters' own {:.3g}% at r_a from rank {}",
-                                  100 * in_sample, 1 + (reached - curve.begin())));
+                    ? fmt::format("; never as low as {}", own)
+                    : fmt::format("; as low as {} from rank {}", own, 1 + (reached - curve.begin())));
 }
 
 PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& file, int rank) {
@@ -232,7 +233,7 @@ std::string to_text(const PackageSummary& s) {
       if (!s.held_out_l2_truncation_curve.empty())
         line("             held-out truncation by rank (Fig. 12 out of sample, relative l2): {}",
              held_out_curve_text(s.held_out_l2_truncation_curve, s.rank_a, s.paper_rank_a,
-                                 s.sigma_ratio_a_at_rank));
+                                 s.clusters_l2_truncation_at_held_out_size));
     }
   } else {
     line("appearance   none");

@@ -180,9 +180,9 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
   }
   if (const auto& curve = a.held_out_truncation_curve; curve.size() > 0) {
     fmt::print("appearance: held-out truncation by rank (Fig. 12 out of sample, relative l2): {}\n",
-               core::held_out_curve_text(
-                   std::vector<double>(curve.data(), curve.data() + curve.size()), r, a.paper_rank,
-                   has_next ? a.singular_values[r] / a.singular_values[0] : std::nan("")));
+               core::held_out_curve_text(std::vector<double>(curve.data(), curve.data() + curve.size()), r,
+                                         a.paper_rank,
+                                         a.held_out_error.size() >= 7 ? a.held_out_error[6] : std::nan("")));
   }
   if (const auto& b = report.basis_comparison) print_basis_comparison(*b, a.clusters(), r);
   if (r > 0) print_residual_parts(report);

@@ -106,35 +106,39 @@ TEST(HeldOutCurveText, NamesTheRanksAndWhereTheInSampleFigureIsReached) {
       "1: 50%, 2: 30%, r_a = 3: 20%, 4: 12%, the paper's r_a = 6: 8%, 8: 6%, all 10 directions of the "
       "clusters: 5%";
   EXPECT_EQ(core::held_out_curve_text(curve, 3, 6, 0.09),
-            ranks + "; as low as the clusters' own 9% at r_a from rank 6");
+            ranks + "; as low as the clusters' own truncation at r_a measured alike (9%) from rank 6");
   EXPECT_EQ(core::held_out_curve_text(curve, 3, 6, 0.01),
-            ranks + "; never as low as the clusters' own 1% at r_a");
+            ranks + "; never as low as the clusters' own truncation at r_a measured alike (1%)");
   EXPECT_EQ(core::held_out_curve_text(curve, 3, 6, std::nan("")), ranks);
-  EXPECT_EQ(core::held_out_curve_text({0.4}, 1, 0, 0.5),
-            "all 1 directions of the clusters: 40%; as low as the "
-            "clusters' own 50% at r_a from rank 1");
+  // r_a at the last rank keeps its name beside "all K".
+  EXPECT_EQ(core::held_out_curve_text({0.4, 0.2}, 2, 0, 0.5),
+            "1: 40%, r_a = 2: 20%, all 2 directions of the clusters: 20%; as low as the clusters' own "
+            "truncation at r_a measured alike (50%) from rank 1");
   EXPECT_EQ(core::held_out_curve_text({}, 3, 6, 0.1), "");
 }
 
 TEST_F(InspectCli, HeldOutTruncationCurveIsPrintedAndInTheJson) {
   auto& a = *package_.appearance;
-  const int r_a = a.rank(), Na = a.clusters();
+  const int r_a = a.rank(), K = a.clusters() - 1;
   a.held_out_nodes = {1, 2};
   a.held_out_error = VectorXf::Constant(11, 0.1f);
-  a.held_out_truncation_curve = VectorXf::LinSpaced(Na, 0.1f, 0.01f);
+  a.held_out_error[6] = 0.005f;  // the clusters' own truncation measured alike: below the whole curve
+  a.held_out_truncation_curve = VectorXf::LinSpaced(K, 0.1f, 0.01f);
   a.held_out_error[5] = a.held_out_truncation_curve[r_a - 1];
   const auto path = dir_ / "curve.h5";
   core::write_package(package_, path);
   EXPECT_EQ(core::read_package(path).appearance->held_out_truncation_curve, a.held_out_truncation_curve);
   const auto j = nlohmann::json::parse(testing::run_tool("phasecast-inspect", {path.string(), "--json"}).out);
-  ASSERT_EQ(j["held_out"]["l2_truncation_curve"].size(), static_cast<size_t>(Na));
+  ASSERT_EQ(j["held_out"]["l2_truncation_curve"].size(), static_cast<size_t>(K));
   EXPECT_NEAR(j["held_out"]["l2_truncation_curve"][0].get<double>(), 0.1, 1e-7);
-  EXPECT_NEAR(j["held_out"]["l2_truncation_curve"][Na - 1].get<double>(), 0.01, 1e-7);
+  EXPECT_NEAR(j["held_out"]["l2_truncation_curve"][K - 1].get<double>(), 0.01, 1e-7);
   const auto text = testing::run_tool("phasecast-inspect", {path.string()});
   ASSERT_EQ(text.exit_code, 0) << text.err;
   EXPECT_THAT(text.out,
               HasSubstr("held-out truncation by rank (Fig. 12 out of sample, relative l2): 1: 10%, "));
-  EXPECT_THAT(text.out, HasSubstr(fmt::format("all {} directions of the clusters: 1%", Na)));
+  EXPECT_THAT(text.out, HasSubstr(fmt::format("all {} directions of the clusters: 1%; never as low as the "
+                                              "clusters' own truncation at r_a measured alike (0.5%)",
+                                              K)));
   // Without the curve (older packages) the line is left out, and the JSON says null.
   const auto plain = nlohmann::json::parse(
       testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string(), "--json"}).out);

@@ -379,17 +379,18 @@ TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {
               HasSubstr("/appearance/held_out_spread: expected /appearance/held_out_error beside it"));
 }
 
-// Fig. 12 out of sample: relative errors that never rise with the rank, one
-// per rank r_a..N_a, agreeing at r_a with held_out_error's l2 truncation.
+// Fig. 12 out of sample: relative errors that never rise with the rank, at
+// least r_a and at most N_a - 1 of them, agreeing at r_a with
+// held_out_error's l2 truncation.
 TEST_F(PackageRule, HeldOutTruncationCurveFallsAndMeetsTheTruncationAtRa) {
   auto& a = *p.appearance;
-  const int r_a = a.rank(), Na = a.clusters();
+  const int r_a = a.rank(), K = a.clusters() - 1;
   ASSERT_GE(r_a, 1);
-  ASSERT_GT(Na, r_a);
+  ASSERT_GT(K, r_a);
   a.held_out_nodes = {1, 2};
   a.held_out_error = VectorXf::Constant(11, 0.1f);
   a.held_out_error[5] = 0.3f;
-  a.held_out_truncation_curve = VectorXf::LinSpaced(Na, 0.3f, 0.01f);
+  a.held_out_truncation_curve = VectorXf::LinSpaced(K, 0.3f, 0.01f);
   a.held_out_truncation_curve[r_a - 1] = 0.3f;
   a.held_out_truncation_curve.head(r_a - 1).setConstant(0.4f);
   EXPECT_EQ(invalid(p), "");
@@ -399,23 +400,27 @@ TEST_F(PackageRule, HeldOutTruncationCurveFallsAndMeetsTheTruncationAtRa) {
                                     "{} (held_out_error's l2 truncation), got 0.32",
                                     r_a)));
   a.held_out_truncation_curve[r_a - 1] = 0.3f;
-  a.held_out_truncation_curve[Na - 1] = 0.2f;
+  a.held_out_truncation_curve[K - 1] = 0.2f;
   EXPECT_THAT(invalid(p),
               HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected no rise with the rank, "
                                     "got 0.2 at rank {}",
-                                    Na)));
-  a.held_out_truncation_curve[Na - 1] = std::nanf("");
+                                    K)));
+  a.held_out_truncation_curve[K - 1] = std::nanf("");
   EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected relative "
                                                 "errors in [0, 1], got nan at rank {}",
-                                                Na)));
-  a.held_out_truncation_curve[Na - 1] = 0.0f;
-  a.held_out_truncation_curve.conservativeResize(Na + 1);
-  a.held_out_truncation_curve[Na] = 0.0f;
-  EXPECT_THAT(invalid(p),
-              HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected one value per "
-                                    "rank {}..{} (r_a..N_a), got {}",
-                                    r_a, Na, Na + 1)));
-  a.held_out_truncation_curve.conservativeResize(Na);
+                                                K)));
+  a.held_out_truncation_curve[K - 1] = 0.0f;
+  std::vector<Eigen::Index> lengths{K + 1};  // beyond what N_a centred fields resolve
+  if (r_a > 1) lengths.push_back(r_a - 1);   // short of r_a (none stored is no curve)
+  for (const Eigen::Index length : lengths) {
+    VectorXf curve = VectorXf::Zero(length);
+    std::swap(curve, a.held_out_truncation_curve);
+    EXPECT_THAT(invalid(p),
+                HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected at least r_a = {} and "
+                                      "at most N_a - 1 = {} values, got {}",
+                                      std::max(r_a, 1), K, length)));
+    std::swap(curve, a.held_out_truncation_curve);
+  }
   a.held_out_error.resize(0);
   a.held_out_nodes.clear();
   EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out_truncation_curve: expected "

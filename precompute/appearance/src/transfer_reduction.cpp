@@ -58,6 +58,14 @@ void for_blocks(Eigen::Index n, Body body) {
   for (Eigen::Index b = 0; b < n; b += kBlock) body(b, std::min(kBlock, n - b));
 }
 
+// Largest eigenvalue of a symmetric positive semi-definite matrix, round-off below 0 clamped.
+double largest_eigenvalue(const Eigen::MatrixXd& gram) {
+  if (gram.size() == 0) return 0;
+  return std::max(
+      0.0,
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(gram, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
+}
+
 }  // namespace
 
 TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& X, const TransferReductionOptions& o,
@@ -130,6 +138,7 @@ TransferReduction reduce_transfer(const Eigen::Ref<const MatrixXfR>& X, const Tr
   r.Q_a = Q.cast<float>();
   r.right_vectors = V;
   r.weights = W;
+  r.resolved = resolvable;
   return r;
 }
 
@@ -152,13 +161,12 @@ double cluster_truncation_l2(const TransferReduction& r, const std::vector<int>&
         std::sqrt(w);
   }
   const auto largest = [](const Eigen::MatrixXd& X) {  // |X|_2^2 from the smaller Gram matrix
-    const Eigen::MatrixXd g =
-        X.rows() <= X.cols() ? Eigen::MatrixXd(X * X.transpose()) : Eigen::MatrixXd(X.transpose() * X);
-    return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+    return largest_eigenvalue(X.rows() <= X.cols() ? Eigen::MatrixXd(X * X.transpose())
+                                                   : Eigen::MatrixXd(X.transpose() * X));
   };
   const double data = largest(coordinates);
   if (!(data > 0) || rank >= Na) return 0;  // nothing varies, or nothing is truncated
-  return std::sqrt(std::max(0.0, largest(coordinates.rightCols(Na - rank))) / data);
+  return std::sqrt(largest(coordinates.rightCols(Na - rank)) / data);
 }
 
 double cluster_truncation_l2(const TransferReduction& r, int columns, int draws, std::uint64_t seed) {
@@ -188,38 +196,39 @@ double cluster_truncation_l2(const TransferReduction& r, int columns, int draws,
 
 VectorXf held_out_truncation_curve(const Eigen::Ref<const MatrixXfR>& fields, const TransferReduction& r,
                                    const Eigen::Ref<const MatrixXfR>& held_out) {
-  const Eigen::Index Na = fields.rows(), n = fields.cols(), H = held_out.rows();
+  const Eigen::Index Na = fields.rows(), n = fields.cols(), H = held_out.rows(), K = r.resolved;
   if (r.mean_transfer.size() != n || (H > 0 && held_out.cols() != n) || r.right_vectors.rows() != Na ||
-      r.right_vectors.cols() != Na || r.singular_values.size() != Na || r.weights.size() != Na) {
+      r.right_vectors.cols() != Na || r.singular_values.size() != Na || r.weights.size() != Na || K > Na) {
     throw std::invalid_argument(fmt::format(
         "held_out_truncation_curve: expected the {} x {} fields of the reduction and held-out fields of {} "
         "values, got a reduction of {} fields and {} values, and held-out fields of {}",
         Na, n, n, r.right_vectors.rows(), r.mean_transfer.size(), held_out.cols()));
   }
-  if (H == 0) return {};
-  const Eigen::VectorXd sigma = r.singular_values.cast<double>();
-  Eigen::Index K = 0;
-  while (K < Na && sigma[0] > 0 && sigma[K] > kResolvable * sigma[0]) ++K;
-  // C A^T and C C^T, C the held-out fields less M-bar, summed in double.
+  if (H == 0 || K == 0) return {};
+  // All K directions U = A^T W^1/2 V_K Sigma^-1, block by block (never stored),
+  // with U^T U for the Cholesky QR step reduce_transfer takes, so that the
+  // first r_a directions span what U_a spans to round-off even where sigma is
+  // small; C U and C C^T, C the held-out fields less M-bar.
   const Eigen::VectorXd mean = r.mean_transfer.cast<double>();
-  Eigen::MatrixXd cross = Eigen::MatrixXd::Zero(H, Na), gram = Eigen::MatrixXd::Zero(H, H);
+  const Eigen::MatrixXd Z = r.weights.cwiseSqrt().asDiagonal() * r.right_vectors.leftCols(K) *
+                            r.singular_values.head(K).cast<double>().cwiseInverse().asDiagonal();
+  Eigen::MatrixXd UtU = Eigen::MatrixXd::Zero(K, K), CU = Eigen::MatrixXd::Zero(H, K);
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(H, H);
   for_blocks(n, [&](Eigen::Index b, Eigen::Index w) {
+    const Eigen::MatrixXd U = centred_block(fields, mean, b, w).transpose() * Z;
     const Eigen::MatrixXd C = centred_block(held_out, mean, b, w);
-    cross.noalias() += C * centred_block(fields, mean, b, w).transpose();
+    UtU.noalias() += U.transpose() * U;
+    CU.noalias() += C * U;
     gram.noalias() += C * C.transpose();
   });
-  const auto largest = [](const Eigen::MatrixXd& g) {
-    return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
-  };
-  const double data = largest(gram);
+  const double data = largest_eigenvalue(gram);
   VectorXf curve = VectorXf::Zero(K);
   if (!(data > 0)) return curve;
-  // Coordinates of C on the directions u_i = A^T W^1/2 v_i / sigma_i.
-  const Eigen::MatrixXd coordinates = cross * r.weights.cwiseSqrt().asDiagonal() *
-                                      r.right_vectors.leftCols(K) * sigma.head(K).cwiseInverse().asDiagonal();
+  // Coordinates on the orthonormalised directions U R^-1 (U^T U = R^T R).
+  const Eigen::MatrixXd coordinates = Eigen::LLT<Eigen::MatrixXd>(UtU).matrixU().solve<Eigen::OnTheRight>(CU);
   for (Eigen::Index i = 0; i < K; ++i) {
     gram.noalias() -= coordinates.col(i) * coordinates.col(i).transpose();
-    curve[i] = static_cast<float>(std::sqrt(std::max(0.0, largest(gram)) / data));
+    curve[i] = static_cast<float>(std::sqrt(largest_eigenvalue(gram) / data));
   }
   return curve;
 }

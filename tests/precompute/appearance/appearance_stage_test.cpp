@@ -149,10 +149,9 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   ASSERT_GE(curve.size(), p.rank_a());
   ASSERT_LE(curve.size(), 3);
   EXPECT_NEAR(curve[p.rank_a() - 1], p.appearance->held_out_error[5], 1e-4);
-  const auto& sigma = p.appearance->singular_values;
   const std::string curve_line =
       core::held_out_curve_text(std::vector<double>(curve.data(), curve.data() + curve.size()), p.rank_a(),
-                                12, p.rank_a() < sigma.size() ? sigma[p.rank_a()] / sigma[0] : std::nan(""));
+                                12, p.appearance->held_out_error[6]);
   EXPECT_NE(r.out.find("appearance: held-out truncation by rank (Fig. 12 out of sample, relative l2): " +
                        curve_line + "\n"),
             std::string::npos)

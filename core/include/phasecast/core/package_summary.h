@@ -70,8 +70,9 @@ PackageSummary summarize(const ScenePackage& package, const std::filesystem::pat
 
 std::string to_text(const PackageSummary& s);
 // The held-out truncation curve at ranks 1, 2, 4, 8, ..., r_a, the paper's
-// r_a and all K, and the first rank at which it reaches `in_sample` (the
-// clusters' own relErr at r_a, NaN: not said). Empty for an empty curve.
+// r_a and all K, and the first rank at which it reaches `in_sample`: the
+// clusters' own truncation at r_a over as many of them as there are reported
+// nodes (held_out_error[6]; NaN: not said). Empty for an empty curve.
 std::string held_out_curve_text(const std::vector<double>& curve, int rank_a, int paper_rank_a,
                                 double in_sample);
 nlohmann::json to_json(const PackageSummary& s);

@@ -24,6 +24,7 @@ struct TransferReduction {
                                   // (Fig. 12, red, with equal weights)
   Eigen::MatrixXd right_vectors;  // N_a x N_a: V of A_a W^1/2 = U Sigma V^T, column i with sigma_i
   Eigen::VectorXd weights;        // N_a: W, the weight of each field (all 1: equal)
+  int resolved = 0;               // directions resolved (sigma_i > 1e-6 sigma_1): at most N_a - 1
 
   int rank() const { return static_cast<int>(U_a.cols()); }
 };
@@ -76,11 +77,13 @@ double cluster_truncation_l2(const TransferReduction& reduction, int columns, in
 //   @param[in] fields     #N_a by 48S: the fields `reduction` was made from
 //   @param[in] reduction  reduce_transfer(fields, ...)
 //   @param[in] held_out   #H by 48S: true fields at other state nodes
-//   @return               K values (all 0 when the held-out fields equal
-//                         M-bar; empty for H = 0, of any width)
-// Needs no basis beyond r_a: C's coordinates on direction i are
-// C A^T W^1/2 v_i / sigma_i, and |.|_2 of the residual comes from the H x H
-// Gram matrix C C^T less those coordinates' outer products.
+//   @return               K = reduction.resolved values (all 0 when the
+//                         held-out fields equal M-bar; empty when H = 0, of
+//                         any width, or K = 0)
+// Stores no basis beyond r_a: direction i is A^T W^1/2 v_i / sigma_i, formed
+// block by block and orthonormalised by the Cholesky QR step reduce_transfer
+// takes (so that the first r_a span what U_a spans); |.|_2 of the residual
+// comes from the H x H Gram matrix C C^T less the coordinates' outer products.
 // Throws std::invalid_argument when the sizes disagree.
 VectorXf held_out_truncation_curve(const Eigen::Ref<const MatrixXfR>& fields,
                                    const TransferReduction& reduction,
