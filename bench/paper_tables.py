@@ -175,7 +175,18 @@ def held_out_text(r):
     if h.get("l2_of_variation") is not None:
         l2 += (f"; of their own variation {pct(h['l2_of_variation'])} (floor {pct(h['l2_floor_of_variation'])}, "
                f"{r.get('transfer_weighting', 'equal')} weights)")
-    return f"{h['nodes']} nodes: {l2} / {pct(h['total'])}"
+    return f"{h['nodes']} nodes: {l2} / {pct(h['total'])}{reach_text(r)}"
+
+
+def reach_text(r):
+    """Where Fig. 12's curve held out (truncation alone) falls to the paper's relErr_a, if within the clusters' span."""
+    curve = (r.get("held_out") or {}).get("l2_truncation_curve")
+    if not curve:
+        return ""
+    target = PAPER[r["scene"]][7]
+    reached = next((rank for rank, e in enumerate(curve, 1) if 100 * e <= float(target.rstrip("%"))), None)
+    where = f"from rank {reached}" if reached else "at no rank of the clusters"
+    return f"; truncation held out reaches the paper's {target} {where} (all {len(curve)} directions: {pct(curve[-1])})"
 
 
 def table(rows, args):

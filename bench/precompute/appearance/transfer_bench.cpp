@@ -12,6 +12,7 @@
 #include "phasecast/precompute/appearance/transfer_appearance.h"
 #include "phasecast/precompute/appearance/transfer_file.h"
 #include "phasecast/precompute/appearance/transfer_rays.h"
+#include "phasecast/precompute/appearance/transfer_reduction.h"
 
 #include <benchmark/benchmark.h>
 
@@ -176,6 +177,34 @@ void BM_BuildAppearance(benchmark::State& state) {
   state.counters["N_a"] = 64;
 }
 
+// Uniform random fields of the paper cloth's size (S = 16 374 scene points):
+// N_a cluster fields and H reported held-out ones.
+MatrixXfR random_fields(Eigen::Index rows, std::uint64_t seed) {
+  MatrixXfR X(rows, 48 * 16374);
+  std::mt19937_64 rng(seed);
+  for (Eigen::Index i = 0; i < X.size(); ++i)
+    X.data()[i] = static_cast<float>(static_cast<double>(rng() >> 11) * 0x1.0p-53);
+  return X;
+}
+
+// The baseline of the next: the transfer SVD (§4.2) of N_a = range(0) fields at r_a = 12.
+void BM_ReduceTransfer(benchmark::State& state) {
+  const MatrixXfR fields = random_fields(state.range(0), 5);
+  for (auto _ : state) benchmark::DoNotOptimize(reduce_transfer(fields, {.eps_a = 0, .rank = 12}).U_a.data());
+  state.counters["N_a"] = static_cast<double>(fields.rows());
+}
+
+// Fig. 12 out of sample at every rank for H = range(0) / 2 held-out fields:
+// the appearance stage's extra cost beside the SVD it measures.
+void BM_HeldOutTruncationCurve(benchmark::State& state) {
+  const MatrixXfR fields = random_fields(state.range(0), 5), held_out = random_fields(state.range(0) / 2, 6);
+  const auto reduction = reduce_transfer(fields, {.eps_a = 0, .rank = 12});
+  for (auto _ : state)
+    benchmark::DoNotOptimize(held_out_truncation_curve(fields, reduction, held_out).data());
+  state.counters["N_a"] = static_cast<double>(fields.rows());
+  state.counters["H"] = static_cast<double>(held_out.rows());
+}
+
 BENCHMARK(BM_OcclusionRays);
 BENCHMARK(BM_ClosestHitRays);
 BENCHMARK(BM_TransferPerPoint)
@@ -187,6 +216,8 @@ BENCHMARK(BM_TransferPerPoint)
     ->Iterations(1);
 BENCHMARK(BM_KMeans)->Arg(5000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BuildAppearance)->Unit(benchmark::kSecond)->Iterations(1);
+BENCHMARK(BM_ReduceTransfer)->Arg(200)->Unit(benchmark::kSecond)->Iterations(1);
+BENCHMARK(BM_HeldOutTruncationCurve)->Arg(200)->Unit(benchmark::kSecond)->Iterations(1);
 
 }  // namespace
 }  // namespace phasecast::precompute
