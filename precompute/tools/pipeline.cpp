@@ -113,6 +113,22 @@ void print_basis_comparison(const precompute::BasisComparison& b, Eigen::Index c
           : std::string());
 }
 
+// How --held-out-target set r_a, at the picking half (the reported half never saw it).
+void print_rank_choice(const precompute::HeldOutRankChoice& c) {
+  if (c.reached) {
+    fmt::print(
+        "appearance: r_a = {}, the least rank whose truncation alone at the picking half's {} nodes "
+        "(relative "
+        "l2, equal weights) is at most {:.4f}: it reads {:.4f}\n",
+        c.rank, c.picking_nodes, c.target, c.truncation);
+  } else {
+    fmt::print(
+        "appearance: no rank of the clusters brings the truncation at the picking half's {} nodes to {:.4f} "
+        "(all {} directions leave {:.4f}): r_a = {}; more clusters would\n",
+        c.picking_nodes, c.target, c.rank, c.truncation, c.rank);
+  }
+}
+
 void print_appearance_report(const core::ScenePackage& p, const precompute::AppearanceStageReport& report) {
   const auto& a = *p.appearance;
   const auto r = p.rank_a();
@@ -125,6 +141,7 @@ void print_appearance_report(const core::ScenePackage& p, const precompute::Appe
       a.clusters(), p.mesh.points(), r, r > 0 ? a.rel_error[r - 1] : 0.0f,
       has_next ? fmt::format("{:.4f}", a.singular_values[r] / a.singular_values[0]) : std::string("n/a"),
       a.transfer_weighting);
+  if (const auto& c = report.rank_choice) print_rank_choice(*c);
   for (const auto& c : report.candidates) {
     const auto& f = c.interpolant;
     const std::string params =
@@ -276,6 +293,10 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
                   kDefaultEpsA));
   cmd->add_option("--rank-a", s.appearance.reduction.rank,
                   "fixed rank r_a instead of --eps-a (0: use --eps-a)")
+      ->capture_default_str();
+  cmd->add_option("--held-out-target", s.appearance.held_out_target,
+                  "r_a = the least rank whose truncation alone at the picking half of the held-out nodes "
+                  "(relative l2, the paper's relErr) is at most this, instead of --eps-a (0: off)")
       ->capture_default_str();
   cmd->add_option("--transfer-threads", s.transfer.threads, "threads of the ray caster (0: all cores)")
       ->capture_default_str();

@@ -28,6 +28,19 @@ void check_appearance_stage_options(const AppearanceStageOptions& o) {
   if (o.appearance.reduction.rank < 0)
     throw std::invalid_argument(fmt::format("appearance: expected --rank-a >= 0 (0: use --eps-a), got {}",
                                             o.appearance.reduction.rank));
+  if (const double target = o.appearance.held_out_target; target != 0) {
+    if (!(target > 0 && target < 1))
+      throw std::invalid_argument(
+          fmt::format("appearance: expected --held-out-target in (0, 1), got {}", target));
+    if (o.appearance.reduction.rank > 0)
+      throw std::invalid_argument(
+          "appearance: --held-out-target and --rank-a both fix r_a: give one of them");
+    if (o.held_out < 2)
+      throw std::invalid_argument(fmt::format(
+          "appearance: --held-out-target is measured at the picking half of the held-out nodes: expected "
+          "--held-out >= 2, got {}",
+          o.held_out));
+  }
   validate_transfer_options(o.transfer);
 }
 
@@ -135,6 +148,7 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedd
   report.candidates = std::move(model.candidates);
   report.weighting_gain = model.weighting_gain;
   report.basis_comparison = model.basis_comparison;
+  report.rank_choice = model.rank_choice;
   model.appearance.paper_rank = o.paper_rank;
   model.appearance.transfer_rays = o.transfer.rays;
   model.appearance.transfer_bounces =
@@ -146,7 +160,8 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedd
   if (held_out.fields.rows() > 0)
     report.held_out_residual = residual_by_part(held_out.fields, a.mean_transfer, a.U_a, pkg.mesh.deformable);
   pkg.portrait.q_a = std::move(model.q_a);
-  pkg.attributes.eps_a = o.appearance.reduction.rank > 0 ? 0.0 : o.appearance.reduction.eps_a;
+  const bool fixed_rank = o.appearance.reduction.rank > 0 || o.appearance.held_out_target > 0;
+  pkg.attributes.eps_a = fixed_rank ? 0.0 : o.appearance.reduction.eps_a;
   return report;
 }
 

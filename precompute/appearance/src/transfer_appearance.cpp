@@ -399,9 +399,36 @@ std::optional<BasisComparison> compare_with_drawn_basis(const TransferReduction&
   return c;
 }
 
+namespace {
+
+// The least rank whose truncation alone at the picking nodes (relative l2)
+// is at most `target`, by the paper's equal-weight SVD (its right vectors
+// suffice: held_out_truncation_curve forms the directions itself); all the
+// resolved directions when none is.
+HeldOutRankChoice rank_for_held_out_target(const Eigen::Ref<const MatrixXfR>& fields,
+                                           const HeldOutTruth& picking, double target) {
+  if (picking.nodes.empty()) {
+    throw std::invalid_argument(
+        "fit_appearance_model: held_out_target needs picking nodes to measure it at (--held-out >= 2)");
+  }
+  const TransferReduction probe = reduce_transfer(fields, {.eps_a = 0, .rank = 1});
+  const VectorXf curve = held_out_truncation_curve(fields, probe, picking.fields);
+  HeldOutRankChoice c{target, static_cast<int>(curve.size()), curve.size() ? curve[curve.size() - 1] : 0.0,
+                      false, static_cast<int>(picking.nodes.size())};
+  for (Eigen::Index i = 0; i < curve.size(); ++i) {
+    if (curve[i] <= target) {
+      c = {target, static_cast<int>(i + 1), curve[i], true, c.picking_nodes};
+      break;
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
 AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
-                                     const Eigen::Ref<const MatrixXfR>& fields, const AppearanceOptions& o,
-                                     const HeldOutTruth& held_out) {
+                                     const Eigen::Ref<const MatrixXfR>& fields,
+                                     const AppearanceOptions& options, const HeldOutTruth& held_out) {
   const auto Na = static_cast<Eigen::Index>(clusters.representatives.size());
   if (Na == 0 || fields.rows() != Na) {
     throw std::invalid_argument(fmt::format(
@@ -421,6 +448,11 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
   const HeldOutTruth test = part(held_out, selection_size, H - selection_size);
   AppearanceModel m;
   core::Appearance& a = m.appearance;
+  AppearanceOptions o = options;
+  if (o.held_out_target > 0) {
+    m.rank_choice = rank_for_held_out_target(fields, selection, o.held_out_target);
+    o.reduction = {.eps_a = 0, .rank = m.rank_choice->rank};
+  }
   const std::vector<WeightedReduction> tried =
       reductions(fields, clusters, o, !selection.nodes.empty(), a.singular_values, a.rel_error);
   for (const auto& [w, reduction] : tried) {

@@ -246,6 +246,29 @@ TEST(AppearanceStage, RunComparesTheClustersBasisWithOneOfThePickingHalf) {
       << r.out;
 }
 
+// --held-out-target through run: the line names the rank the picking half
+// chose, the package holds it, with eps_a 0 (the rank was fixed), and the
+// reported figures are still those of the half that never chose.
+TEST(AppearanceStage, HeldOutTargetChoosesRaAtThePickingHalf) {
+  const auto dir = scratch_dir("appearance_held_out_target");
+  const auto pkg = (dir / "tiny.h5").string();
+  const auto r = run_tool("phasecast-precompute",
+                          args({"run", tiny_scene_path().string(), "-o", pkg}, {"--held-out-target", "0.6"}));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto p = core::read_package(pkg);
+  const std::string line = fmt::format(
+      "appearance: r_a = {}, the least rank whose truncation alone at the "
+      "picking half's 3 nodes (relative l2, equal weights) is at most 0.6000",
+      p.rank_a());
+  const bool reached = r.out.find(line) != std::string::npos;
+  const bool not_reached = r.out.find(
+                               "appearance: no rank of the clusters brings the truncation at the picking "
+                               "half's 3 nodes to 0.6000") != std::string::npos;
+  EXPECT_NE(reached, not_reached) << r.out;
+  EXPECT_EQ(p.attributes.eps_a, 0.0);
+  ASSERT_GE(p.appearance->held_out_truncation_curve.size(), p.rank_a());
+}
+
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
   // Full rank (r_a = N_a - 1) so every cluster field lies in mean + span(U_a).
   const auto pkg_path = run_tiny("appearance_unreduced", {"--eps-a", "1e-7"});
@@ -456,6 +479,13 @@ TEST(AppearanceStage, BadOptionsAreOneLineErrorsBeforeSampling) {
       {{"--eps-a", "1.5"}, "appearance: expected --eps-a in (0, 1), got 1.5"},
       {{"--rank-a", "-2"}, "appearance: expected --rank-a >= 0 (0: use --eps-a), got -2"},
       {{"--held-out", "-1"}, "appearance: expected --held-out >= 0, got -1"},
+      {{"--held-out-target", "1.5"}, "appearance: expected --held-out-target in (0, 1), got 1.5"},
+      {{"--held-out-target", "nan"}, "appearance: expected --held-out-target in (0, 1), got nan"},
+      {{"--held-out-target", "0.1", "--rank-a", "3"},
+       "appearance: --held-out-target and --rank-a both fix r_a: give one of them"},
+      {{"--held-out-target", "0.1", "--held-out", "1"},
+       "appearance: --held-out-target is measured at the picking half of the held-out nodes: expected "
+       "--held-out >= 2, got 1"},
       {{"--interpolant", "spline"},
        "--interpolant 'spline': expected best, nrbf, knn, affine-knn or affine-knn-slope"},
       {{"--transfer-weighting", "density"},

@@ -397,6 +397,50 @@ TEST(Appearance, OneReportedNodeKeepsTheFirstEightFigures) {
   EXPECT_NO_THROW(core::validate_package(out, "one reported node"));
 }
 
+// held_out_target: r_a is the least rank whose truncation at the picking
+// half (the first half of the held-out nodes) reaches the target, read here
+// from the curve of the paper's equal-weight SVD measured at those nodes.
+TEST(Appearance, HeldOutTargetSetsTheLeastRankThatReachesItAtThePickingHalf) {
+  core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
+  const auto clusters = kmeans(p.portrait.q_u, {.clusters = 6, .seed = 3});
+  HeldOutTruth truth;
+  truth.nodes = draw_held_out_nodes(p.portrait.nodes(), clusters.representatives, 12, 5);
+  truth.fields = transfer_fields(p, truth.nodes);
+  const MatrixXfR fields = transfer_fields(p, clusters);
+  const VectorXf curve = held_out_truncation_curve(fields, reduce_transfer(fields, {.eps_a = 0, .rank = 1}),
+                                                   truth.fields.topRows(6));
+  ASSERT_EQ(curve.size(), 5);
+  ASSERT_GT(curve[1], curve[2] + 1e-4) << "not vacuous: ranks 2 and 3 differ";
+  ASSERT_GT(curve[4], 1e-4) << "not vacuous: the span leaves something";
+  const auto options = [](double target) {
+    AppearanceOptions o;
+    o.reduction.eps_a = 0.5;
+    o.weighting = WeightingChoice::equal;
+    o.held_out_target = target;
+    return o;
+  };
+  const auto fit = [&](double target) {
+    return fit_appearance_model(p.portrait.q_u, clusters, fields, options(target), truth);
+  };
+  // A target between rank 2's and rank 3's truncation picks rank 3, whatever eps_a says ...
+  const auto model = fit(0.5 * (curve[1] + curve[2]));
+  ASSERT_TRUE(model.rank_choice.has_value());
+  EXPECT_EQ(model.appearance.rank(), 3);
+  EXPECT_TRUE(model.rank_choice->reached);
+  EXPECT_EQ(model.rank_choice->picking_nodes, 6);
+  EXPECT_NEAR(model.rank_choice->truncation, curve[2], 1e-6);
+  EXPECT_NE(fit_appearance_model(p.portrait.q_u, clusters, fields, options(0), truth).appearance.rank(), 3)
+      << "eps_a alone would give another rank";
+  // ... and one below what the span leaves takes every direction, saying so.
+  const auto all = fit(0.5 * curve[4]);
+  EXPECT_EQ(all.appearance.rank(), 5);
+  EXPECT_FALSE(all.rank_choice->reached);
+  EXPECT_NEAR(all.rank_choice->truncation, curve[4], 1e-6);
+  // Without picking nodes there is nothing to measure it at.
+  EXPECT_THROW(fit_appearance_model(p.portrait.q_u, clusters, fields, options(0.1), {}),
+               std::invalid_argument);
+}
+
 TEST(Appearance, ClusterSizeWeightsRejectAForeignLabel) {
   KMeansResult clusters;
   clusters.representatives = {0, 1};

@@ -78,6 +78,7 @@ struct AppearanceStageReport {
   ResidualByPart clusters_residual;
   std::optional<ResidualByPart> held_out_residual;
   std::optional<BasisComparison> basis_comparison;  // AppearanceModel's
+  std::optional<HeldOutRankChoice> rank_choice;     // AppearanceModel's: how --held-out-target set r_a
 };
 
 // `count` distinct state nodes of 0..N-1 that are not in `exclude`, drawn

@@ -42,6 +42,19 @@ struct AppearanceOptions {
   // best tries both weightings only with held-out truth to choose by: no
   // other figure compares two models with different M-bar.
   WeightingChoice weighting = WeightingChoice::best;
+  // > 0: r_a is the least rank whose truncation alone at the picking half of
+  // the held-out nodes (relative l2, the paper's equal-weight SVD) is at most
+  // this, instead of the reduction's rule; the reported half never sees it.
+  double held_out_target = 0;
+};
+
+// How held_out_target set r_a.
+struct HeldOutRankChoice {
+  double target = 0;      // the truncation asked for
+  int rank = 0;           // r_a chosen: the least rank reaching it, else all the directions
+  double truncation = 0;  // the picking half's truncation at that rank
+  bool reached = false;   // false: no rank of the clusters reaches the target
+  int picking_nodes = 0;  // the held-out nodes it was measured at
 };
 
 // Cluster j's share of the state nodes, scaled to mean 1 (a representative
@@ -176,6 +189,7 @@ struct AppearanceModel {
   // only when it is beyond its noise.
   std::optional<PairedGain> weighting_gain;
   std::optional<BasisComparison> basis_comparison;  // at the reported half (compare_with_drawn_basis)
+  std::optional<HeldOutRankChoice> rank_choice;     // when options.held_out_target set r_a
 };
 
 //   @param[in] q_u       #N by r_u all state nodes
@@ -185,7 +199,8 @@ struct AppearanceModel {
 //   @param[in] options   reduction rank rule, weighting and interpolant choice
 //   @param[in] held_out  truth at other nodes (may be empty: the choice then
 //                        falls to leave-one-out and no held-out error is stored)
-// Throws std::invalid_argument when the shapes disagree.
+// Throws std::invalid_argument when the shapes disagree, or when
+// options.held_out_target is set with no picking node to measure it at.
 AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
                                      const Eigen::Ref<const MatrixXfR>& fields,
                                      const AppearanceOptions& options, const HeldOutTruth& held_out = {});
