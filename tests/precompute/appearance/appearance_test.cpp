@@ -44,6 +44,21 @@ MatrixXfR transfer_fields(const core::ScenePackage& p, const KMeansResult& clust
   return transfer_fields(p, clusters.representatives);
 }
 
+// The plate in 6 clusters, with the true transfer at `held_out` other nodes.
+struct PlateWithTruth {
+  core::ScenePackage package;
+  KMeansResult clusters;
+  HeldOutTruth truth;
+};
+
+PlateWithTruth plate_with_held_out(int held_out) {
+  PlateWithTruth t{testing::make_plate_package({.grid = 6, .appearance = false}), {}, {}};
+  t.clusters = kmeans(t.package.portrait.q_u, {.clusters = 6, .seed = 3});
+  t.truth.nodes = draw_held_out_nodes(t.package.portrait.nodes(), t.clusters.representatives, held_out, 5);
+  t.truth.fields = transfer_fields(t.package, t.truth.nodes);
+  return t;
+}
+
 TEST(Appearance, FillsAValidPackage) {
   core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
   const auto clusters = kmeans(p.portrait.q_u, {.clusters = 8, .seed = 3});
@@ -176,14 +191,10 @@ TEST(Appearance, OneClusterHasRankZero) {
 // The held-out figure is what a client would show: M-bar + U_a q_a at the
 // node, read back from the package, against the true transfer there.
 TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
-  core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
-  const auto clusters = kmeans(p.portrait.q_u, {.clusters = 6, .seed = 3});
-  HeldOutTruth truth;
-  truth.nodes = draw_held_out_nodes(p.portrait.nodes(), clusters.representatives, 12, 5);
+  const auto [p, clusters, truth] = plate_with_held_out(12);
   ASSERT_EQ(truth.nodes.size(), 12u);
   for (auto n : truth.nodes)
     EXPECT_EQ(std::count(clusters.representatives.begin(), clusters.representatives.end(), n), 0);
-  truth.fields = transfer_fields(p, truth.nodes);
   // Equal weights, so that the clusters' own figure is the paper's sigma ratio
   // (the choice of weighting is tested below).
   const auto model =
@@ -378,11 +389,7 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
 // vary about its own mean, so the figures of that variation are not stored
 // (they would read 0), and the first 8 are.
 TEST(Appearance, OneReportedNodeKeepsTheFirstEightFigures) {
-  core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
-  const auto clusters = kmeans(p.portrait.q_u, {.clusters = 6, .seed = 3});
-  HeldOutTruth truth;
-  truth.nodes = draw_held_out_nodes(p.portrait.nodes(), clusters.representatives, 2, 5);
-  truth.fields = transfer_fields(p, truth.nodes);
+  const auto [p, clusters, truth] = plate_with_held_out(2);
   const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
                                           {.reduction = {.rank = 3}}, truth);
   const auto& a = model.appearance;
@@ -401,11 +408,7 @@ TEST(Appearance, OneReportedNodeKeepsTheFirstEightFigures) {
 // half (the first half of the held-out nodes) reaches the target, read here
 // from the curve of the paper's equal-weight SVD measured at those nodes.
 TEST(Appearance, HeldOutTargetSetsTheLeastRankThatReachesItAtThePickingHalf) {
-  core::ScenePackage p = testing::make_plate_package({.grid = 6, .appearance = false});
-  const auto clusters = kmeans(p.portrait.q_u, {.clusters = 6, .seed = 3});
-  HeldOutTruth truth;
-  truth.nodes = draw_held_out_nodes(p.portrait.nodes(), clusters.representatives, 12, 5);
-  truth.fields = transfer_fields(p, truth.nodes);
+  const auto [p, clusters, truth] = plate_with_held_out(12);
   const MatrixXfR fields = transfer_fields(p, clusters);
   const VectorXf curve = held_out_truncation_curve(fields, reduce_transfer(fields, {.eps_a = 0, .rank = 1}),
                                                    truth.fields.topRows(6));
