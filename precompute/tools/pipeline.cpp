@@ -124,7 +124,7 @@ void print_rank_choice(const precompute::HeldOutRankChoice& c) {
   } else {
     fmt::print(
         "appearance: no rank of the clusters brings the truncation at the picking half's {} nodes to {:.4f} "
-        "(all {} directions leave {:.4f}): r_a = {}; more clusters would\n",
+        "(all {} directions leave {:.4f}): r_a = {}, all of them (more clusters lower what they leave)\n",
         c.picking_nodes, c.target, c.rank, c.truncation, c.rank);
   }
 }
