@@ -118,8 +118,7 @@ void print_rank_choice(const precompute::HeldOutRankChoice& c) {
   if (c.reached) {
     fmt::print(
         "appearance: r_a = {}, the least rank whose truncation alone at the picking half's {} nodes "
-        "(relative "
-        "l2, equal weights) is at most {:.4f}: it reads {:.4f}\n",
+        "(relative l2, equal weights) is at most {:.4f}: it reads {:.4f}\n",
         c.rank, c.picking_nodes, c.target, c.truncation);
   } else {
     fmt::print(

@@ -1,5 +1,7 @@
 #include "phasecast/precompute/appearance/transfer_appearance.h"
 
+#include "largest_eigenvalue.h"
+
 #include <fmt/format.h>
 #include <Eigen/Eigenvalues>
 #include <boost/math/distributions/students_t.hpp>
@@ -144,14 +146,6 @@ void store_choice(core::Appearance& a, const CandidateReport& c, const HeldOutTr
     a.held_out_spread.conservativeResize(6);
     a.held_out_spread.tail(2) << static_cast<float>((*own)[0]), static_cast<float>((*own)[1]);
   }
-}
-
-// Largest eigenvalue of a symmetric positive semi-definite Gram matrix: |X|_2^2 for G = X^T X.
-double largest_eigenvalue(const Eigen::MatrixXd& gram) {
-  if (gram.size() == 0) return 0;
-  return std::max(
-      0.0,
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(gram, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
 }
 
 // X^T X of a tall float matrix, summed in double over row blocks.

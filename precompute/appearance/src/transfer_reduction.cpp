@@ -1,5 +1,7 @@
 #include "phasecast/precompute/appearance/transfer_reduction.h"
 
+#include "largest_eigenvalue.h"
+
 #include "phasecast/core/package.h"
 
 #include <fmt/format.h>
@@ -56,14 +58,6 @@ Eigen::MatrixXd centred_block(const Eigen::Ref<const MatrixXfR>& X, const Eigen:
 template <class Body>
 void for_blocks(Eigen::Index n, Body body) {
   for (Eigen::Index b = 0; b < n; b += kBlock) body(b, std::min(kBlock, n - b));
-}
-
-// Largest eigenvalue of a symmetric positive semi-definite matrix, round-off below 0 clamped.
-double largest_eigenvalue(const Eigen::MatrixXd& gram) {
-  if (gram.size() == 0) return 0;
-  return std::max(
-      0.0,
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(gram, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
 }
 
 }  // namespace
