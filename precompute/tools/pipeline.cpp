@@ -300,6 +300,23 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
   cmd->add_option("--transfer-threads", s.transfer.threads, "threads of the ray caster (0: all cores)")
       ->capture_default_str();
   cmd->add_flag("--no-appearance", a.skip, "skip the appearance stage (no /appearance, r_a = 0)");
+  cmd->add_option("--save-transfers", a.save_transfers,
+                  "also write every true transfer the appearance stage computes (cluster representatives "
+                  "and held-out nodes) to this HDF5 file, for analysis outside the tools (docs/transfer.md)");
+}
+
+void check_save_transfers(const AppearanceArgs& a) {
+  if (a.save_transfers.empty()) return;
+  if (a.skip)
+    throw std::invalid_argument(
+        "appearance: --save-transfers saves the appearance stage's transfers: drop --no-appearance");
+  const auto folder = std::filesystem::absolute(a.save_transfers).parent_path();
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) {
+    throw std::invalid_argument(
+        fmt::format("appearance: --save-transfers {}: expected an existing folder, {} is none",
+                    a.save_transfers, folder.string()));
+  }
 }
 
 precompute::AppearanceStageOptions appearance_stage_options(const precompute::Scene& scene,
@@ -325,6 +342,14 @@ precompute::AppearanceStageOptions appearance_stage_options(const precompute::Sc
   s.paper_rank = d.paper_rank_a;
   s.transfer.point_albedo = precompute::scene_point_albedo(scene);
   precompute::check_appearance_stage_options(s);
+  if (!a.save_transfers.empty()) {
+    s.keep_transfers = [path = a.save_transfers](const precompute::StageTransfers& t) {
+      if (Ranks::world().rank() != 0) return;  // every rank holds them all; one writes
+      precompute::write_stage_transfers(t, path);
+      fmt::print(stderr, "appearance: wrote {} ({} transfers of {} scene points)\n", path, t.nodes.size(),
+                 t.rest_positions.rows());
+    };
+  }
   return s;
 }
 
@@ -383,6 +408,7 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
                       const std::filesystem::path& orbits, const std::filesystem::path& package) {
   precompute::check_reduction_options(a.reduction);
   precompute::check_package_options(a.package);
+  check_save_transfers(appearance);
   const auto stage_options =
       appearance.skip ? precompute::AppearanceStageOptions{} : appearance_stage_options(scene, appearance);
   const auto rules = precompute::make_palette_rules(scene);

@@ -31,6 +31,7 @@ struct AppearanceArgs {
   std::string interpolant = "best";
   std::string weighting = "best";  // --transfer-weighting
   bool skip = false;               // --no-appearance: the package has no /appearance (r_a = 0)
+  std::string save_transfers;  // --save-transfers: where every true transfer of the stage goes ("": nowhere)
 };
 
 // The stage's options for this scene: what the command line gave, else the
@@ -38,6 +39,10 @@ struct AppearanceArgs {
 // per point. Throws std::invalid_argument for a bad value.
 precompute::AppearanceStageOptions appearance_stage_options(const precompute::Scene& scene,
                                                             const AppearanceArgs& args);
+
+// --save-transfers is checked before any work: its folder must exist, and it
+// needs the stage it saves from. Throws std::invalid_argument.
+void check_save_transfers(const AppearanceArgs& args);
 
 void add_sample_options(CLI::App* cmd, SampleArgs& args);
 void add_reduce_options(CLI::App* cmd, ReduceArgs& args);

@@ -101,6 +101,40 @@ std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<
   return drawn;
 }
 
+namespace {
+
+// Hands every transfer of the stage to options.keep_transfers; `fields` is
+// moved in and back, not copied (it can hold gigabytes).
+void keep_transfers(const core::ScenePackage& pkg, const KMeansResult& clusters,
+                    const std::vector<std::int32_t>& nodes, MatrixXfR& fields,
+                    const AppearanceStageOptions& o) {
+  StageTransfers t;
+  t.scene = pkg.attributes.scene;
+  t.nodes = nodes;
+  const size_t Na = clusters.representatives.size(), H = nodes.size() - Na;
+  t.roles.assign(Na, TransferRole::representative);
+  t.roles.resize(Na + held_out_picking_count(H), TransferRole::picking);
+  t.roles.resize(nodes.size(), TransferRole::reported);
+  t.q_u.resize(static_cast<Eigen::Index>(nodes.size()), pkg.portrait.q_u.cols());
+  for (size_t j = 0; j < nodes.size(); ++j)
+    t.q_u.row(static_cast<Eigen::Index>(j)) = pkg.portrait.q_u.row(nodes[j]);
+  t.labels = clusters.labels;
+  t.rest_positions = pkg.mesh.rest_positions;
+  t.deformable = pkg.mesh.deformable;
+  t.rays = o.transfer.rays;
+  t.bounces = o.transfer.mode == TransferMode::interreflected ? o.transfer.bounces : 0;
+  t.fields = std::move(fields);
+  try {
+    o.keep_transfers(t);
+  } catch (...) {
+    fields = std::move(t.fields);
+    throw;
+  }
+  fields = std::move(t.fields);
+}
+
+}  // namespace
+
 AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedding& embedding,
                                            const OrbitDisplacementSource& orbits,
                                            const std::vector<std::int64_t>& node_frames,
@@ -142,6 +176,7 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedd
   }
   o.split.share(fields);
   const auto Na = static_cast<Eigen::Index>(representatives.size());
+  if (o.keep_transfers) keep_transfers(pkg, report.clusters, nodes, fields, o);
   held_out.fields = fields.bottomRows(count - Na);
   AppearanceModel model =
       fit_appearance_model(q_u, report.clusters, fields.topRows(Na), o.appearance, held_out);  // §4.2, §4.3

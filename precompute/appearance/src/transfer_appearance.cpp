@@ -437,7 +437,7 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
 
   // Candidates tuned on the samples; the first half of the held-out nodes
   // picks one, the second half measures it (the choice never sees it).
-  const size_t H = held_out.nodes.size(), selection_size = (H + 1) / 2;
+  const size_t H = held_out.nodes.size(), selection_size = held_out_picking_count(H);
   const HeldOutTruth selection = part(held_out, 0, selection_size);
   const HeldOutTruth test = part(held_out, selection_size, H - selection_size);
   AppearanceModel m;

@@ -11,6 +11,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -97,6 +98,97 @@ TransferFile read_transfer_file(const std::filesystem::path& path) {
     throw std::runtime_error(fmt::format("{}: {}", source, e.what()));
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(fmt::format("{}: attribute mode: {}", source, e.what()));
+  }
+}
+
+namespace {
+
+constexpr const char* kTransfersFormat = "phasecast-stage-transfers";
+constexpr int kTransfersVersion = 1;
+
+void check_stage_transfers(const StageTransfers& t, const std::filesystem::path& path) {
+  const auto T = static_cast<Eigen::Index>(t.nodes.size());
+  const auto S = t.rest_positions.rows();
+  if (static_cast<Eigen::Index>(t.roles.size()) != T || t.fields.rows() != T || t.q_u.rows() != T ||
+      t.fields.cols() != core::kTransferPerPoint * S || t.rest_positions.cols() != 3 ||
+      static_cast<Eigen::Index>(t.deformable.size()) != S) {
+    throw std::invalid_argument(fmt::format(
+        "{}: a transfers file needs one role, field (48S) and q_u row per node and S x 3 rest points; got {} "
+        "nodes, {} roles, {} x {} fields, {} q_u rows, {} x {} rest points, {} deformable flags",
+        path.string(), T, t.roles.size(), t.fields.rows(), t.fields.cols(), t.q_u.rows(),
+        t.rest_positions.rows(), t.rest_positions.cols(), t.deformable.size()));
+  }
+}
+
+}  // namespace
+
+void write_stage_transfers(const StageTransfers& t, const std::filesystem::path& path) {
+  check_stage_transfers(t, path);
+  const auto T = static_cast<std::uint64_t>(t.nodes.size());
+  const auto S = static_cast<std::uint64_t>(t.rest_positions.rows());
+  std::vector<std::uint8_t> roles(t.roles.size());
+  std::transform(t.roles.begin(), t.roles.end(), roles.begin(),
+                 [](TransferRole r) { return static_cast<std::uint8_t>(r); });
+  try {
+    h5::write_atomically(path, [&](h5::File& f) {
+      f.write("/fields", t.fields.data(), {T, S, 3, 16});
+      f.write("/nodes", t.nodes);
+      f.write("/roles", roles);
+      f.write("/q_u", t.q_u.data(), {T, static_cast<std::uint64_t>(t.q_u.cols())});
+      f.write("/cluster_labels", t.labels);
+      f.write("/rest_positions", t.rest_positions.data(), {S, 3});
+      f.write("/deformable", t.deformable);
+      f.write_attribute("format", std::string(kTransfersFormat));
+      f.write_attribute("format_version", static_cast<std::int32_t>(kTransfersVersion));
+      f.write_attribute("scene", t.scene);
+      f.write_attribute("rays", t.rays);
+      f.write_attribute("bounces", t.bounces);
+    });
+  } catch (const h5::Failure& e) {
+    throw std::runtime_error(fmt::format("{}: cannot write transfers file: {}", path.string(), e.what()));
+  }
+}
+
+StageTransfers read_stage_transfers(const std::filesystem::path& path) {
+  const std::string source = path.string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw std::runtime_error(fmt::format("{}: no such transfers file", source));
+  try {
+    const h5::File f = h5::File::open_read(path);
+    const h5::Reader r = h5::checked_reader<std::runtime_error>(f, source);
+    if (!f.has_attribute("format") || r.text("format") != kTransfersFormat)
+      r.fail("/@format", fmt::format("expected {} (a file of --save-transfers)", kTransfersFormat));
+    if (r.number("format_version") != kTransfersVersion)
+      r.fail("/@format_version", fmt::format("expected {}", kTransfersVersion));
+    StageTransfers t;
+    t.nodes = r.vector<std::int32_t>("/nodes");
+    const auto T = static_cast<std::uint64_t>(t.nodes.size());
+    const auto S = r.require("/rest_positions", h5::Dtype::f32, 2).dims[0];
+    r.require_shape("/rest_positions", h5::Dtype::f32, {S, 3});
+    r.require_shape("/fields", h5::Dtype::f32, {T, S, 3, 16});
+    r.require_shape("/roles", h5::Dtype::u8, {T});
+    r.require_shape("/deformable", h5::Dtype::u8, {S});
+    const auto ru = r.require("/q_u", h5::Dtype::f32, 2).dims[1];
+    r.require_shape("/q_u", h5::Dtype::f32, {T, ru});
+    t.rest_positions = r.matrix<float>("/rest_positions");
+    t.fields.resize(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(core::kTransferPerPoint * S));
+    r.read_into("/fields", t.fields.data(), t.fields.size());
+    t.q_u = r.matrix<float>("/q_u");
+    for (const std::uint8_t role : r.vector<std::uint8_t>("/roles")) {
+      if (role > static_cast<std::uint8_t>(TransferRole::reported))
+        r.fail("/roles",
+               fmt::format("expected 0 (representative), 1 (picking) or 2 (reported), got {}", role));
+      t.roles.push_back(static_cast<TransferRole>(role));
+    }
+    t.labels = r.vector<std::int32_t>("/cluster_labels");
+    t.deformable = r.vector<std::uint8_t>("/deformable");
+    t.scene = r.text("scene");
+    t.rays = static_cast<std::int32_t>(r.number("rays"));
+    t.bounces = static_cast<std::int32_t>(r.number("bounces"));
+    return t;
+  } catch (const h5::Failure& e) {
+    throw std::runtime_error(fmt::format("{}: {}", source, e.what()));
   }
 }
 

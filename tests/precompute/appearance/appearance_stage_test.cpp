@@ -8,6 +8,7 @@
 #include "phasecast/core/package.h"
 #include "phasecast/core/package_summary.h"
 #include "phasecast/precompute/appearance/transfer.h"
+#include "phasecast/precompute/appearance/transfer_file.h"
 #include "phasecast/precompute/package/package_builder.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
 #include "phasecast/precompute/simulation/scene.h"
@@ -269,6 +270,99 @@ TEST(AppearanceStage, HeldOutTargetChoosesRaAtThePickingHalf) {
   ASSERT_GE(p.appearance->held_out_truncation_curve.size(), p.rank_a());
 }
 
+// --save-transfers keeps what the model was made from and measured against:
+// each row is the transfer of its node's stored mesh (computed again here),
+// the representatives' mean is M-bar (equal weights), and U_a leaves of the
+// reported rows the truncation the package reports.
+TEST(AppearanceStage, SaveTransfersKeepsEveryTransferOfTheStage) {
+  const auto dir = scratch_dir("appearance_save_transfers");
+  const auto saved = (dir / "transfers.h5").string();
+  const auto pkg_path =
+      run_tiny("appearance_save_transfers_run", {"--save-transfers", saved, "--transfer-weighting", "equal"});
+  const auto p = core::read_package(pkg_path);
+  const auto& a = *p.appearance;
+  const auto t = precompute::read_stage_transfers(saved);
+  const size_t Na = a.cluster_nodes.size(), H = 6;
+  ASSERT_EQ(Na, 4u);
+  ASSERT_EQ(t.nodes.size(), Na + H);
+  using Role = precompute::TransferRole;
+  for (size_t j = 0; j < t.nodes.size(); ++j) {
+    const Role expected = j < Na ? Role::representative : j < Na + 3 ? Role::picking : Role::reported;
+    EXPECT_EQ(t.roles[j], expected) << j;
+    if (j < Na) {
+      EXPECT_EQ(t.nodes[j], a.cluster_nodes[j]);
+    } else if (j >= Na + 3) {
+      EXPECT_EQ(t.nodes[j], a.held_out_nodes[j - Na - 3]);
+    }
+    EXPECT_TRUE(t.q_u.row(static_cast<Eigen::Index>(j)) == p.portrait.q_u.row(t.nodes[j])) << j;
+  }
+  EXPECT_EQ(t.labels.size(), static_cast<size_t>(p.portrait.nodes()));
+  EXPECT_TRUE(t.rest_positions == p.mesh.rest_positions);
+  EXPECT_EQ(t.deformable, p.mesh.deformable);
+  EXPECT_EQ(t.scene, p.attributes.scene);
+  EXPECT_EQ(t.rays, 64);
+  EXPECT_EQ(t.bounces, 1);
+
+  // A representative and a reported node, computed again from the orbit store.
+  const auto store = precompute::read_orbit_store(pkg_path + ".work/orbits.h5");
+  const auto scene = precompute::load_scene_file(tiny_scene_path());
+  precompute::TransferOptions options;
+  options.mode = precompute::TransferMode::interreflected;
+  options.rays = 64;
+  options.bounces = 1;
+  options.point_albedo = precompute::scene_point_albedo(scene);
+  for (const size_t j : {size_t{0}, Na + H - 1}) {
+    const MatrixXfR again = precompute::transfer_at_frame(p.mesh, precompute::scene_point_embedding(scene),
+                                                          store.positions.row(t.nodes[j]), options);
+    EXPECT_TRUE(Eigen::Map<const Eigen::RowVectorXf>(again.data(), again.size()) ==
+                t.fields.row(static_cast<Eigen::Index>(j)))
+        << "row " << j;
+  }
+
+  const Eigen::VectorXf mean = t.fields.topRows(static_cast<Eigen::Index>(Na)).colwise().mean().transpose();
+  EXPECT_LT((mean - a.mean_transfer).norm(), 1e-5f * a.mean_transfer.norm());
+  const MatrixXfR centred = t.fields.bottomRows(3).rowwise() - a.mean_transfer.transpose();
+  const MatrixXfR residual = centred - (centred * a.U_a) * a.U_a.transpose();
+  EXPECT_NEAR(residual.norm() / centred.norm(), a.held_out_error[1], 1e-4);
+}
+
+TEST(AppearanceStage, TransfersFileReaderNamesWhatIsWrong) {
+  const auto dir = scratch_dir("appearance_transfers_reader");
+  const auto missing = dir / "none.h5";
+  EXPECT_THROW(
+      {
+        try {
+          precompute::read_stage_transfers(missing);
+        } catch (const std::runtime_error& e) {
+          EXPECT_EQ(std::string(e.what()), missing.string() + ": no such transfers file");
+          throw;
+        }
+      },
+      std::runtime_error);
+  // A transfer file of the standalone tool is another format.
+  const auto other = dir / "transfer.h5";
+  precompute::TransferFile file;
+  file.positions = MatrixXfR::Zero(2, 3);
+  file.normals = MatrixXfR::Zero(2, 3);
+  file.transfer = MatrixXfR::Zero(2, 48);
+  precompute::write_transfer_file(file, other);
+  try {
+    precompute::read_stage_transfers(other);
+    ADD_FAILURE() << "read a transfer file as a transfers file";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              other.string() + ": /@format: expected phasecast-stage-transfers (a file of --save-transfers)");
+  }
+  // Inconsistent sizes are refused before anything is written.
+  precompute::StageTransfers t;
+  t.nodes = {0, 1};
+  t.roles = {precompute::TransferRole::representative};
+  t.rest_positions = MatrixXfR::Zero(1, 3);
+  t.deformable = {1};
+  EXPECT_THROW(precompute::write_stage_transfers(t, dir / "bad.h5"), std::invalid_argument);
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.h5"));
+}
+
 TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
   // Full rank (r_a = N_a - 1) so every cluster field lies in mean + span(U_a).
   const auto pkg_path = run_tiny("appearance_unreduced", {"--eps-a", "1e-7"});
@@ -490,6 +584,11 @@ TEST(AppearanceStage, BadOptionsAreOneLineErrorsBeforeSampling) {
        "--interpolant 'spline': expected best, nrbf, knn, affine-knn or affine-knn-slope"},
       {{"--transfer-weighting", "density"},
        "--transfer-weighting 'density': expected best, equal or cluster-size"},
+      {{"--save-transfers", "/nonexistent-phasecast/t.h5"},
+       "appearance: --save-transfers /nonexistent-phasecast/t.h5: expected an existing folder, "
+       "/nonexistent-phasecast is none"},
+      {{"--save-transfers", (dir / "t.h5").string(), "--no-appearance"},
+       "appearance: --save-transfers saves the appearance stage's transfers: drop --no-appearance"},
   };
   for (const auto& c : cases) {
     const auto r =

@@ -8,6 +8,7 @@
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_appearance.h"
+#include "phasecast/precompute/appearance/transfer_file.h"
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 #include "phasecast/precompute/sampling/orbit_filter.h"
 #include "phasecast/precompute/simulation/embedding.h"
@@ -35,6 +36,10 @@ struct AppearanceStageOptions {
   TransferOptions transfer = default_stage_transfer();
   AppearanceOptions appearance;  // eps_a or fixed r_a, NRBF regularization
   TransferSplit split;           // default: this process computes every transfer
+  // Called once with every transfer the stage computed, before the model is
+  // fitted (so a fit that fails loses none of them); `--save-transfers`
+  // writes them. Empty: not called.
+  std::function<void(const StageTransfers&)> keep_transfers;
 
   // Interreflected, 1024 directions, 2 bounces (the transfer command's defaults):
   // about 0.1 s per cluster node on the 1242 points of cloth_door (docs/performance-transfer.md).

@@ -62,6 +62,12 @@ struct HeldOutRankChoice {
 // outside 0..N_a-1.
 Eigen::VectorXd cluster_size_weights(const KMeansResult& clusters);
 
+// How many of H held-out nodes pick the model (the first ones); the others
+// report its error and never choose.
+inline size_t held_out_picking_count(size_t H) {
+  return (H + 1) / 2;
+}
+
 // True transfer at state nodes that are not cluster representatives: the
 // independent truth the served appearance M-bar + U_a q_a(q_u) is measured
 // against (§4.2 truncation plus §4.3 interpolation).
