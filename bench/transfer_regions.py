@@ -126,6 +126,7 @@ def simple_interpolant(q_rep, centred_rep, q, neighbours=4):
 
 
 def measure(data, rank, regions, passes):
+    """Yields one row of figures per region count, as it is measured."""
     roles, fields = data["roles"], data["fields"]
     rep = fields[roles == REPRESENTATIVE]
     mean = rep.mean(0)
@@ -133,7 +134,6 @@ def measure(data, rank, regions, passes):
             for name, role in (("representatives", REPRESENTATIVE), ("picking", PICKING), ("reported", REPORTED))}
     predicted = simple_interpolant(data["q_u"][roles == REPRESENTATIVE], sets["representatives"],
                                    data["q_u"][roles == REPORTED])
-    rows = []
     for count in regions:
         spatial = kmeans(data["rest"], count) if count > 1 else np.zeros(len(data["rest"]), int)
         row = {"regions": count, "coordinates": count * rank}
@@ -142,8 +142,7 @@ def measure(data, rank, regions, passes):
             row[kind] = {name: l2(residual(d, d, labels, bases)) / l2(d) for name, d in sets.items() if len(d)}
             if len(sets["reported"]):
                 row[kind]["reported_total"] = l2(residual(sets["reported"], predicted, labels, bases)) / l2(sets["reported"])
-        rows.append(row)
-    return rows
+        yield row
 
 
 def main():
@@ -158,20 +157,21 @@ def main():
     regions = [int(r) for r in a.regions.split(",")]
     if a.rank_a < 1 or min(regions) < 1 or max(regions) > len(data["rest"]):
         sys.exit(f"expected --rank-a >= 1 and --regions in 1..{len(data['rest'])} (the scene points)")
-    rows = measure(data, a.rank_a, regions, a.refine)
     counts = {name: int((data["roles"] == role).sum()) for name, role in
               (("representatives", REPRESENTATIVE), ("picking", PICKING), ("reported", REPORTED))}
     print(f"{a.transfers}: {counts['representatives']} representatives, {counts['picking']} picking and "
-          f"{counts['reported']} reported held-out nodes, {len(data['rest'])} scene points, r_a = {a.rank_a} per point")
+          f"{counts['reported']} reported held-out nodes, {len(data['rest'])} scene points, r_a = {a.rank_a} per point", flush=True)
     print("| R | coordinates | truncation, spatial regions: representatives / picking / reported | "
           "after refinement | reported total with a simple interpolant (refined) |")
     print("|---|---|---|---|---|")
     pct = lambda d, k: f"{100 * d[k]:.1f} %" if k in d else "-"
-    for r in rows:
+    rows = []
+    for r in measure(data, a.rank_a, regions, a.refine):
+        rows.append(r)
         s, f = r["spatial"], r["refined"]
         print(f"| {r['regions']} | {r['coordinates']} | {pct(s, 'representatives')} / {pct(s, 'picking')} / "
               f"{pct(s, 'reported')} | {pct(f, 'representatives')} / {pct(f, 'picking')} / {pct(f, 'reported')} | "
-              f"{pct(f, 'reported_total')} |")
+              f"{pct(f, 'reported_total')} |", flush=True)
     if a.json:
         with open(a.json, "w") as out:
             json.dump({"rank_a": a.rank_a, "nodes": counts, "rows": rows}, out, indent=1)
