@@ -33,10 +33,10 @@ void add_run_command(CLI::App& app) {
     const auto scene = phasecast::precompute::load_scene_file(o->scene);
     // Bad appearance options fail before the sampling hours, not after.
     if (!o->appearance.skip) appearance_stage_options(scene, o->appearance);
-    check_save_transfers(o->appearance);
     auto sample = o->sample;
     if (sample.work_dir.empty()) sample.work_dir = o->output + ".work";
     const std::filesystem::path orbits = std::filesystem::path(sample.work_dir) / "orbits.h5";
+    check_save_transfers(o->appearance, {orbits, o->output});
     run_sample_stage(scene, sample, orbits);
     run_reduce_stage(scene, o->reduce, o->appearance, orbits, o->output);
   });

@@ -19,6 +19,8 @@
 #include <utility>
 #include <vector>
 
+#include <unistd.h>  // access(): is the folder of --save-transfers writable
+
 namespace phasecast::precompute::tools {
 namespace {
 
@@ -305,17 +307,28 @@ void add_appearance_options(CLI::App* cmd, AppearanceArgs& a) {
                   "and held-out nodes) to this HDF5 file, for analysis outside the tools (docs/transfer.md)");
 }
 
-void check_save_transfers(const AppearanceArgs& a) {
+void check_save_transfers(const AppearanceArgs& a,
+                          const std::vector<std::filesystem::path>& inputs_and_outputs) {
   if (a.save_transfers.empty()) return;
   if (a.skip)
     throw std::invalid_argument(
         "appearance: --save-transfers saves the appearance stage's transfers: drop --no-appearance");
-  const auto folder = std::filesystem::absolute(a.save_transfers).parent_path();
+  const std::filesystem::path file = std::filesystem::absolute(a.save_transfers);
   std::error_code ec;
-  if (!std::filesystem::is_directory(folder, ec)) {
-    throw std::invalid_argument(
-        fmt::format("appearance: --save-transfers {}: expected an existing folder, {} is none",
-                    a.save_transfers, folder.string()));
+  const auto expected = [&a](const std::string& what) {
+    return std::invalid_argument(
+        fmt::format("appearance: --save-transfers '{}': expected {}", a.save_transfers, what));
+  };
+  if (!std::filesystem::is_directory(file.parent_path(), ec))
+    throw expected(fmt::format("a file in an existing folder ({} is not one)", file.parent_path().string()));
+  if (std::filesystem::is_directory(file, ec)) throw expected("a file, not a folder");
+  if (::access(file.parent_path().c_str(), W_OK) != 0)
+    throw expected(
+        fmt::format("a file in a folder this user can write ({} is not)", file.parent_path().string()));
+  for (const auto& other : inputs_and_outputs) {
+    // The transfers file is renamed over its path: it must not replace the orbit store or the package.
+    if (std::filesystem::weakly_canonical(file, ec) == std::filesystem::weakly_canonical(other, ec))
+      throw expected(fmt::format("a file other than the orbit store and the package ({})", other.string()));
   }
 }
 
@@ -345,9 +358,14 @@ precompute::AppearanceStageOptions appearance_stage_options(const precompute::Sc
   if (!a.save_transfers.empty()) {
     s.keep_transfers = [path = a.save_transfers](const precompute::StageTransfers& t) {
       if (Ranks::world().rank() != 0) return;  // every rank holds them all; one writes
-      precompute::write_stage_transfers(t, path);
-      fmt::print(stderr, "appearance: wrote {} ({} transfers of {} scene points)\n", path, t.nodes.size(),
-                 t.rest_positions.rows());
+      try {
+        precompute::write_stage_transfers(t, path);
+        fmt::print(stderr, "appearance: wrote {} ({} transfers of {} scene points)\n", path, t.nodes.size(),
+                   t.rest_positions.rows());
+      } catch (const std::exception& e) {
+        // A full disk must not cost the package the transfers were computed for.
+        fmt::print(stderr, "appearance: --save-transfers: {}; the package is made without it\n", e.what());
+      }
     };
   }
   return s;
@@ -408,7 +426,7 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
                       const std::filesystem::path& orbits, const std::filesystem::path& package) {
   precompute::check_reduction_options(a.reduction);
   precompute::check_package_options(a.package);
-  check_save_transfers(appearance);
+  check_save_transfers(appearance, {orbits, package});
   const auto stage_options =
       appearance.skip ? precompute::AppearanceStageOptions{} : appearance_stage_options(scene, appearance);
   const auto rules = precompute::make_palette_rules(scene);

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace phasecast::precompute::tools {
 
@@ -40,9 +41,12 @@ struct AppearanceArgs {
 precompute::AppearanceStageOptions appearance_stage_options(const precompute::Scene& scene,
                                                             const AppearanceArgs& args);
 
-// --save-transfers is checked before any work: its folder must exist, and it
-// needs the stage it saves from. Throws std::invalid_argument.
-void check_save_transfers(const AppearanceArgs& args);
+// --save-transfers is checked before any work: a file (not a folder) in an
+// existing folder this user can write, none of `inputs_and_outputs` (the
+// orbit store, the package), and the stage it saves from must run. Throws
+// std::invalid_argument.
+void check_save_transfers(const AppearanceArgs& args,
+                          const std::vector<std::filesystem::path>& inputs_and_outputs);
 
 void add_sample_options(CLI::App* cmd, SampleArgs& args);
 void add_reduce_options(CLI::App* cmd, ReduceArgs& args);

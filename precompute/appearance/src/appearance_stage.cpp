@@ -124,12 +124,7 @@ void keep_transfers(const core::ScenePackage& pkg, const KMeansResult& clusters,
   t.rays = o.transfer.rays;
   t.bounces = o.transfer.mode == TransferMode::interreflected ? o.transfer.bounces : 0;
   t.fields = std::move(fields);
-  try {
-    o.keep_transfers(t);
-  } catch (...) {
-    fields = std::move(t.fields);
-    throw;
-  }
+  o.keep_transfers(t);
   fields = std::move(t.fields);
 }
 

@@ -296,7 +296,11 @@ TEST(AppearanceStage, SaveTransfersKeepsEveryTransferOfTheStage) {
     }
     EXPECT_TRUE(t.q_u.row(static_cast<Eigen::Index>(j)) == p.portrait.q_u.row(t.nodes[j])) << j;
   }
-  EXPECT_EQ(t.labels.size(), static_cast<size_t>(p.portrait.nodes()));
+  ASSERT_EQ(t.labels.size(), static_cast<size_t>(p.portrait.nodes()));
+  for (size_t k = 0; k < Na; ++k) EXPECT_EQ(t.labels[t.nodes[k]], static_cast<int>(k));  // in its own cluster
+  // The picking half: the first held-out nodes of the stage's draw (--cluster-seed 1).
+  const auto drawn = precompute::draw_held_out_nodes(p.portrait.nodes(), a.cluster_nodes, 6, 1);
+  EXPECT_EQ(std::vector<std::int32_t>(t.nodes.begin() + 4, t.nodes.end()), drawn);
   EXPECT_TRUE(t.rest_positions == p.mesh.rest_positions);
   EXPECT_EQ(t.deformable, p.mesh.deformable);
   EXPECT_EQ(t.scene, p.attributes.scene);
@@ -359,7 +363,16 @@ TEST(AppearanceStage, TransfersFileReaderNamesWhatIsWrong) {
   t.roles = {precompute::TransferRole::representative};
   t.rest_positions = MatrixXfR::Zero(1, 3);
   t.deformable = {1};
-  EXPECT_THROW(precompute::write_stage_transfers(t, dir / "bad.h5"), std::invalid_argument);
+  try {
+    precompute::write_stage_transfers(t, dir / "bad.h5");
+    ADD_FAILURE() << "wrote inconsistent sizes";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(
+        std::string(e.what()),
+        (dir / "bad.h5").string() +
+            ": a transfers file needs one role, field (48S) and q_u row per node and S x 3 rest points; "
+            "got 2 nodes, 1 roles, 0 x 0 fields, 0 q_u rows, 1 x 3 rest points, 1 deformable flags");
+  }
   EXPECT_FALSE(std::filesystem::exists(dir / "bad.h5"));
 }
 
@@ -585,8 +598,14 @@ TEST(AppearanceStage, BadOptionsAreOneLineErrorsBeforeSampling) {
       {{"--transfer-weighting", "density"},
        "--transfer-weighting 'density': expected best, equal or cluster-size"},
       {{"--save-transfers", "/nonexistent-phasecast/t.h5"},
-       "appearance: --save-transfers /nonexistent-phasecast/t.h5: expected an existing folder, "
-       "/nonexistent-phasecast is none"},
+       "appearance: --save-transfers '/nonexistent-phasecast/t.h5': expected a file in an existing folder "
+       "(/nonexistent-phasecast is not one)"},
+      {{"--save-transfers", dir.string()},
+       fmt::format("appearance: --save-transfers '{}': expected a file, not a folder", dir.string())},
+      {{"--save-transfers", pkg},
+       fmt::format("appearance: --save-transfers '{}': expected a file other than the orbit store and the "
+                   "package ({})",
+                   pkg, pkg)},
       {{"--save-transfers", (dir / "t.h5").string(), "--no-appearance"},
        "appearance: --save-transfers saves the appearance stage's transfers: drop --no-appearance"},
   };
