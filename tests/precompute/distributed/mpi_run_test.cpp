@@ -1,10 +1,12 @@
 // phasecast-precompute run under a real mpirun (Open MPI, ranks on this
 // machine): the package of any number of ranks is the single process's, bit
-// for bit, dataset by dataset and as a file; a rank killed mid-run loses no finished chain and --resume
-// finishes the same package; a rank that fails ends every rank with one line naming it.
+// for bit, dataset by dataset and as a file, and so are the transfers it saves; a rank killed mid-run loses
+// no finished chain and --resume finishes the same package; a rank that fails ends every rank with one line
+// naming it.
 
 #include "phasecast/core/hdf5_file.h"
 #include "phasecast/core/package.h"
+#include "phasecast/precompute/appearance/transfer_file.h"
 #include "run_tool.h"
 #include "same_package.h"
 #include "scene_files.h"
@@ -93,6 +95,32 @@ TEST(MpiRun, AnyNumberOfRanksWritesTheSinglePackage) {
     // The file itself too: packages carry no times, so same content is same bytes (same hash).
     EXPECT_TRUE(read_file(pkg) == read_file(dir / "np1.h5")) << "np " << n << ": the files differ";
   }
+}
+
+// --save-transfers under mpirun: each rank casts its share of the transfers,
+// all of them hold every row after the exchange, and one writes the file,
+// which holds what the single process's does, bit for bit.
+TEST(MpiRun, SavedTransfersAreTheSingleProcesss) {
+  const auto dir = scratch_dir("mpi_save_transfers");
+  const auto one =
+      run_command(precompute_run(dir / "np1.h5", {"--save-transfers", (dir / "np1.t.h5").string()}));
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  const auto three =
+      run_command(concat(mpirun_argv({"-np", "3"}),
+                         precompute_run(dir / "np3.h5", {"--save-transfers", (dir / "np3.t.h5").string()})));
+  ASSERT_EQ(three.exit_code, 0) << three.err;
+  const std::string wrote = "appearance: wrote " + (dir / "np3.t.h5").string();
+  const auto first = three.err.find(wrote);
+  ASSERT_NE(first, std::string::npos) << three.err;
+  EXPECT_EQ(three.err.find(wrote, first + 1), std::string::npos) << "written by more than one rank";
+  const auto truth = precompute::read_stage_transfers(dir / "np1.t.h5");
+  const auto ranks = precompute::read_stage_transfers(dir / "np3.t.h5");
+  EXPECT_GT(truth.fields.rows(), 5);  // the 5 representatives and held-out nodes
+  EXPECT_TRUE(ranks.fields == truth.fields);
+  EXPECT_EQ(ranks.nodes, truth.nodes);
+  EXPECT_EQ(ranks.roles, truth.roles);
+  EXPECT_EQ(ranks.labels, truth.labels);
+  EXPECT_TRUE(ranks.q_u == truth.q_u);
 }
 
 // The ranks mpirun started (its children running phasecast-precompute).
