@@ -22,7 +22,8 @@ moves to the region whose state directions keep most of its variation
   k nearest representatives' remainders), which bounds what an interpolant
   adds once the truncation is small.
 
-  bench/transfer_regions.py TRANSFERS.h5 --rank-a 7 [--regions 1,4,16] [--refine 8] [--json OUT]
+  bench/transfer_regions.py TRANSFERS.h5 --rank-a 7 [--regions 1,4,16] [--refine 8]
+                            [--picking-as-samples] [--json OUT]
 """
 import argparse
 import json
@@ -159,9 +160,14 @@ def main():
     parser.add_argument("--rank-a", type=int, required=True, help="r_a: coordinates per scene point")
     parser.add_argument("--regions", default="1,4,16", help="region counts R to measure (comma-separated)")
     parser.add_argument("--refine", type=int, default=8, help="k-subspace passes after the spatial k-means")
+    parser.add_argument("--picking-as-samples", action="store_true",
+                        help="the picking half joins the representatives as samples (bases, M-bar, interpolant): "
+                             "about what more clusters would give, measured at the same reported half")
     parser.add_argument("--json", help="also write the figures here")
     a = parser.parse_args()
     data = load(a.transfers)
+    if a.picking_as_samples:
+        data["roles"] = np.where(data["roles"] == PICKING, REPRESENTATIVE, data["roles"])
     regions = [int(r) for r in a.regions.split(",")]
     if a.rank_a < 1 or min(regions) < 1 or max(regions) > len(data["rest"]):
         sys.exit(f"expected --rank-a >= 1 and --regions in 1..{len(data['rest'])} (the scene points)")
