@@ -54,7 +54,7 @@ enum class TransferRole : std::uint8_t {
 
 // Every true transfer the appearance stage computed, with what is needed to
 // use them without the package: the state node and role of each, the
-// k-means labels, the scene points. /fields of docs/transfer.md's
+// k-means labels, the scene points. The contents of docs/transfer.md's
 // "transfers file" (format phasecast-stage-transfers).
 struct StageTransfers {
   std::string scene;                     // the scene's name
