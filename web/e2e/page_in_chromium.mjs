@@ -163,7 +163,10 @@ async function main() {
 
     // 2. A click on "open" changes the served stream and the picture. A
     // second page follows the same instance and freezes 30 frames into the
-    // door's swing (1.05 s at 1.5 rad/s), for 1. below.
+    // door's swing (1.05 s at 1.5 rad/s), for 1. below. That frame is exact
+    // however late the reply comes: the page keeps its recent frames and pins
+    // frame at_frame + 30 even when it has already passed (on a loaded CI
+    // machine a late freeze once pinned the door edge-on, 4 % of the view).
     const atRest = await canvasPng(page, path.join(workDir, 'page_before_open.png'));
     const open = after.palette.find((p) => p.name === 'open');
     check(open && open.enabled, `no enabled 'open' button: ${JSON.stringify(after.palette)}`);
@@ -176,8 +179,15 @@ async function main() {
     const reply = await page.evaluate(() => window.phasecast.lastImpulseReply);
     check(reply.ok, `the server refused the page's impulse: ${reply.error}`);
     await frozenPage.evaluate((f) => window.phasecast.freezeAt(f), reply.at_frame + 30);
-    await waitFor(page, ([index, at]) => window.phasecast.frame.palette_index === index && window.phasecast.frame.frame >= at + 10,
-      [open.index, reply.at_frame], "frames playing 'open'");
+    await waitFor(frozenPage, () => window.phasecast.frozenFrame !== null, null, 'the second page freezing');
+    const frozenAt = await frozenPage.evaluate(() => window.phasecast.frozenFrame);
+    // The first frame at or past it: exactly it unless the gateway dropped frames.
+    check(frozenAt >= reply.at_frame + 30 && frozenAt <= reply.at_frame + 35,
+      `the second page froze at frame ${frozenAt}, not at ${reply.at_frame + 30} (or within 5 frames after it)`);
+    // Ten frames on (the door has moved; it stays open after its IRF, so this
+    // does not race the IRF's end). That the stream played 'open' is checked
+    // on the second page's pinned frame, which does not depend on timing.
+    await waitFor(page, (at) => window.phasecast.frame.frame >= at + 10, reply.at_frame, "frames after 'open'");
     const opened = await canvasPng(page, path.join(workDir, 'page_after_open.png'));
     const change = compare(atRest, opened);
     check(change.fractionOver > 0.01, `the picture did not change after 'open' (${(100 * change.fractionOver).toFixed(2)} % of pixels)`);
@@ -188,6 +198,8 @@ async function main() {
     await waitFor(frozenPage, () => window.phasecast.frozenFrame !== null, null, 'the second page freezing');
     const frozen = await frozenPage.evaluate(() => ({ frame: window.phasecast.frozenFrame, instance: window.phasecast.instance,
       palette_index: window.phasecast.frame.palette_index }));
+    check(frozen.palette_index === open.index,
+      `frame ${frozen.frame}, 30 after the click, plays palette entry ${frozen.palette_index}, not 'open' (${open.index})`);
     const inBrowser = await canvasPng(frozenPage, path.join(workDir, 'page_frame.png'));
     const evaluated = await frozenPage.evaluate(() => window.phasecast.evaluated());
 

@@ -2,6 +2,9 @@
 // frames from Frame.seq gaps, and the freeze=F test mode. Pure (no DOM).
 import { asNumber } from './protocol.js';
 
+// About 9 s of frames at 35 ms: longer than any reply a loaded machine keeps a test waiting.
+const kRecentFrames = 256;
+
 export class FrameFollower {
   constructor(freezeAt = null) {
     this.freezeAt = freezeAt;  // null: follow forever
@@ -11,6 +14,20 @@ export class FrameFollower {
     this.missed = 0;           // frames lost to seq gaps, over the page's life
     this.restarts = 0;         // seq went back: the server started again
     this.pinned = false;       // the freeze frame has arrived; later frames are ignored
+    this.recent = [];          // the last kRecentFrames accepted, for freeze() on a frame already past
+  }
+
+  // freeze=F set while the page runs: pins the first frame at or past F. If
+  // that frame has already arrived (F was set late, as a test does after an
+  // impulse's reply), it is taken from the recent frames, so the frame pinned
+  // does not depend on how long the reply took.
+  freeze(at) {
+    this.freezeAt = at;
+    const past = this.recent.find((f) => asNumber(f.frame) >= at);
+    if (past === undefined) return false;
+    this.latest = past;
+    this.pinned = true;
+    return true;
   }
 
   // Follow another instance (or the same one after a reconnect: seq goes on).
@@ -18,6 +35,7 @@ export class FrameFollower {
     if (instance !== this.instance) {
       this.lastSeq = null;
       this.latest = null;
+      this.recent = [];
     }
     this.instance = instance;
   }
@@ -32,6 +50,8 @@ export class FrameFollower {
     }
     this.lastSeq = seq;
     this.latest = frame;
+    this.recent.push(frame);
+    if (this.recent.length > kRecentFrames) this.recent.shift();
     // freeze=F: the first frame at or past F is shown and kept, whatever
     // arrives after it before the next animation frame.
     if (this.freezeAt !== null && asNumber(frame.frame) >= this.freezeAt) this.pinned = true;

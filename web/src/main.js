@@ -325,7 +325,7 @@ function main() {
     // Tests send bytes the gateway cannot read on this page's own connection.
     hooks.sendRaw = (bytes) => app.gateway.socket?.send(new Uint8Array(bytes));
     // As freeze=F, set once the page runs (a test picks F from an impulse's at_frame).
-    hooks.freezeAt = (frame) => (app.follower.freezeAt = frame);
+    hooks.freezeAt = (frame) => app.follower.freeze(frame);
     // Positions and radiance of the frame drawn last, read back from the GPU.
     hooks.evaluated = () => Array.from(app.renderer.readEvaluated());
     app.start();

@@ -38,6 +38,34 @@ test('freeze=F keeps the first frame at or past F, whatever comes after it', () 
   assert.equal(f.latest.frame, 104);
 });
 
+test('freeze(F) set after F has passed pins frame F itself, not whatever comes next', () => {
+  const f = new FrameFollower();
+  f.follow(2);
+  for (let seq = 1; seq <= 40; ++seq) f.accept(frame(seq));  // frames 101..140
+  assert.equal(f.freeze(130), true);
+  assert.equal(f.pinned, true);
+  assert.equal(f.latest.frame, 130);
+  assert.equal(f.accept(frame(41)), false);
+  assert.equal(f.latest.frame, 130);
+});
+
+test('freeze(F) ahead of the stream waits for F; the recent frames are bounded', () => {
+  const f = new FrameFollower();
+  f.follow(2);
+  for (let seq = 1; seq <= 300; ++seq) f.accept(frame(seq));
+  assert.equal(f.recent.length, 256);
+  assert.equal(f.freeze(110), true);     // long gone: the oldest kept frame at or past it
+  assert.equal(f.latest.frame, 145);
+  const g = new FrameFollower();
+  g.follow(2);
+  g.accept(frame(1));
+  assert.equal(g.freeze(105), false);
+  assert.equal(g.pinned, false);
+  g.accept(frame(6));                    // frame 106 >= 105
+  assert.equal(g.pinned, true);
+  assert.equal(g.latest.frame, 106);
+});
+
 test('frames that do not fit the scene are named, as validate_frame', () => {
   const scene = { rank_u: 2, rank_a: 0 };
   assert.equal(frameProblem(frame(1), scene), null);
