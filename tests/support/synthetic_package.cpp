@@ -1,10 +1,10 @@
 #include "synthetic_package.h"
 
+#include "phasecast/core/dense_svd.h"
 #include "phasecast/core/sh.h"
 
 #include <Eigen/Dense>
 #include <Eigen/QR>
-#include <Eigen/SVD>
 
 #include <cmath>
 #include <numbers>
@@ -144,16 +144,16 @@ void principal_axes(ScenePackage& p, const MatrixXfR& modes) {
   Eigen::Map<MatrixXfR>(p.reduction.mean_shape.data(), p.mesh.points(), 3) = p.mesh.rest_positions;
   p.reduction.mean_shape += modes * mean.transpose();
 
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(q.cast<double>(), Eigen::ComputeThinV);
-  const Eigen::MatrixXf W = svd.matrixV().cast<float>();
+  const core::DenseSvd svd = core::dense_svd(q.cast<double>(), core::SvdVectors::right);
+  const Eigen::MatrixXf W = svd.V.cast<float>();
   q = q * W;
   p.reduction.U_u = modes * W;
-  p.reduction.singular_values = svd.singularValues().cast<float>();
-  const double total = svd.singularValues().squaredNorm();
+  p.reduction.singular_values = svd.sigma.cast<float>();
+  const double total = svd.sigma.squaredNorm();
   p.reduction.rel_error.resize(p.reduction.singular_values.size());
   double kept = 0;
   for (Eigen::Index i = 0; i < p.reduction.rel_error.size(); ++i) {
-    kept += std::pow(svd.singularValues()[i], 2);
+    kept += std::pow(svd.sigma[i], 2);
     p.reduction.rel_error[i] = static_cast<float>(std::sqrt(std::max(0.0, total - kept) / total));
   }
 }
@@ -237,12 +237,12 @@ void fit_appearance_model(ScenePackage& p, const PlateOptions& o) {
   }
   const Eigen::VectorXd mean = A.rowwise().mean();
   A.colwise() -= mean;
-  Eigen::BDCSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeThinU | Eigen::ComputeThinV);
-  const Eigen::VectorXd sigma = svd.singularValues();
+  const core::DenseSvd svd = core::dense_svd(A);
+  const Eigen::VectorXd& sigma = svd.sigma;
   int r_a = 1;
   while (r_a < sigma.size() && sigma[r_a] >= o.eps_a * sigma[0]) ++r_a;
   a.mean_transfer = mean.cast<float>();
-  a.U_a = svd.matrixU().leftCols(r_a).cast<float>();
+  a.U_a = svd.U.leftCols(r_a).cast<float>();
   a.singular_values = sigma.cast<float>();
   a.rel_error.resize(sigma.size());
   const double total = sigma.squaredNorm();
@@ -250,8 +250,7 @@ void fit_appearance_model(ScenePackage& p, const PlateOptions& o) {
     a.rel_error[i] =
         static_cast<float>(std::sqrt(std::max(0.0, sigma.tail(sigma.size() - i - 1).squaredNorm() / total)));
   }
-  const Eigen::MatrixXd Qa =
-      sigma.head(r_a).asDiagonal() * svd.matrixV().leftCols(r_a).transpose();  // r_a x N_a
+  const Eigen::MatrixXd Qa = sigma.head(r_a).asDiagonal() * svd.V.leftCols(r_a).transpose();  // r_a x N_a
 
   // Regularized normalized RBF over q_u (§4.3): Gaussian kernels with widths
   // from the distance to the nearest other centre.

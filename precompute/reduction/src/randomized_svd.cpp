@@ -1,7 +1,8 @@
 #include "phasecast/precompute/reduction/randomized_svd.h"
 
+#include "phasecast/core/dense_svd.h"
+
 #include <Eigen/QR>
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -97,10 +98,10 @@ SvdResult randomized_svd(const ColumnSource& A, const RandomizedSvdOptions& o) {
     B.middleCols(first, block.cols()).noalias() = Q.transpose() * block;
   });
   done_pass();
-  const Eigen::BDCSVD<Eigen::MatrixXd> svd(B.cast<double>(), Eigen::ComputeThinU | Eigen::ComputeThinV);
-  result.U = Q * svd.matrixU().leftCols(r).cast<float>();
-  result.sigma = svd.singularValues().head(r).cast<float>();
-  result.V = svd.matrixV().leftCols(r).cast<float>();
+  const core::DenseSvd svd = core::dense_svd(B.cast<double>());
+  result.U = Q * svd.U.leftCols(r).cast<float>();
+  result.sigma = svd.sigma.head(r).cast<float>();
+  result.V = svd.V.leftCols(r).cast<float>();
   return result;
 }
 

@@ -2,6 +2,7 @@
 // q_u, shadowed transfer of each representative's deformed mesh, transfer
 // SVD and NRBF, written into a package that validates and reads back.
 
+#include "phasecast/core/dense_svd.h"
 #include "phasecast/core/mesh_geometry.h"
 #include "phasecast/core/package_summary.h"
 #include "phasecast/precompute/appearance/appearance_stage.h"
@@ -220,16 +221,14 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   }
   EXPECT_NEAR(a.held_out_error[0], std::sqrt(err2 / centred2), 1e-4);
   // The paper's relErr: the relative l2 (spectral) norm, by a full SVD here.
-  const auto l2 = [](const Eigen::MatrixXd& X) {
-    return Eigen::JacobiSVD<Eigen::MatrixXd>(X).singularValues()[0];
-  };
+  const auto l2 = [](const Eigen::MatrixXd& X) { return core::spectral_norm(X); };
   EXPECT_NEAR(a.held_out_error[4], l2(E) / l2(D), 1e-4);
   EXPECT_LE(a.held_out_error[5], a.held_out_error[4] + 1e-6);  // the truncation is part of the error
   // As many reported nodes (6) as clusters: the clusters' own figure is the paper's sigma_4 / sigma_1.
   EXPECT_NEAR(a.held_out_error[6], a.singular_values[3] / a.singular_values[0], 1e-5);
   // The floor: sigma_4 / sigma_1 of the centred truth itself, which the
   // clusters' basis can approach but not beat.
-  const Eigen::VectorXd sigma_d = Eigen::JacobiSVD<Eigen::MatrixXd>(D).singularValues();
+  const Eigen::VectorXd sigma_d = core::singular_values(D);
   EXPECT_NEAR(a.held_out_error[7], sigma_d[3] / sigma_d[0], 1e-4);
   EXPECT_GT(a.held_out_error[7], 1e-3);  // six nodes, rank 3: not vacuous
   EXPECT_LE(a.held_out_error[7], a.held_out_error[5] + 1e-6);
@@ -241,7 +240,7 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   EXPECT_NEAR(a.held_out_truncation_curve[2], a.held_out_error[5], 1e-4);
   const Eigen::MatrixXd F =
       (transfer_fields(p, clusters).rowwise() - a.mean_transfer.transpose()).transpose().cast<double>();
-  const Eigen::MatrixXd Q = Eigen::JacobiSVD<Eigen::MatrixXd>(F, Eigen::ComputeThinU).matrixU().leftCols(5);
+  const Eigen::MatrixXd Q = core::dense_svd(F, core::SvdVectors::left).U.leftCols(5);
   const double span = l2(D - Q * (Q.transpose() * D)) / l2(D);
   EXPECT_NEAR(a.held_out_truncation_curve[4], span, 1e-4);
   EXPECT_GT(span, 1e-3) << "not vacuous: the held-out fields leave the clusters' span";
@@ -251,7 +250,7 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   const Eigen::MatrixXd V = D.colwise() - D.rowwise().mean();
   EXPECT_NEAR(a.held_out_error[8], E.norm() / V.norm(), 1e-4);
   EXPECT_NEAR(a.held_out_error[9], l2(E) / l2(V), 1e-4);
-  const Eigen::VectorXd sigma_v = Eigen::JacobiSVD<Eigen::MatrixXd>(V).singularValues();
+  const Eigen::VectorXd sigma_v = core::singular_values(V);
   EXPECT_NEAR(a.held_out_error[10], sigma_v[3] / sigma_v[0], 1e-4);
   EXPECT_GT(a.held_out_error[10], 1e-3);  // five independent columns, rank 3: not vacuous
   EXPECT_LE(a.held_out_error[10], a.held_out_error[9] + 1e-6);  // |E|_2 >= |E J|_2 >= sigma_4(M J)
@@ -529,7 +528,7 @@ TEST(Appearance, HeldOutFloorIsTheLeastAnyBasisOfThatRankReaches) {
     // The floor is the nodes' spectrum about this model's M-bar (a dense SVD
     // here), not about their own mean (0.2): the offset is one more direction.
     const Eigen::MatrixXd D = (nodes.rowwise() - r.mean_transfer.transpose()).transpose().cast<double>();
-    const Eigen::VectorXd s = Eigen::JacobiSVD<Eigen::MatrixXd>(D).singularValues();
+    const Eigen::VectorXd s = core::singular_values(D);
     EXPECT_NEAR(e.l2_floor, s[2] / s[0], 1e-4) << trial;
     EXPECT_GT(std::abs(e.l2_floor - floor), 0.05) << trial;
     EXPECT_GE(e.l2_truncation, e.l2_floor - 1e-6) << trial;
@@ -641,9 +640,7 @@ TEST(Appearance, HeldOutSpreadIsTheRelativeL2OfResampledNodes) {
     T.col(i) = d - U * (U.transpose() * d);
     E.col(i) = d - U * served.row(h).transpose().cast<double>();
   }
-  const auto norm2 = [](const Eigen::MatrixXd& X) {
-    return Eigen::JacobiSVD<Eigen::MatrixXd>(X).singularValues()[0];
-  };
+  const auto norm2 = [](const Eigen::MatrixXd& X) { return core::spectral_norm(X); };
   EXPECT_NEAR(one.l2_total[0], norm2(E) / norm2(C), 1e-5);
   EXPECT_NEAR(one.l2_truncation[0], norm2(T) / norm2(C), 1e-5);
   // Of the resample's own variation: its columns centred on their own mean (repeats counted).

@@ -2,9 +2,10 @@
 
 #include "phasecast/precompute/appearance/transfer_reduction.h"
 
+#include "phasecast/core/dense_svd.h"
+
 #include <gtest/gtest.h>
 #include <Eigen/QR>
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -45,7 +46,7 @@ MatrixXfR rank3_fields() {
 // Singular values of the centred data matrix A_a (48S x N_a) by a dense SVD.
 Eigen::VectorXd dense_sigma(const MatrixXfR& X) {
   const Eigen::MatrixXd A = (X.rowwise() - X.colwise().mean()).transpose().cast<double>();
-  return Eigen::JacobiSVD<Eigen::MatrixXd>(A).singularValues();
+  return core::singular_values(A);
 }
 
 TEST(TransferReduction, KnownRankAndSingularValues) {
@@ -96,7 +97,7 @@ TEST(TransferReduction, IdenticalFieldsHaveRankZero) {
 
 // Spectral norm by a dense SVD: the second reader of the Gram-based figures.
 double l2(const Eigen::MatrixXd& X) {
-  return Eigen::JacobiSVD<Eigen::MatrixXd>(X).singularValues()[0];
+  return core::spectral_norm(X);
 }
 
 // |(I - U_a U_a^T) A|_2 / |A|_2 for centred columns A, directly.
