@@ -9,6 +9,7 @@
 #include "phasecast/client/sh_light.h"
 #include "phasecast/core/hash.h"
 #include "run_tool.h"
+#include "source_tree.h"
 #include "synthetic_package.h"
 #include "test_peer.h"
 
@@ -30,7 +31,7 @@ namespace {
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-const std::filesystem::path kSourceDir = PHASECAST_SOURCE_DIR;
+const std::filesystem::path kSourceDir = phasecast::testing::source_dir();
 const std::filesystem::path kTestData = kSourceDir / "tests" / "data";
 const std::filesystem::path kValidator = kSourceDir / "scripts" / "gltf-validate" / "validate.mjs";
 

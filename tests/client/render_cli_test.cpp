@@ -8,6 +8,7 @@
 #include "phasecast/client/low_rank_renderer.h"
 #include "phasecast/core/hash.h"
 #include "run_tool.h"
+#include "source_tree.h"
 #include "synthetic_package.h"
 #include "test_peer.h"
 
@@ -25,7 +26,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-const std::filesystem::path kGoldenDir = PHASECAST_CLIENT_TEST_DIR "/golden";
+const std::filesystem::path kGoldenDir = phasecast::testing::source_dir() / "tests/client/golden";
 
 class RenderCli : public ::testing::Test {
  protected:

@@ -5,6 +5,7 @@
 #include "phasecast/core/package.h"
 #include "run_tool.h"
 #include "server_process.h"
+#include "source_tree.h"
 #include "synthetic_package.h"
 
 #include <fmt/format.h>
@@ -126,7 +127,7 @@ TEST_F(ConsoleSession, RecordsTheStream) {
 
 TEST_F(ConsoleSession, ExampleDoorScriptRunsUnattended) {
   ::setenv("SWINGS", "1", 1);
-  const auto r = console({std::string(PHASECAST_SCRIPTS_DIR) + "/door_open_close.lua"});
+  const auto r = console({(phasecast::testing::scenes_dir() / "scripts/door_open_close.lua").string()});
   ::unsetenv("SWINGS");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("swing 1: open at frame"));
@@ -185,15 +186,16 @@ TEST_P(ConsoleExample, RunsUnattendedAgainstAPrecomputedPackage) {
   const auto& e = GetParam();
   const auto dir = testing::scratch_dir(std::string("console_example_") + e.scene);
   const auto package = dir / (std::string(e.scene) + ".h5");
-  const auto pre =
-      testing::run_tool("phasecast-precompute",
-                        {"run", std::string(PHASECAST_SCENES_DIR) + "/tiny/" + e.scene + ".toml", "-o",
-                         package.string(), "--chains", "1", "--irfs-per-chain", e.irfs, "--seed", e.seed});
+  const auto pre = testing::run_tool(
+      "phasecast-precompute",
+      {"run", phasecast::testing::scenes_dir().string() + "/tiny/" + e.scene + ".toml", "-o",
+       package.string(), "--chains", "1", "--irfs-per-chain", e.irfs, "--seed", e.seed});
   ASSERT_EQ(pre.exit_code, 0) << pre.err;
   testing::ServerProcess server({package.string()});
   ::setenv("PUSHES", "1", 1);
   const auto r = testing::run_tool(
-      "phasecast-console", {"--connect", server.cmd(), std::string(PHASECAST_SCRIPTS_DIR) + "/" + e.script});
+      "phasecast-console",
+      {"--connect", server.cmd(), (phasecast::testing::scenes_dir() / "scripts" / e.script).string()});
   ::unsetenv("PUSHES");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr(e.done));

@@ -7,6 +7,7 @@
 #include "phasecast/core/package.h"
 #include "run_tool.h"
 #include "server_process.h"
+#include "source_tree.h"
 #include "synthetic_package.h"
 
 #include <gtest/gtest.h>
@@ -211,8 +212,9 @@ TEST(EndToEnd, PrecomputedTinyClothDoorIsServedAndRendered) {
   const auto dir = scratch_dir("e2e_tiny_cloth_door");
   const auto package = dir / "tiny.h5";
   const auto run =
-      run_tool("phasecast-precompute", {"run", PHASECAST_SOURCE_DIR "/scenes/tiny/cloth_door.toml", "-o",
-                                        package.string(), "--chains", "2", "--irfs-per-chain", "3"});
+      run_tool("phasecast-precompute",
+               {"run", (phasecast::testing::source_dir() / "scenes/tiny/cloth_door.toml").string(), "-o",
+                package.string(), "--chains", "2", "--irfs-per-chain", "3"});
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const auto scene = core::read_package(package);
 

@@ -4,6 +4,7 @@
 
 #include "phasecast/precompute/simulation/scene.h"
 #include "run_tool.h"
+#include "source_tree.h"
 
 #include <filesystem>
 #include <fstream>
@@ -13,7 +14,7 @@
 namespace phasecast::testing {
 
 inline std::filesystem::path tiny_scene_path() {
-  return std::filesystem::path(PHASECAST_SCENES_DIR) / "tiny" / "cloth_door.toml";
+  return scenes_dir() / "tiny" / "cloth_door.toml";
 }
 
 // The tiny scene with `from` replaced by `to` (first occurrence), written to dir/name.

@@ -14,6 +14,7 @@
 #include "phasecast/precompute/simulation/scene.h"
 #include "run_tool.h"
 #include "scene_files.h"
+#include "source_tree.h"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -426,8 +427,7 @@ TEST(AppearanceStage, TransferIsTakenOnTheUnreducedMeshOfEachClusterNode) {
 }
 
 TEST(AppearanceStage, DefaultScenesAreColouredWithTessellatedProps) {
-  const auto cloth =
-      precompute::load_scene_file(std::filesystem::path(PHASECAST_SCENES_DIR) / "cloth_door.toml");
+  const auto cloth = precompute::load_scene_file(phasecast::testing::scenes_dir() / "cloth_door.toml");
   EXPECT_EQ(cloth.bodies.at(0).albedo, Eigen::Vector3d(0.12, 0.3, 0.75));
   EXPECT_EQ(cloth.props.at(0).albedo, Eigen::Vector3d(0.62, 0.42, 0.24));
   EXPECT_EQ(cloth.appearance.clusters, 64);

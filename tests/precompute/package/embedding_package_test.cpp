@@ -11,6 +11,7 @@
 #include "phasecast/precompute/simulation/render_surface.h"
 #include "run_tool.h"
 #include "scene_files.h"
+#include "source_tree.h"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -136,7 +137,7 @@ TEST(EmbeddedPackage, InspectAcceptsTheReducedPackage) {
 // The tiny plant, its stem drawn as an octagonal tube (radius 4 mm).
 const Built& tubed_plant() {
   static const Built b =
-      build(std::filesystem::path(PHASECAST_SCENES_DIR) / "tiny/plant_pot.toml",
+      build(phasecast::testing::scenes_dir() / "tiny/plant_pot.toml",
             testing::scratch_dir("tubed_package_" + std::to_string(::getpid())), "right 0.4; stop 0.6");
   return b;
 }

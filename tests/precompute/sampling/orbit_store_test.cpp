@@ -4,6 +4,7 @@
 #include "error_of.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "run_tool.h"
+#include "source_tree.h"
 #include "synthetic_package.h"
 
 #include <gtest/gtest.h>
@@ -15,7 +16,7 @@ namespace {
 
 using phasecast::testing::error_of;
 
-const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+const std::filesystem::path kScenes = phasecast::testing::scenes_dir();
 
 OrbitStore tiny_orbit() {
   const Scene s = load_scene_file(kScenes / "tiny/cloth_door.toml");

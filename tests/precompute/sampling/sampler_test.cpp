@@ -4,6 +4,7 @@
 #include "phasecast/precompute/sampling/irf_sampler.h"
 #include "run_tool.h"
 #include "scene_files.h"
+#include "source_tree.h"
 
 #include <gtest/gtest.h>
 
@@ -96,7 +97,7 @@ TEST_F(Sampler, SameSeedGivesBitIdenticalOrbitsWhateverTheJobCount) {
 // definite" at their first step) until they took turns. The default cloth is
 // the smallest shipped scene whose supernodes are large enough to reach BLAS.
 TEST(SamplerSupernodal, ChainsAtOnceMatchChainsOneAfterAnother) {
-  Scene scene = load_scene_file(std::filesystem::path(PHASECAST_SCENES_DIR) / "cloth_door.toml");
+  Scene scene = load_scene_file(phasecast::testing::scenes_dir() / "cloth_door.toml");
   scene.simulation.linear_solver = LinearSolver::supernodal;
   const PaletteRules rules = make_palette_rules(scene);
   SamplingOptions o;

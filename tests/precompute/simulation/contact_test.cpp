@@ -5,6 +5,7 @@
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
+#include "source_tree.h"
 
 #include <gtest/gtest.h>
 
@@ -15,7 +16,7 @@
 namespace phasecast::precompute {
 namespace {
 
-const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+const std::filesystem::path kScenes = phasecast::testing::scenes_dir();
 using Eigen::Vector3d;
 
 TEST(TriangleIntersection, CrossingAndSeparatedPairs) {

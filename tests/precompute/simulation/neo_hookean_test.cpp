@@ -7,6 +7,7 @@
 #include "phasecast/precompute/simulation/simulator.h"
 #include "phasecast/precompute/simulation/tet_quality.h"
 #include "run_tool.h"
+#include "source_tree.h"
 
 #include <gtest/gtest.h>
 
@@ -205,12 +206,12 @@ TEST(StableNeoHookean, SmallStrainStressIsLinearElasticityWithTheSameLameParamet
 
 // The tiny toy with its rubber as stable neo-Hookean, read from a scene file.
 std::filesystem::path neo_hookean_toy() {
-  std::string text =
-      testing::read_file(std::filesystem::path(PHASECAST_SCENES_DIR) / "tiny/toy_dashboard.toml");
+  std::string text = testing::read_file(phasecast::testing::scenes_dir() / "tiny/toy_dashboard.toml");
   text = std::regex_replace(text, std::regex(R"(energies = \["tet_fem"\])"),
                             R"(energies = ["tet_neo_hookean"])");
-  text = std::regex_replace(text, std::regex(R"(path = "\.\./meshes/)"),
-                            std::string("path = \"") + PHASECAST_SCENES_DIR + "/meshes/");
+  text =
+      std::regex_replace(text, std::regex(R"(path = "\.\./meshes/)"),
+                         std::string("path = \"") + phasecast::testing::scenes_dir().string() + "/meshes/");
   const auto path = testing::scratch_dir("neo_hookean_toy") / "toy.toml";
   std::ofstream(path) << text;
   return path;

@@ -8,6 +8,7 @@
 #include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
+#include "source_tree.h"
 
 #include <gtest/gtest.h>
 
@@ -24,7 +25,7 @@
 namespace phasecast::precompute {
 namespace {
 
-const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+const std::filesystem::path kScenes = phasecast::testing::scenes_dir();
 
 TEST(PaperScenes, EveryShippedSceneLoads) {
   for (const char* name : {"cloth_door", "plant_pot", "toy_dashboard"}) {
@@ -283,7 +284,7 @@ namespace phasecast::precompute {
 namespace {
 
 TEST(PaperScenes, PlantStemTravelsThroughTheStoreAndObjFrames) {
-  const Scene s = load_scene_file(PHASECAST_SCENES_DIR "/tiny/plant_pot.toml");
+  const Scene s = load_scene_file(phasecast::testing::scenes_dir() / "tiny/plant_pot.toml");
   const OrbitStore o = simulate_schedule(s, parse_schedule("right 0.04", s));
   ASSERT_EQ(o.segments.rows(), 7);
   const auto path = testing::scratch_dir("plant_segments") / "plant.h5";
@@ -304,7 +305,7 @@ namespace {
 // Fig. 8: opening the door (cloth side first) presses the cloth onto the board;
 // closing throws it away from the board.
 TEST(PaperScenes, DoorDragPressesClothOnOpeningAndLiftsItOnClosing) {
-  const Scene s = load_scene_file(PHASECAST_SCENES_DIR "/tiny/cloth_door.toml");
+  const Scene s = load_scene_file(phasecast::testing::scenes_dir() / "tiny/cloth_door.toml");
   const OrbitStore o = simulate_schedule(s, parse_schedule("open 0.8; close 0.8", s));
   const double board = s.model.obstacles[0].max.z() + s.model.thickness;
   const auto mean_gap = [&](int frame) {
@@ -338,7 +339,7 @@ double fastest_after_idle_frames(const Scene& scene, double settle_seconds) {
 }
 
 TEST(PaperScenes, SettledToyRestsOnItsBase) {
-  const Scene s = load_scene_file(PHASECAST_SCENES_DIR "/tiny/toy_dashboard.toml");
+  const Scene s = load_scene_file(phasecast::testing::scenes_dir() / "tiny/toy_dashboard.toml");
   EXPECT_DOUBLE_EQ(s.simulation.settle, 0.6);
   EXPECT_GT(fastest_after_idle_frames(s, 0), 0.01);  // unsettled, it drops onto its base
   EXPECT_LT(fastest_after_idle_frames(s, s.simulation.settle), 1e-4);

@@ -234,11 +234,12 @@ TEST(ElasticForces, RestStateHasNoForce) {
 }  // namespace phasecast::precompute
 
 #include "phasecast/precompute/simulation/scene.h"
+#include "source_tree.h"
 
 namespace phasecast::precompute {
 namespace {
 
-const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+const std::filesystem::path kScenes = phasecast::testing::scenes_dir();
 
 Eigen::VectorXd alpha(double wy) {
   return Eigen::Vector3d(0, wy, 0);

@@ -7,6 +7,7 @@
 #include "phasecast/precompute/simulation/render_surface.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
+#include "source_tree.h"
 
 #include <gtest/gtest.h>
 
@@ -24,7 +25,7 @@ namespace {
 
 using phasecast::testing::error_of;
 
-const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+const std::filesystem::path kScenes = phasecast::testing::scenes_dir();
 
 // The shipped tiny scene `name` with `from` replaced by `to`, written to a scratch folder.
 std::filesystem::path edited_scene(const std::string& name, const std::string& from, const std::string& to,

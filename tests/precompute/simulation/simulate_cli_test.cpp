@@ -5,6 +5,7 @@
 #include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
+#include "source_tree.h"
 
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
@@ -16,7 +17,7 @@
 namespace phasecast::precompute {
 namespace {
 
-const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+const std::filesystem::path kScenes = phasecast::testing::scenes_dir();
 using testing::run_tool;
 
 TEST(SimulateCli, WritesOrbitStoreAndObjFrames) {

@@ -7,6 +7,7 @@
 #include "phasecast/precompute/package/package_builder.h"
 #include "run_tool.h"
 #include "scene_files.h"
+#include "source_tree.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -16,9 +17,8 @@
 namespace phasecast::precompute {
 namespace {
 
-const std::filesystem::path kScene = std::filesystem::path(PHASECAST_SCENES_DIR) / "tiny/cloth_door.toml";
-const std::filesystem::path kPackage =
-    std::filesystem::path(PHASECAST_TEST_DATA_DIR) / "packages/cloth_door.h5";
+const std::filesystem::path kScene = phasecast::testing::scenes_dir() / "tiny/cloth_door.toml";
+const std::filesystem::path kPackage = phasecast::testing::source_dir() / "tests/data/packages/cloth_door.h5";
 constexpr const char* kStandard = "open 0.8; stop 1.5; close 0.8; stop 1.5";
 
 std::shared_ptr<const core::ScenePackage> package() {
@@ -51,10 +51,9 @@ TEST(Playback, TheStandardDoorScheduleFollowsTheSimulation) {
 
 // A scene's standard schedule on another committed tiny package.
 ScheduleFigures standard_figures(const std::string& name) {
-  const Scene scene =
-      load_scene_file(std::filesystem::path(PHASECAST_SCENES_DIR) / ("tiny/" + name + ".toml"));
+  const Scene scene = load_scene_file(phasecast::testing::scenes_dir() / ("tiny/" + name + ".toml"));
   const auto pkg = std::make_shared<const core::ScenePackage>(
-      core::read_package(std::filesystem::path(PHASECAST_TEST_DATA_DIR) / ("packages/" + name + ".h5")));
+      core::read_package(phasecast::testing::source_dir() / "tests/data/packages" / (name + ".h5")));
   ValidationOptions o;
   o.intersections = false;
   return validate_schedule(scene, pkg, parse_schedule(scene.standard_schedule, scene), o);
@@ -218,10 +217,10 @@ TEST(ValidateCli, WritesEveryFigureAsJsonAndRejectsAMissingSchedule) {
   const auto bad = testing::run_tool("phasecast-precompute", {"validate", bare.string(), kPackage.string()});
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("has no [validation] schedule; expected --schedule"), std::string::npos) << bad.err;
-  const auto other = testing::run_tool(
-      "phasecast-precompute",
-      {"validate", (std::filesystem::path(PHASECAST_SCENES_DIR) / "tiny/plant_pot.toml").string(),
-       kPackage.string(), "--schedule", "stop 0.2"});
+  const auto other =
+      testing::run_tool("phasecast-precompute",
+                        {"validate", (phasecast::testing::scenes_dir() / "tiny/plant_pot.toml").string(),
+                         kPackage.string(), "--schedule", "stop 0.2"});
   EXPECT_NE(other.exit_code, 0);
   EXPECT_NE(other.err.find("does not match scene file"), std::string::npos) << other.err;
 }
