@@ -189,7 +189,9 @@ alpha_impulse = [0, 1.5, 0]
 alpha_forcing = [0, 1.5, 0]
 )" + make_layer("back", "0.024") +
                            make_layer("front", "0.030");
-  const auto path = testing::scratch_dir("two_layer_towel") / "towel.toml";
+  // One folder per test: ctest runs the tests that build this towel side by side.
+  const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  const auto path = testing::scratch_dir("two_layer_towel_" + test) / "towel.toml";
   std::ofstream(path) << text;
   return load_scene_file(path);
 }
