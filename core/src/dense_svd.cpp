@@ -2,6 +2,8 @@
 
 #include <Eigen/SVD>
 
+#include <stdexcept>
+
 namespace phasecast::core {
 
 DenseSvd dense_svd(const Eigen::MatrixXd& A, SvdVectors vectors) {
@@ -9,6 +11,9 @@ DenseSvd dense_svd(const Eigen::MatrixXd& A, SvdVectors vectors) {
   if (vectors == SvdVectors::left || vectors == SvdVectors::both) options |= Eigen::ComputeThinU;
   if (vectors == SvdVectors::right || vectors == SvdVectors::both) options |= Eigen::ComputeThinV;
   const Eigen::BDCSVD<Eigen::MatrixXd> svd(A, options);
+  // Eigen leaves the factors unset for a matrix with a NaN or an infinity.
+  if (svd.info() != Eigen::Success)
+    throw std::invalid_argument("dense_svd: the matrix has a NaN or infinite entry (expected finite values)");
   DenseSvd result;
   result.sigma = svd.singularValues();
   if (svd.computeU()) result.U = svd.matrixU();

@@ -4,6 +4,7 @@
 // evaluates per frame once the IRFs are precomputed (the server's own
 // synthesis step is O(r) and lives in server/).
 
+#include "bench_scenes.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "phasecast/precompute/simulation/scene.h"
 
@@ -15,7 +16,7 @@ namespace {
 
 using phasecast::precompute::load_scene_file;
 
-const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+const std::filesystem::path kScenes = phasecast::bench::scenes_dir();
 
 // Frames of `scene` under palette entry `entry` (impulse once, then forcing),
 // from the settled rest every sampled chain starts from (a fold that has not

@@ -6,6 +6,7 @@
 // The matrix is A = M + (h b + h^2) K at a perturbed state, as the simulator
 // assembles it; each iteration refactorizes with the pattern analysed once.
 
+#include "bench_scenes.h"
 #include "phasecast/precompute/simulation/elastic_forces.h"
 #include "phasecast/precompute/simulation/scene.h"
 
@@ -21,7 +22,7 @@ namespace {
 
 using phasecast::precompute::load_scene_file;
 
-const std::filesystem::path kScenes = PHASECAST_SCENES_DIR;
+const std::filesystem::path kScenes = phasecast::bench::scenes_dir();
 
 struct System {
   Eigen::SparseMatrix<double> A;
