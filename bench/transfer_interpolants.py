@@ -1,0 +1,311 @@
+#!/usr/bin/python3
+"""Interpolants of q_a over q_u, and where the held-out error lives, on the stage's own transfers.
+
+Reads a transfers file of `phasecast-precompute run|reduce --save-transfers`
+(docs/transfer.md) and fits the paper's model to its representatives (M-bar
+and the rank-r_a basis U_a of their fields, §4.2, equal weights or cluster
+sizes), then measures at the held-out nodes, as relative l2 norms about M-bar
+(the paper's relErr, §2.3.1): the truncation alone, and the served total with
+each interpolant, its parameters picked at the picking half and reported at
+the reported half. Everything is computed from the Gram matrix of the fields
+(T x T, float64, cached beside the file as FILE.gram.npz), so a file of
+gigabytes is read once.
+
+  --exclude-box x0,y0,z0,x1,y1,z1   leave the static scene points inside the box
+      out of the model and the measure (e.g. geometry no camera sees); prints
+      their share of the variation
+  --pairs   how alike the transfer is at states that q_u cannot tell apart:
+      the semivariance 0.5 |M_i - M_j|^2 over the variance, for the pairs of
+      nodes closest in q_u and for consecutive state nodes (one frame apart),
+      and how many scene points hold half of the closest pairs' difference
+
+  bench/transfer_interpolants.py TRANSFERS.h5 --rank-a 12 [--weighting equal|cluster-size]
+                                 [--exclude-box ...] [--pairs] [--json OUT]
+"""
+import argparse
+import json
+import os
+import sys
+
+import h5py
+import numpy as np
+
+FORMAT = "phasecast-stage-transfers"
+REPRESENTATIVE, PICKING, REPORTED = 0, 1, 2
+
+
+def open_transfers(path):
+    try:
+        f = h5py.File(path, "r")
+    except OSError as e:
+        sys.exit(f"{path}: expected a transfers file of --save-transfers (HDF5): {e}")
+    if f.attrs.get("format") != FORMAT:
+        sys.exit(f"{path}: /@format: expected {FORMAT} (a file of --save-transfers)")
+    for name in ("fields", "nodes", "roles", "q_u", "cluster_labels", "rest_positions", "deformable"):
+        if name not in f:
+            sys.exit(f"{path}: /{name}: missing dataset (docs/transfer.md, 'The transfers file')")
+    return f
+
+
+def field_rows(f, points=None):
+    """Each node's field as one float64 row (only `points`, when given), read a block at a time."""
+    fields = f["fields"]
+    for start in range(0, fields.shape[0], 64):
+        block = fields[start:start + 64]
+        if points is not None:
+            block = block[:, points]
+        yield start, block.reshape(len(block), -1).astype(np.float64)
+
+
+def centred_gram(f, points=None):
+    """Gram matrix of the fields about the representatives' plain mean (column blocks, float64)."""
+    rows = np.concatenate([r.astype(np.float32) for _, r in field_rows(f, points)])
+    rep = f["roles"][()] == REPRESENTATIVE
+    gram = np.zeros((len(rows), len(rows)))
+    for j in range(0, rows.shape[1], 32768):
+        block = rows[:, j:j + 32768].astype(np.float64)
+        block -= block[rep].mean(0)
+        gram += block @ block.T
+    return gram
+
+
+def cached_gram(path, f):
+    """The Gram matrix, kept in PATH.gram.npz for the same file (size and modification time)."""
+    cache, stat = path + ".gram.npz", os.stat(path)
+    key = np.array([stat.st_size, stat.st_mtime_ns])
+    if os.path.exists(cache):
+        kept = np.load(cache)
+        if np.array_equal(kept["key"], key):
+            return kept["gram"]
+    gram = centred_gram(f)
+    np.savez(cache, key=key, gram=gram)
+    return gram
+
+
+def box_points(f, box):
+    rest, deformable = f["rest_positions"][()], f["deformable"][()].astype(bool)
+    lo, hi = np.array(box[:3]), np.array(box[3:])
+    return np.where(~deformable & np.all((rest >= lo) & (rest <= hi), axis=1))[0]
+
+
+def largest_eigenvalue(g):
+    return float(max(np.linalg.eigvalsh(g)[-1], 0.0)) if len(g) else 0.0
+
+
+class Model:
+    """M-bar and U_a of the representatives' fields, weights w, in terms of the Gram matrix."""
+
+    def __init__(self, gram, roles, labels, rank, weighting):
+        self.rep = np.where(roles == REPRESENTATIVE)[0]
+        n = len(self.rep)
+        w = np.ones(n) if weighting == "equal" else np.bincount(labels, minlength=n)[:n].astype(float)
+        w /= w.sum()
+        shift = gram[:, self.rep] @ w  # (x - plain mean) . (weighted mean - plain mean)
+        self.gram = gram - shift[:, None] - shift[None, :] + w @ gram[np.ix_(self.rep, self.rep)] @ w
+        sw = np.sqrt(w)
+        lam, v = np.linalg.eigh(sw[:, None] * self.gram[np.ix_(self.rep, self.rep)] * sw[None, :])
+        order = np.argsort(lam)[::-1]
+        self.sigma = np.sqrt(np.maximum(lam[order], 0.0))
+        top = order[:rank]
+        self.to_q_a = sw[:, None] * v[:, top] / np.sqrt(lam[top])  # q_a = (M - M-bar) . U_a
+
+    def q_a(self, nodes):
+        return self.gram[np.ix_(nodes, self.rep)] @ self.to_q_a
+
+
+class HeldOut:
+    """Held-out nodes: their truth about M-bar, its coordinates and what U_a leaves of it."""
+
+    def __init__(self, model, nodes):
+        self.gram = model.gram[np.ix_(nodes, nodes)]
+        self.q_a = model.q_a(nodes)
+        self.truncated = self.gram - self.q_a @ self.q_a.T
+        self.norm = np.sqrt(largest_eigenvalue(self.gram))
+
+    def total(self, q_a_served):
+        d = self.q_a - q_a_served  # orthogonal to what U_a leaves, so the Gram matrices add
+        return np.sqrt(largest_eigenvalue(self.truncated + d @ d.T)) / self.norm
+
+    def truncation(self):
+        return np.sqrt(largest_eigenvalue(self.truncated)) / self.norm
+
+
+def squared_distances(a, b):
+    return np.maximum((a * a).sum(1)[:, None] + (b * b).sum(1)[None] - 2 * a @ b.T, 0.0)
+
+
+def knn(xs, ys, x, k):
+    """Inverse-distance weights of the k nearest samples."""
+    d = np.sqrt(squared_distances(x, xs))
+    near = np.argsort(d, 1)[:, :k]
+    out = np.empty((len(x), ys.shape[1]))
+    for i, idx in enumerate(near):
+        if d[i, idx[0]] < 1e-12:
+            out[i] = ys[idx[0]]
+        else:
+            w = 1.0 / d[i, idx]
+            out[i] = (w / w.sum()) @ ys[idx]
+    return out
+
+
+def affine_fit(xs, ys):
+    design = np.hstack([xs, np.ones((len(xs), 1))])
+    return np.linalg.lstsq(design, ys, rcond=None)[0]
+
+
+def affine(xs, ys, x):
+    return np.hstack([x, np.ones((len(x), 1))]) @ affine_fit(xs, ys)
+
+
+def nrbf(xs, ys, x, width, ridge):
+    """Normalized Gaussian RBFs (§4.3), widths = width x each sample's nearest-neighbour distance."""
+    d = np.sqrt(squared_distances(xs, xs))
+    np.fill_diagonal(d, np.inf)
+    h = width * d.min(1)
+
+    def phi(p):
+        k = np.exp(-squared_distances(p, xs) / h[None] ** 2)
+        return k / np.maximum(k.sum(1, keepdims=True), 1e-300)
+
+    p = phi(xs)
+    weights = np.linalg.solve(p.T @ p + ridge * np.eye(len(xs)), p.T @ ys)
+    return phi(x) @ weights
+
+
+def kernel_ridge(xs, ys, x, length, ridge, with_affine):
+    """A Gaussian process's mean: Gaussian kernel of `length` x the samples' median distance,
+    on q_u scaled to unit spread per coordinate, optionally about an affine map."""
+    scale = xs.std(0) + 1e-12
+    xs, x = xs / scale, x / scale
+    base, rest = np.zeros((len(x), ys.shape[1])), ys
+    if with_affine:
+        w = affine_fit(xs, ys)
+        base, rest = np.hstack([x, np.ones((len(x), 1))]) @ w, ys - np.hstack([xs, np.ones((len(xs), 1))]) @ w
+    d2 = squared_distances(xs, xs)
+    ell2 = (length * np.median(np.sqrt(d2[np.triu_indices(len(xs), 1)]))) ** 2
+    alpha = np.linalg.solve(np.exp(-d2 / (2 * ell2)) + ridge * np.eye(len(xs)), rest)
+    return base + np.exp(-squared_distances(x, xs) / (2 * ell2)) @ alpha
+
+
+def candidates(xs, ys):
+    """Each interpolant with its grid of parameters, as (label, q_u -> q_a)."""
+    grid = {
+        "knn": [(f"k = {k}", lambda x, k=k: knn(xs, ys, x, k)) for k in (1, 2, 3, 4, 6, 8, 12) if k <= len(xs)],
+        "affine": [("least squares", lambda x: affine(xs, ys, x))],
+        "nrbf": [(f"width x {w}, ridge {r:g}", lambda x, w=w, r=r: nrbf(xs, ys, x, w, r))
+                 for w in (0.5, 1, 2, 4, 8) for r in (1e-6, 1e-4, 1e-2, 1e-1)],
+    }
+    for with_affine in (False, True):
+        grid["kernel ridge" + (" + affine" if with_affine else "")] = [
+            (f"length x {l}, ridge {r:g}", lambda x, l=l, r=r, a=with_affine: kernel_ridge(xs, ys, x, l, r, a))
+            for l in (0.1, 0.2, 0.35, 0.5, 1, 2) for r in (1e-6, 1e-4, 1e-2, 1e-1, 1)]
+    return grid
+
+
+def compare(gram, roles, q_u, labels, rank, weighting):
+    model = Model(gram, roles, labels, rank, weighting)
+    rep = model.rep
+    picking, reported = (np.where(roles == r)[0] for r in (PICKING, REPORTED))
+    halves = HeldOut(model, picking), HeldOut(model, reported)
+    result = {"clusters_sigma_ratio": float(model.sigma[rank] / model.sigma[0]) if rank < len(model.sigma) else 0.0,
+              "truncation": {"picking": halves[0].truncation(), "reported": halves[1].truncation()},
+              "interpolants": {}}
+    for name, options in candidates(q_u[rep], model.q_a(rep)).items():
+        scored = []
+        for label, f in options:
+            try:
+                scored.append((halves[0].total(f(q_u[picking])), label, f))
+            except np.linalg.LinAlgError:
+                continue
+        best = min(scored, key=lambda s: s[0])
+        result["interpolants"][name] = {"parameters": best[1], "picking": best[0],
+                                        "reported": halves[1].total(best[2](q_u[reported]))}
+    return result
+
+
+def pairs_report(f, gram, q_u, excluded):
+    """Semivariance of the closest pairs in q_u and of consecutive state nodes, and where the former lives."""
+    nodes = f["nodes"][()]
+    sq = np.diag(gram)
+    variance = sq.mean()
+    d2 = sq[:, None] + sq[None] - 2 * gram
+    dq = np.sqrt(squared_distances(q_u, q_u))
+    upper = np.triu_indices(len(q_u), 1)
+    closest = np.argsort(dq[upper])[:100]
+    order = np.argsort(nodes)
+    step = np.where(np.diff(nodes[order]) == 1)[0]
+    sets = {"closest in q_u": (upper[0][closest], upper[1][closest]),
+            "consecutive state nodes": (order[step], order[step + 1])}
+    out = {}
+    for name, (i, j) in sets.items():
+        out[name] = {"pairs": int(len(i)), "distance_q_u": float(dq[i, j].mean()) if len(i) else 0.0,
+                     "semivariance_over_variance": float(0.5 * d2[i, j].mean() / variance) if len(i) else 0.0}
+    i, j = sets["closest in q_u"]
+    per_point = 0.0
+    for a, b in zip(i, j):
+        d = f["fields"][int(a)].astype(np.float64) - f["fields"][int(b)].astype(np.float64)
+        per_point = per_point + (d ** 2).sum((1, 2))
+    ranked = np.sort(per_point)[::-1]
+    out["points_holding_half"] = int(np.searchsorted(np.cumsum(ranked), 0.5 * ranked.sum()) + 1)
+    out["share_in_excluded"] = float(per_point[excluded].sum() / per_point.sum()) if len(excluded) else 0.0
+    return out
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("transfers", help="transfers file of --save-transfers (.h5)")
+    parser.add_argument("--rank-a", type=int, required=True, help="r_a of the model")
+    parser.add_argument("--weighting", default="equal", choices=["equal", "cluster-size"],
+                        help="weights of the representatives in M-bar and the SVD (§4.2; docs/transfer.md)")
+    parser.add_argument("--exclude-box", help="x0,y0,z0,x1,y1,z1: static scene points left out of the model")
+    parser.add_argument("--pairs", action="store_true", help="also report how alike nearby states' transfers are")
+    parser.add_argument("--json", help="also write the figures here")
+    a = parser.parse_args()
+    f = open_transfers(a.transfers)
+    roles, labels = f["roles"][()], f["cluster_labels"][()]
+    q_u = f["q_u"][()].astype(np.float64)
+    counts = [int((roles == r).sum()) for r in (REPRESENTATIVE, PICKING, REPORTED)]
+    if not 1 <= a.rank_a < counts[0] or min(counts[1:]) < 1:
+        sys.exit(f"{a.transfers}: expected --rank-a in 1..{counts[0] - 1} (the representatives less one) "
+                 f"and held-out nodes in both halves, got {counts[1]} picking and {counts[2]} reported")
+    gram = cached_gram(a.transfers, f)
+    excluded = np.array([], int)
+    figures = {"rank_a": a.rank_a, "weighting": a.weighting, "nodes": dict(zip(("representatives", "picking", "reported"), counts))}
+    print(f"{a.transfers}: {counts[0]} representatives, {counts[1]} picking and {counts[2]} reported held-out "
+          f"nodes, r_u = {q_u.shape[1]}, r_a = {a.rank_a}, {a.weighting} weights")
+    if a.exclude_box:
+        box = [float(v) for v in a.exclude_box.split(",")]
+        if len(box) != 6:
+            sys.exit(f"--exclude-box '{a.exclude_box}': expected six numbers x0,y0,z0,x1,y1,z1")
+        excluded = box_points(f, box)
+        inside = centred_gram(f, excluded) if len(excluded) else np.zeros_like(gram)
+        share = float(np.trace(inside) / np.trace(gram))
+        print(f"left out: {len(excluded)} static points in the box, {100 * share:.1f} % of the variation about the mean")
+        figures.update(excluded_points=int(len(excluded)), excluded_share=share)
+        gram_model = gram - inside
+    else:
+        gram_model = gram
+    result = compare(gram_model, roles, q_u, labels, a.rank_a, a.weighting)
+    figures.update(result)
+    t = result["truncation"]
+    print(f"clusters sigma_(r+1)/sigma_1 {100 * result['clusters_sigma_ratio']:.1f} %; truncation alone: picking "
+          f"{100 * t['picking']:.1f} %, reported {100 * t['reported']:.1f} %")
+    print("| interpolant | picked at the picking half | picking | reported |\n|---|---|---|---|")
+    for name, r in result["interpolants"].items():
+        print(f"| {name} | {r['parameters']} | {100 * r['picking']:.1f} % | {100 * r['reported']:.1f} % |")
+    if a.pairs:
+        p = pairs_report(f, gram, q_u, excluded)
+        figures["pairs"] = p
+        for name in ("closest in q_u", "consecutive state nodes"):
+            r = p[name]
+            print(f"{name}: {r['pairs']} pairs, |dq_u| {r['distance_q_u']:.3g}, "
+                  f"semivariance / variance {r['semivariance_over_variance']:.3f}")
+        print(f"half of the closest pairs' difference lies in {p['points_holding_half']} scene points"
+              + (f"; {100 * p['share_in_excluded']:.0f} % of it in the box" if len(excluded) else ""))
+    if a.json:
+        with open(a.json, "w") as out:
+            json.dump(figures, out, indent=1)
+
+
+if __name__ == "__main__":
+    main()
