@@ -99,13 +99,23 @@ std::vector<int> back_side_points(const RenderSurface& surface) {
   return out;
 }
 
+// How obstacle i looks to the appearance stage (the default look when the
+// scene lists none).
+PropLook prop_look(const Scene& scene, size_t i) {
+  return i < scene.props.size() ? scene.props[i] : PropLook{};
+}
+
+// Scene points of obstacle i: none for a box that is not drawn.
+Eigen::Index prop_points(const Scene& scene, size_t i) {
+  const PropLook look = prop_look(scene, i);
+  const auto& o = scene.model.obstacles[i];
+  return look.drawn ? box_points(o.min, o.max, look.cell) : 0;
+}
+
 // Scene points the props add, in obstacle order.
 Eigen::Index prop_points(const Scene& scene) {
   Eigen::Index n = 0;
-  for (size_t i = 0; i < scene.model.obstacles.size(); ++i) {
-    const auto& o = scene.model.obstacles[i];
-    n += box_points(o.min, o.max, i < scene.props.size() ? scene.props[i].cell : 0);
-  }
+  for (size_t i = 0; i < scene.model.obstacles.size(); ++i) n += prop_points(scene, i);
   return n;
 }
 
@@ -189,9 +199,10 @@ core::SceneMesh scene_mesh(const Scene& scene) {
   m.normals = core::vertex_normals(m.rest_positions, m.triangles);  // front side
   core::add_back_side(m.rest_positions, m.normals, m.triangles, back_side_points(surface));
   m.deformable.assign(static_cast<size_t>(m.rest_positions.rows()), 1);
-  for (size_t i = 0; i < model.obstacles.size(); ++i)
-    add_box(m, model.obstacles[i].min, model.obstacles[i].max,
-            i < scene.props.size() ? scene.props[i].cell : 0);
+  for (size_t i = 0; i < model.obstacles.size(); ++i) {
+    const PropLook look = prop_look(scene, i);
+    if (look.drawn) add_box(m, model.obstacles[i].min, model.obstacles[i].max, look.cell);
+  }
   m.deformable.resize(static_cast<size_t>(m.rest_positions.rows()), 0);
   m.attached.assign(static_cast<size_t>(m.rest_positions.rows()), 1);  // everything rides on the support
   return m;
@@ -227,10 +238,8 @@ MatrixXfR scene_point_albedo(const Scene& scene) {
   }
   // The props' points follow in obstacle order, each box's points in one block.
   for (size_t i = 0; i < scene.model.obstacles.size(); ++i) {
-    const auto& o = scene.model.obstacles[i];
-    const PropLook look = i < scene.props.size() ? scene.props[i] : PropLook{};
-    const Eigen::Index n = box_points(o.min, o.max, look.cell);
-    rho.middleRows(p, n).rowwise() = look.albedo.cast<float>().transpose();
+    const Eigen::Index n = prop_points(scene, i);
+    rho.middleRows(p, n).rowwise() = prop_look(scene, i).albedo.cast<float>().transpose();
     p += n;
   }
   return rho;

@@ -551,6 +551,7 @@ Scene load_scene_file(const std::filesystem::path& path) {
     if (!(look.cell >= 0)) o.fail("cell", "a tessellation edge length >= 0 (m)");
     if (look.cell > 0 && (box.max - box.min).maxCoeff() / look.cell > kMaxPropCells)
       o.fail("cell", fmt::format("at most {} cells along an edge of the box", kMaxPropCells));
+    look.drawn = o.flag("drawn", look.drawn);
     o.finish();
     scene.model.obstacles.push_back(box);
     scene.props.push_back(look);

@@ -498,6 +498,43 @@ TEST(AppearanceStage, ClothHasTwoSidesSharingTheirVertexRows) {
   EXPECT_LT(board_side, 0.9 * room_side);
 }
 
+// A box the camera never sees (the paper cloth's rail inside the towel's
+// fold) can be collision only: the simulator keeps it, the appearance stage
+// gets no points of it, and the props after it keep their own points and colour.
+TEST(AppearanceStage, AnUndrawnPropCollidesButHasNoScenePoints) {
+  const std::string door_cell = "cell = 0.2 ";
+  const std::string props =
+      "cell = 0.2\n\n[[obstacle]]\nname = \"rail\"\nmin = [0.15, 1.84, 0.02]\n"
+      "max = [0.75, 1.845, 0.025]\ndrawn = false\nalbedo = [1, 0, 0]\n\n"
+      "[[obstacle]]\nname = \"hook\"\nmin = [0.4, 1.0, 0.0]\nmax = [0.45, 1.05, 0.05]\n"
+      "albedo = [0, 1, 0]\n#";
+  const auto scene = precompute::load_scene_file(
+      testing::edited_tiny_scene(scratch_dir("appearance_undrawn_prop"), door_cell, props));
+  ASSERT_EQ(scene.model.obstacles.size(), 3u);
+  EXPECT_EQ(scene.model.obstacles[1].name, "rail");
+  EXPECT_FALSE(scene.props.at(1).drawn);
+  EXPECT_TRUE(scene.props.at(2).drawn);
+  const int V = scene.model.vertices();
+  const auto m = precompute::scene_mesh(scene);
+  ASSERT_EQ(m.points(), 2 * V + kDoorPoints + 24);  // the hook: one quad a face, four points each
+  EXPECT_EQ(precompute::scene_point_embedding(scene).weights.rows(), m.points());
+  const MatrixXfR rho = precompute::scene_point_albedo(scene);
+  ASSERT_EQ(rho.rows(), m.points());
+  EXPECT_TRUE(rho.row(m.points() - 1).isApprox(Eigen::RowVector3f(0.0f, 1.0f, 0.0f)));
+  EXPECT_TRUE(rho.row(m.points() - 25).isApprox(Eigen::RowVector3f(0.62f, 0.42f, 0.24f)));  // the door's last
+  for (Eigen::Index q = 2 * V + kDoorPoints; q < m.points(); ++q)
+    EXPECT_GE(m.rest_positions(q, 1), 1.0f - 1e-6f) << "point " << q << " is not the hook's";
+
+  const auto bad = testing::edited_tiny_scene(scratch_dir("appearance_undrawn_prop_bad"), door_cell,
+                                              "cell = 0.2\ndrawn = 0\n#");
+  try {
+    precompute::load_scene_file(bad);
+    ADD_FAILURE() << "drawn = 0 was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("'obstacle[0].drawn'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(AppearanceStage, SameSeedGivesTheSameAppearanceAndNoAppearanceSkipsIt) {
   const auto pkg = run_tiny("appearance_determinism");
   const auto dir = scratch_dir("appearance_determinism_reduce");

@@ -57,7 +57,9 @@ inline constexpr int kMaxPropCells = 256;  // cells along one edge of a tessella
 // How a rigid obstacle looks to the appearance stage; the simulator sees only its box.
 struct PropLook {
   Eigen::Vector3d albedo = kDefaultAlbedo;
-  double cell = 0;  // m: the faces are tessellated into squares of about this edge (0: one quad a face)
+  double cell = 0;    // m: the faces are tessellated into squares of about this edge (0: one quad a face)
+  bool drawn = true;  // false: collision only, no scene points (geometry no camera sees, whose
+                      // transfer would spend U_a's directions on invisible variation)
 };
 
 // [appearance]: the scene's defaults for the appearance stage (§4); the
