@@ -65,8 +65,19 @@ assert share > 0.2, share  # the closed form is not vacuous
 assert boxed["truncation"]["reported"] < 1e-5, boxed["truncation"]
 assert boxed["interpolants"]["affine"]["reported"] < 1e-5, boxed["interpolants"]["affine"]
 
+# knn does not reproduce an affine field between its samples: the served total
+# counts the interpolant's own error, not the truncation alone.
+assert boxed["interpolants"]["knn"]["reported"] > 1e-3, boxed["interpolants"]["knn"]
+
 _, whole = run()
 assert whole["truncation"]["reported"] > 0.2, whole["truncation"]
+# The truncation alone against numpy's SVD of the representatives (equal weights, rank 1).
+rep = centred[roles == 0].reshape(40, -1)
+u1 = np.linalg.svd(rep, full_matrices=False)[2][0]
+held = centred[roles == 2].reshape(15, -1)
+left = held - np.outer(held @ u1, u1)
+expected = np.linalg.norm(left, 2) / np.linalg.norm(held, 2)
+assert abs(whole["truncation"]["reported"] - expected) < 1e-6, (whole["truncation"], expected)
 for name, r in whole["interpolants"].items():
     assert r["reported"] > 0.2, (name, r)
 
@@ -79,6 +90,21 @@ per_point = ((fields[i] - fields[j]) ** 2).sum((0, 2))
 assert abs(boxed["pairs"]["share_in_excluded"] - per_point[visible:].sum() / per_point.sum()) < 1e-9, boxed["pairs"]
 assert boxed["pairs"]["share_in_excluded"] > 0.9, boxed["pairs"]
 assert boxed["pairs"]["consecutive state nodes"]["pairs"] == T - 1, boxed["pairs"]
+
+# Cluster-size weights move M-bar off the plain mean: the truncation against numpy's weighted model.
+labels = np.minimum(np.arange(T) // 2, 39).astype(np.int32)  # representative k's cluster: unequal sizes
+with h5py.File(path, "r+") as f:
+    f["cluster_labels"][...] = labels
+_, weighted = run("--weighting", "cluster-size")
+w = np.bincount(labels, minlength=40)[:40].astype(float)
+w /= w.sum()
+flat = fields.reshape(T, -1)
+m_w = w @ flat[roles == 0]
+u1 = np.linalg.svd(np.sqrt(w)[:, None] * (flat[roles == 0] - m_w), full_matrices=False)[2][0]
+held = flat[roles == 2] - m_w
+expected = np.linalg.norm(held - np.outer(held @ u1, u1), 2) / np.linalg.norm(held, 2)
+assert abs(weighted["truncation"]["reported"] - expected) < 1e-6, (weighted["truncation"], expected)
+assert abs(expected - whole["truncation"]["reported"]) > 1e-3, expected  # the weights matter here
 
 bad = subprocess.run([script, script, "--rank-a", "1"], capture_output=True, text=True)
 assert bad.returncode != 0 and bad.stderr.count("\n") == 1, bad.stderr

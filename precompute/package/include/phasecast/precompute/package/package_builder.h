@@ -47,7 +47,8 @@ struct PackageBuild {
 // simulated vertices of bodies without a render mesh, then the render
 // meshes, at rest W X + d), then the back side of the thin sheets (a copy of
 // every point of a sheet triangle, flipped normal, reversed triangles, moved
-// by the same U_u rows), then every box obstacle as static points: each face
+// by the same U_u rows), then every drawn box obstacle (`drawn = false`: none)
+// as static points: each face
 // a grid of quads of about the prop's `cell` edge (one quad when 0),
 // single-sided, outward normals, its own points per face. Sheet triangles are
 // the surface triangles none of whose corners moves with a vertex of a
