@@ -27,24 +27,9 @@ import json
 import os
 import sys
 
-import h5py
 import numpy as np
 
-FORMAT = "phasecast-stage-transfers"
-REPRESENTATIVE, PICKING, REPORTED = 0, 1, 2
-
-
-def open_transfers(path):
-    try:
-        f = h5py.File(path, "r")
-    except OSError as e:
-        sys.exit(f"{path}: expected a transfers file of --save-transfers (HDF5): {e}")
-    if f.attrs.get("format") != FORMAT:
-        sys.exit(f"{path}: /@format: expected {FORMAT} (a file of --save-transfers)")
-    for name in ("fields", "nodes", "roles", "q_u", "cluster_labels", "rest_positions", "deformable"):
-        if name not in f:
-            sys.exit(f"{path}: /{name}: missing dataset (docs/transfer.md, 'The transfers file')")
-    return f
+from transfers_file import PICKING, REPORTED, REPRESENTATIVE, open_transfers
 
 
 def field_rows(f, points=None):
@@ -78,7 +63,10 @@ def cached_gram(path, f):
         if np.array_equal(kept["key"], key):
             return kept["gram"]
     gram = centred_gram(f)
-    np.savez(cache, key=key, gram=gram)
+    try:
+        np.savez(cache, key=key, gram=gram)
+    except OSError as e:  # a folder this user cannot write: compute it again next time
+        print(f"{cache}: not cached ({e.strerror})", file=sys.stderr)
     return gram
 
 
@@ -261,7 +249,8 @@ def main():
     parser.add_argument("--pairs", action="store_true", help="also report how alike nearby states' transfers are")
     parser.add_argument("--json", help="also write the figures here")
     a = parser.parse_args()
-    f = open_transfers(a.transfers)
+    f = open_transfers(a.transfers, ("fields", "nodes", "roles", "q_u", "cluster_labels", "rest_positions",
+                                     "deformable"))
     roles, labels = f["roles"][()], f["cluster_labels"][()]
     q_u = f["q_u"][()].astype(np.float64)
     counts = [int((roles == r).sum()) for r in (REPRESENTATIVE, PICKING, REPORTED)]

@@ -29,24 +29,13 @@ import argparse
 import json
 import sys
 
-import h5py
 import numpy as np
 
-FORMAT = "phasecast-stage-transfers"
-REPRESENTATIVE, PICKING, REPORTED = 0, 1, 2
+from transfers_file import PICKING, REPORTED, REPRESENTATIVE, open_transfers
 
 
 def load(path):
-    try:
-        f = h5py.File(path, "r")
-    except OSError as e:
-        sys.exit(f"{path}: expected a transfers file of --save-transfers (HDF5): {e}")
-    with f:
-        if f.attrs.get("format") != FORMAT:
-            sys.exit(f"{path}: /@format: expected {FORMAT} (a file of --save-transfers)")
-        for name in ("fields", "roles", "q_u", "rest_positions"):
-            if name not in f:
-                sys.exit(f"{path}: /{name}: missing dataset (docs/transfer.md, 'The transfers file')")
+    with open_transfers(path, ("fields", "roles", "q_u", "rest_positions")) as f:
         fields = f["fields"][()].astype(np.float64)  # T x S x 3 x 16
         return {
             "fields": fields.reshape(fields.shape[0], fields.shape[1], 48),
