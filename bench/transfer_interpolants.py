@@ -16,8 +16,9 @@ gigabytes is read once.
       their share of the variation
   --pairs   how alike the transfer is at states that q_u cannot tell apart:
       the semivariance 0.5 |M_i - M_j|^2 over the variance, for the pairs of
-      nodes closest in q_u and for consecutive state nodes (one frame apart),
-      and how many scene points hold half of the closest pairs' difference
+      nodes closest in q_u and for consecutive state nodes (node numbers one
+      apart: mostly one frame of an IRF), how many scene points hold half of the
+      closest pairs' difference and, with --exclude-box, the box's share of it all
 
   bench/transfer_interpolants.py TRANSFERS.h5 --rank-a 12 [--weighting equal|cluster-size]
                                  [--exclude-box ...] [--pairs] [--json OUT]
@@ -32,19 +33,12 @@ import numpy as np
 from transfers_file import PICKING, REPORTED, REPRESENTATIVE, open_transfers
 
 
-def field_rows(f, points=None):
-    """Each node's field as one float64 row (only `points`, when given), read a block at a time."""
-    fields = f["fields"]
-    for start in range(0, fields.shape[0], 64):
-        block = fields[start:start + 64]
-        if points is not None:
-            block = block[:, points]
-        yield start, block.reshape(len(block), -1).astype(np.float64)
-
-
 def centred_gram(f, points=None):
-    """Gram matrix of the fields about the representatives' plain mean (column blocks, float64)."""
-    rows = np.concatenate([r.astype(np.float32) for _, r in field_rows(f, points)])
+    """Gram matrix of the fields (only `points`, when given) about the representatives' plain mean,
+    in float64 over column blocks; the file is read once, 64 fields at a time."""
+    fields = f["fields"]
+    rows = np.concatenate([(block if points is None else block[:, points]).reshape(len(block), -1)
+                           for block in (fields[i:i + 64] for i in range(0, fields.shape[0], 64))])
     rep = f["roles"][()] == REPRESENTATIVE
     gram = np.zeros((len(rows), len(rows)))
     for j in range(0, rows.shape[1], 32768):
@@ -136,13 +130,16 @@ def knn(xs, ys, x, k):
     return out
 
 
+def with_ones(x):
+    return np.hstack([x, np.ones((len(x), 1))])
+
+
 def affine_fit(xs, ys):
-    design = np.hstack([xs, np.ones((len(xs), 1))])
-    return np.linalg.lstsq(design, ys, rcond=None)[0]
+    return np.linalg.lstsq(with_ones(xs), ys, rcond=None)[0]
 
 
 def affine(xs, ys, x):
-    return np.hstack([x, np.ones((len(x), 1))]) @ affine_fit(xs, ys)
+    return with_ones(x) @ affine_fit(xs, ys)
 
 
 def nrbf(xs, ys, x, width, ridge):
@@ -168,7 +165,7 @@ def kernel_ridge(xs, ys, x, length, ridge, with_affine):
     base, rest = np.zeros((len(x), ys.shape[1])), ys
     if with_affine:
         w = affine_fit(xs, ys)
-        base, rest = np.hstack([x, np.ones((len(x), 1))]) @ w, ys - np.hstack([xs, np.ones((len(xs), 1))]) @ w
+        base, rest = with_ones(x) @ w, ys - with_ones(xs) @ w
     d2 = squared_distances(xs, xs)
     ell2 = (length * np.median(np.sqrt(d2[np.triu_indices(len(xs), 1)]))) ** 2
     alpha = np.linalg.solve(np.exp(-d2 / (2 * ell2)) + ridge * np.eye(len(xs)), rest)
@@ -290,7 +287,7 @@ def main():
             print(f"{name}: {r['pairs']} pairs, |dq_u| {r['distance_q_u']:.3g}, "
                   f"semivariance / variance {r['semivariance_over_variance']:.3f}")
         print(f"half of the closest pairs' difference lies in {p['points_holding_half']} scene points"
-              + (f"; {100 * p['share_in_excluded']:.0f} % of it in the box" if len(excluded) else ""))
+              + (f"; {100 * p['share_in_excluded']:.0f} % of all of it in the box" if len(excluded) else ""))
     if a.json:
         with open(a.json, "w") as out:
             json.dump(figures, out, indent=1)
