@@ -19,9 +19,14 @@ gigabytes is read once.
       nodes closest in q_u and for consecutive state nodes (node numbers one
       apart: mostly one frame of an IRF), how many scene points hold half of the
       closest pairs' difference and, with --exclude-box, the box's share of it all
+  --lobe PACKAGE   first take off every field the unshadowed lobe at each point's
+      deformed normal (bench/normal_lobe.py; PACKAGE: the package the file was
+      reduced into, for its mesh, x-bar and U_u), then fit the model to what is
+      left; errors stay relative to the paper model's variation, so the figures
+      compare with those without it. Prints the lobe's share of the variation
 
   bench/transfer_interpolants.py TRANSFERS.h5 --rank-a 12 [--weighting equal|cluster-size]
-                                 [--exclude-box ...] [--pairs] [--json OUT]
+                                 [--exclude-box ...] [--pairs] [--lobe PACKAGE] [--json OUT]
 """
 import argparse
 import json
@@ -30,15 +35,20 @@ import sys
 
 import numpy as np
 
+from normal_lobe import Lobe
 from transfers_file import PICKING, REPORTED, REPRESENTATIVE, open_transfers
 
 
-def centred_gram(f, points=None):
-    """Gram matrix of the fields (only `points`, when given) about the representatives' plain mean,
-    in float64 over column blocks; the file is read once, 64 fields at a time."""
+def centred_gram(f, points=None, lobe=None):
+    """Gram matrix of the fields (only `points`, when given; less the lobe, when given) about the
+    representatives' plain mean, in float64 over column blocks; the file is read once, 64 fields at a time."""
     fields = f["fields"]
-    rows = np.concatenate([(block if points is None else block[:, points]).reshape(len(block), -1)
-                           for block in (fields[i:i + 64] for i in range(0, fields.shape[0], 64))])
+
+    def block(i):
+        b = fields[i:i + 64] if lobe is None else fields[i:i + 64] - lobe.block(i, min(i + 64, len(fields)))
+        return (b if points is None else b[:, points]).reshape(len(b), -1)
+
+    rows = np.concatenate([block(i) for i in range(0, fields.shape[0], 64)])
     rep = f["roles"][()] == REPRESENTATIVE
     gram = np.zeros((len(rows), len(rows)))
     for j in range(0, rows.shape[1], 32768):
@@ -74,14 +84,19 @@ def largest_eigenvalue(g):
     return float(max(np.linalg.eigvalsh(g)[-1], 0.0)) if len(g) else 0.0
 
 
+def representative_weights(roles, labels, weighting):
+    """The representatives' weights, summing to 1: equal, or their clusters' share of the state nodes."""
+    n = int((roles == REPRESENTATIVE).sum())
+    w = np.ones(n) if weighting == "equal" else np.bincount(labels, minlength=n)[:n].astype(float)
+    return w / w.sum()
+
+
 class Model:
     """M-bar and U_a of the representatives' fields, weights w, in terms of the Gram matrix."""
 
     def __init__(self, gram, roles, labels, rank, weighting):
         self.rep = np.where(roles == REPRESENTATIVE)[0]
-        n = len(self.rep)
-        w = np.ones(n) if weighting == "equal" else np.bincount(labels, minlength=n)[:n].astype(float)
-        w /= w.sum()
+        w = representative_weights(roles, labels, weighting)
         shift = gram[:, self.rep] @ w  # (x - plain mean) . (weighted mean - plain mean)
         self.gram = gram - shift[:, None] - shift[None, :] + w @ gram[np.ix_(self.rep, self.rep)] @ w
         sw = np.sqrt(w)
@@ -98,11 +113,12 @@ class Model:
 class HeldOut:
     """Held-out nodes: their truth about M-bar, its coordinates and what U_a leaves of it."""
 
-    def __init__(self, model, nodes):
+    def __init__(self, model, nodes, reference=None):
+        """Errors are relative to `reference`'s variation at the nodes (the paper's model), else the model's."""
         self.gram = model.gram[np.ix_(nodes, nodes)]
         self.q_a = model.q_a(nodes)
         self.truncated = self.gram - self.q_a @ self.q_a.T
-        self.norm = np.sqrt(largest_eigenvalue(self.gram))
+        self.norm = np.sqrt(largest_eigenvalue((reference or model).gram[np.ix_(nodes, nodes)]))
 
     def total(self, q_a_served):
         d = self.q_a - q_a_served  # orthogonal to what U_a leaves, so the Gram matrices add
@@ -187,12 +203,15 @@ def candidates(xs, ys):
     return grid
 
 
-def compare(gram, roles, q_u, labels, rank, weighting):
+def compare(gram, roles, q_u, labels, rank, weighting, paper_gram=None):
+    """The figures of the model of `gram`; relative to the variation of `paper_gram`'s model when given."""
     model = Model(gram, roles, labels, rank, weighting)
+    reference = None if paper_gram is None else Model(paper_gram, roles, labels, rank, weighting)
     rep = model.rep
     picking, reported = (np.where(roles == r)[0] for r in (PICKING, REPORTED))
-    halves = HeldOut(model, picking), HeldOut(model, reported)
-    result = {"clusters_sigma_ratio": float(model.sigma[rank] / model.sigma[0]) if rank < len(model.sigma) else 0.0,
+    halves = HeldOut(model, picking, reference), HeldOut(model, reported, reference)
+    sigma_1 = (reference or model).sigma[0]
+    result = {"clusters_sigma_ratio": float(model.sigma[rank] / sigma_1) if rank < len(model.sigma) else 0.0,
               "truncation": {"picking": halves[0].truncation(), "reported": halves[1].truncation()},
               "interpolants": {}}
     for name, options in candidates(q_u[rep], model.q_a(rep)).items():
@@ -244,6 +263,9 @@ def main():
                         help="weights of the representatives in M-bar and the SVD (§4.2; docs/transfer.md)")
     parser.add_argument("--exclude-box", help="x0,y0,z0,x1,y1,z1: static scene points left out of the model")
     parser.add_argument("--pairs", action="store_true", help="also report how alike nearby states' transfers are")
+    parser.add_argument("--lobe", metavar="PACKAGE",
+                        help="take the unshadowed lobe at the deformed normal (bench/normal_lobe.py) off the fields "
+                             "first; PACKAGE: the package the file was reduced into (for its mesh and U_u)")
     parser.add_argument("--json", help="also write the figures here")
     a = parser.parse_args()
     f = open_transfers(a.transfers, ("fields", "nodes", "roles", "q_u", "cluster_labels", "rest_positions",
@@ -271,7 +293,20 @@ def main():
         gram_model = gram - inside
     else:
         gram_model = gram
-    result = compare(gram_model, roles, q_u, labels, a.rank_a, a.weighting)
+    paper_gram = None
+    if a.lobe:
+        if a.exclude_box or a.pairs:
+            sys.exit("--lobe: expected neither --exclude-box nor --pairs with it")
+        lobe = Lobe(a.lobe, q_u, f["fields"].shape[1])
+        lobe.fit(f["fields"], roles, representative_weights(roles, labels, a.weighting))
+        paper_gram, gram_model = gram, centred_gram(f, lobe=lobe)
+        rep = np.where(roles == REPRESENTATIVE)[0]
+        left = Model(gram_model, roles, labels, a.rank_a, a.weighting).gram[np.ix_(rep, rep)]
+        paper = Model(gram, roles, labels, a.rank_a, a.weighting).gram[np.ix_(rep, rep)]
+        share = 1 - float(np.trace(left) / np.trace(paper))
+        print(f"the lobe at the deformed normal takes {100 * share:.1f} % of the representatives' variation about the mean")
+        figures["lobe_share"] = share
+    result = compare(gram_model, roles, q_u, labels, a.rank_a, a.weighting, paper_gram)
     figures.update(result)
     t = result["truncation"]
     print(f"clusters sigma_(r+1)/sigma_1 {100 * result['clusters_sigma_ratio']:.1f} %; truncation alone: picking "
