@@ -16,6 +16,8 @@ import sys
 import h5py
 import numpy as np
 
+from transfers_writer import write_transfers
+
 script, work = sys.argv[1], sys.argv[2]
 rng = np.random.default_rng(5)
 side = 4  # vertices per flap edge
@@ -71,19 +73,7 @@ fields[..., [0, 15]] += 0.01 * rng.normal(size=(T, S, 3, 2))  # no function of q
 fields = fields.astype(np.float32).astype(np.float64)  # what the file holds
 
 path, package = f"{work}/lobe.transfers.h5", f"{work}/lobe.package.h5"
-with h5py.File(path, "w") as f:
-    f["fields"] = fields.astype(np.float32)
-    f["nodes"] = np.arange(T, dtype=np.int32)
-    f["roles"] = roles
-    f["q_u"] = q_u.astype(np.float32)
-    f["cluster_labels"] = np.arange(T, dtype=np.int32)
-    f["rest_positions"] = rest.astype(np.float32)
-    f["deformable"] = np.ones(S, np.uint8)
-    f.attrs["format"] = "phasecast-stage-transfers"
-    f.attrs["format_version"] = np.int32(1)
-    f.attrs["scene"] = "three flaps"
-    f.attrs["rays"] = np.int32(0)
-    f.attrs["bounces"] = np.int32(0)
+write_transfers(path, fields, roles, q_u, rest, np.ones(S), "three flaps")
 with h5py.File(package, "w") as f:
     f["reduction/mean_shape"] = rest.reshape(-1).astype(np.float32)
     f["reduction/U_u"] = u_u.astype(np.float32)

@@ -15,6 +15,8 @@ import sys
 import h5py
 import numpy as np
 
+from transfers_writer import write_transfers
+
 script, work = sys.argv[1], sys.argv[2]
 rng = np.random.default_rng(11)
 visible, hidden = 30, 10
@@ -34,19 +36,7 @@ fields[:, visible:] += 1.5 * rng.normal(size=(T, hidden, 48))
 fields = fields.astype(np.float32).astype(np.float64)  # what the file holds
 
 path = f"{work}/interpolants.transfers.h5"
-with h5py.File(path, "w") as f:
-    f["fields"] = fields.reshape(T, S, 3, 16).astype(np.float32)
-    f["nodes"] = np.arange(T, dtype=np.int32)
-    f["roles"] = roles
-    f["q_u"] = q_u.astype(np.float32)
-    f["cluster_labels"] = np.arange(T, dtype=np.int32)
-    f["rest_positions"] = rest
-    f["deformable"] = deformable
-    f.attrs["format"] = "phasecast-stage-transfers"
-    f.attrs["format_version"] = np.int32(1)
-    f.attrs["scene"] = "a box of noise"
-    f.attrs["rays"] = np.int32(0)
-    f.attrs["bounces"] = np.int32(0)
+write_transfers(path, fields.reshape(T, S, 3, 16), roles, q_u, rest, deformable, "a box of noise")
 
 
 def run(*extra):

@@ -11,8 +11,9 @@ import json
 import subprocess
 import sys
 
-import h5py
 import numpy as np
+
+from transfers_writer import write_transfers
 
 script, work = sys.argv[1], sys.argv[2]
 rng = np.random.default_rng(5)
@@ -31,19 +32,7 @@ for i, (a, b) in enumerate(q_u):
     fields[i, 20:] += (-0.1 + 0.5 * b) * pattern[1]
 
 path = f"{work}/regions.transfers.h5"
-with h5py.File(path, "w") as f:
-    f["fields"] = fields.reshape(len(roles), S, 3, 16).astype(np.float32)
-    f["nodes"] = np.arange(len(roles), dtype=np.int32)
-    f["roles"] = roles
-    f["q_u"] = q_u.astype(np.float32)
-    f["cluster_labels"] = np.arange(len(roles), dtype=np.int32)
-    f["rest_positions"] = rest
-    f["deformable"] = np.ones(S, np.uint8)
-    f.attrs["format"] = "phasecast-stage-transfers"
-    f.attrs["format_version"] = np.int32(1)
-    f.attrs["scene"] = "two regions"
-    f.attrs["rays"] = np.int32(0)
-    f.attrs["bounces"] = np.int32(0)
+write_transfers(path, fields.reshape(len(roles), S, 3, 16), roles, q_u, rest, np.ones(S), "two regions")
 
 out = f"{work}/regions.json"
 run = subprocess.run([script, path, "--rank-a", "1", "--regions", "1,2", "--json", out],
