@@ -11,7 +11,7 @@ hold the rest. Here each point p and colour channel c gets one scalar per band,
     lobe_pc(q) = sum_{l=1,2} s_pcl (Y_l(n_p(q)) - Y_l-bar_p),
 
 fitted by least squares to the representatives (their weighted means
-subtracted), n_p(q) the area-weighted vertex normal of the reduced shape
+subtracted), n_p(q) the angle-weighted vertex normal (as the stage's) of the reduced shape
 x-bar + U_u q_u (eq. 7) on the package's triangles.
 """
 import sys
@@ -35,12 +35,21 @@ def sh_bands_1_2(n):
 
 
 def vertex_normals(x, triangles):
-    a, b, c = (x[triangles[:, k]] for k in range(3))
-    face = np.cross(b - a, c - a)  # area-weighted
+    """Angle-weighted vertex normals, as core::vertex_normals (core/src/mesh_geometry.cpp) gives the
+    stage's transfer: degenerate faces add nothing, a point with no direction gets (0, 0, 1)."""
+    corners = [x[triangles[:, k]] for k in range(3)]
+    face = np.cross(corners[1] - corners[0], corners[2] - corners[0])
+    length = np.linalg.norm(face, axis=1)
+    keep = length > 0
+    unit = face[keep] / length[keep, None]
     n = np.zeros_like(x)
-    for k in range(3):
-        np.add.at(n, triangles[:, k], face)
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    for j in range(3):
+        e1 = corners[(j + 1) % 3][keep] - corners[j][keep]
+        e2 = corners[(j + 2) % 3][keep] - corners[j][keep]
+        angle = np.arctan2(np.linalg.norm(np.cross(e1, e2), axis=1), (e1 * e2).sum(1))
+        np.add.at(n, triangles[keep, j], angle[:, None] * unit)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where(norm > 0, n / np.where(norm > 0, norm, 1), np.array([0.0, 0.0, 1.0]))
 
 
 class Lobe:

@@ -9,7 +9,8 @@ sizes), then measures at the held-out nodes, as relative l2 norms about M-bar
 each interpolant, its parameters picked at the picking half and reported at
 the reported half. Everything is computed from the Gram matrix of the fields
 (T x T, float64, cached beside the file as FILE.gram.npz), so a file of
-gigabytes is read once.
+gigabytes is read once (with --lobe, again for the lobe's fit and its own
+Gram matrix, which is not cached).
 
   --exclude-box x0,y0,z0,x1,y1,z1   leave the static scene points inside the box
       out of the model and the measure (e.g. geometry no camera sees); prints
@@ -118,7 +119,7 @@ class HeldOut:
         self.gram = model.gram[np.ix_(nodes, nodes)]
         self.q_a = model.q_a(nodes)
         self.truncated = self.gram - self.q_a @ self.q_a.T
-        self.norm = np.sqrt(largest_eigenvalue((reference or model).gram[np.ix_(nodes, nodes)]))
+        self.norm = np.sqrt(largest_eigenvalue((model if reference is None else reference).gram[np.ix_(nodes, nodes)]))
 
     def total(self, q_a_served):
         d = self.q_a - q_a_served  # orthogonal to what U_a leaves, so the Gram matrices add
@@ -210,7 +211,7 @@ def compare(gram, roles, q_u, labels, rank, weighting, paper_gram=None):
     rep = model.rep
     picking, reported = (np.where(roles == r)[0] for r in (PICKING, REPORTED))
     halves = HeldOut(model, picking, reference), HeldOut(model, reported, reference)
-    sigma_1 = (reference or model).sigma[0]
+    sigma_1 = (model if reference is None else reference).sigma[0]
     result = {"clusters_sigma_ratio": float(model.sigma[rank] / sigma_1) if rank < len(model.sigma) else 0.0,
               "truncation": {"picking": halves[0].truncation(), "reported": halves[1].truncation()},
               "interpolants": {}}
@@ -255,6 +256,15 @@ def pairs_report(f, gram, q_u, excluded):
     return out
 
 
+def lobe_share(left, whole, roles, labels, weighting, weights):
+    """How much of the variation about M-bar the lobe takes: over the representatives, weighted as
+    the model weighs them, and over the reported half's nodes, all alike."""
+    left, whole = (Model(g, roles, labels, 1, weighting).gram for g in (left, whole))
+    rep, reported = np.where(roles == REPRESENTATIVE)[0], np.where(roles == REPORTED)[0]
+    return {"representatives": 1 - float(weights @ np.diag(left)[rep] / (weights @ np.diag(whole)[rep])),
+            "reported": 1 - float(np.diag(left)[reported].sum() / np.diag(whole)[reported].sum())}
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("transfers", help="transfers file of --save-transfers (.h5)")
@@ -265,9 +275,11 @@ def main():
     parser.add_argument("--pairs", action="store_true", help="also report how alike nearby states' transfers are")
     parser.add_argument("--lobe", metavar="PACKAGE",
                         help="take the unshadowed lobe at the deformed normal (bench/normal_lobe.py) off the fields "
-                             "first; PACKAGE: the package the file was reduced into (for its mesh and U_u)")
+                             "first; PACKAGE: the package the file was reduced into (for its mesh, x-bar and U_u)")
     parser.add_argument("--json", help="also write the figures here")
     a = parser.parse_args()
+    if a.lobe and (a.exclude_box or a.pairs):
+        sys.exit("--lobe: expected neither --exclude-box nor --pairs with it")
     f = open_transfers(a.transfers, ("fields", "nodes", "roles", "q_u", "cluster_labels", "rest_positions",
                                      "deformable"))
     roles, labels = f["roles"][()], f["cluster_labels"][()]
@@ -295,17 +307,14 @@ def main():
         gram_model = gram
     paper_gram = None
     if a.lobe:
-        if a.exclude_box or a.pairs:
-            sys.exit("--lobe: expected neither --exclude-box nor --pairs with it")
+        weights = representative_weights(roles, labels, a.weighting)
         lobe = Lobe(a.lobe, q_u, f["fields"].shape[1])
-        lobe.fit(f["fields"], roles, representative_weights(roles, labels, a.weighting))
+        lobe.fit(f["fields"], roles, weights)
         paper_gram, gram_model = gram, centred_gram(f, lobe=lobe)
-        rep = np.where(roles == REPRESENTATIVE)[0]
-        left = Model(gram_model, roles, labels, a.rank_a, a.weighting).gram[np.ix_(rep, rep)]
-        paper = Model(gram, roles, labels, a.rank_a, a.weighting).gram[np.ix_(rep, rep)]
-        share = 1 - float(np.trace(left) / np.trace(paper))
-        print(f"the lobe at the deformed normal takes {100 * share:.1f} % of the representatives' variation about the mean")
-        figures["lobe_share"] = share
+        figures["lobe_share"] = lobe_share(gram_model, gram, roles, labels, a.weighting, weights)
+        print(f"the lobe at the deformed normal takes {100 * figures['lobe_share']['representatives']:.1f} % of the "
+              f"representatives' variation about M-bar ({a.weighting} weights; where it was fitted) and "
+              f"{100 * figures['lobe_share']['reported']:.1f} % at the reported half's nodes")
     result = compare(gram_model, roles, q_u, labels, a.rank_a, a.weighting, paper_gram)
     figures.update(result)
     t = result["truncation"]
