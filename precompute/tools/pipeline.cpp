@@ -459,8 +459,11 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
     const auto report = precompute::run_appearance_stage(
         p, precompute::scene_point_embedding(scene), A,
         precompute::package_node_frames(index.irfs, built.filter.kept), stage,
-        [&transfer_bar](const char*, long done, long total) {
-          transfer_bar.update(static_cast<int>(done), static_cast<int>(total));
+        [&transfer_bar, stage_name = std::string("appearance transfer")](const char* name, long done,
+                                                                         long total) mutable {
+          // the transfers, then the nrbf's tuning once per weighting tried
+          if (stage_name != name || done == 0) transfer_bar.restart(stage_name = name);
+          transfer_bar.update(done, total);
         });
     transfer_bar.finish();
     if (Ranks::world().rank() == 0) {

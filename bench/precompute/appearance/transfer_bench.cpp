@@ -8,6 +8,7 @@
 
 #include "phasecast/core/mesh_geometry.h"
 #include "phasecast/precompute/appearance/kmeans.h"
+#include "phasecast/precompute/appearance/nrbf.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/appearance/transfer_appearance.h"
 #include "phasecast/precompute/appearance/transfer_file.h"
@@ -15,6 +16,7 @@
 #include "phasecast/precompute/appearance/transfer_reduction.h"
 
 #include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
 
 #include <cmath>
 #include <cstring>
@@ -205,6 +207,26 @@ void BM_HeldOutTruncationCurve(benchmark::State& state) {
   state.counters["H"] = static_cast<double>(held_out.rows());
 }
 
+// The NRBF's leave-one-out (§4.3, N_a refits of N_a - 1 samples) at N_a =
+// range(0), r_u = 20, r_a = 12, on range(1) threads (0: all cores): the
+// baseline is the same work on one thread in the same run.
+void BM_NrbfLeaveOneOut(benchmark::State& state) {
+  const Eigen::Index Na = state.range(0);
+  const MatrixXfR centers = portrait(static_cast<int>(Na));
+  MatrixXfR values(Na, 12);
+  for (Eigen::Index i = 0; i < values.size(); ++i) values.data()[i] = static_cast<float>(std::sin(0.37 * i));
+  const VectorXf widths = VectorXf::Constant(Na, 0.5f);
+  const auto threads = state.range(1) > 0
+                           ? static_cast<size_t>(state.range(1))
+                           : tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  nrbf_leave_one_out(centers, widths, values,
+                     1e-4f);  // warm: the first run in a process pays for its allocator
+  for (auto _ : state) benchmark::DoNotOptimize(nrbf_leave_one_out(centers, widths, values, 1e-4f).relative);
+  state.counters["N_a"] = static_cast<double>(Na);
+  state.counters["threads"] = static_cast<double>(threads);
+}
+
 BENCHMARK(BM_OcclusionRays);
 BENCHMARK(BM_ClosestHitRays);
 BENCHMARK(BM_TransferPerPoint)
@@ -218,6 +240,12 @@ BENCHMARK(BM_KMeans)->Arg(5000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_BuildAppearance)->Unit(benchmark::kSecond)->Iterations(1);
 BENCHMARK(BM_ReduceTransfer)->Arg(200)->Unit(benchmark::kSecond)->Iterations(1);
 BENCHMARK(BM_HeldOutTruncationCurve)->Arg(200)->Unit(benchmark::kSecond)->Iterations(1);
+BENCHMARK(BM_NrbfLeaveOneOut)
+    ->ArgsProduct({{200}, {0, 1}})
+    ->ArgNames({"N_a", "threads"})
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
 
 }  // namespace
 }  // namespace phasecast::precompute

@@ -173,8 +173,10 @@ AppearanceStageReport run_appearance_stage(core::ScenePackage& pkg, const Embedd
   const auto Na = static_cast<Eigen::Index>(representatives.size());
   if (o.keep_transfers) keep_transfers(pkg, report.clusters, nodes, fields, o);
   held_out.fields = fields.bottomRows(count - Na);
+  AppearanceOptions fit = o.appearance;
+  fit.progress = progress;
   AppearanceModel model =
-      fit_appearance_model(q_u, report.clusters, fields.topRows(Na), o.appearance, held_out);  // §4.2, §4.3
+      fit_appearance_model(q_u, report.clusters, fields.topRows(Na), fit, held_out);  // §4.2, §4.3
   report.candidates = std::move(model.candidates);
   report.weighting_gain = model.weighting_gain;
   report.basis_comparison = model.basis_comparison;

@@ -144,15 +144,19 @@ const char* interpolant_name(InterpolantKind kind) {
 }
 
 Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<std::int32_t>& labels,
-                      const Eigen::Ref<const MatrixXfR>& centers,
-                      const Eigen::Ref<const MatrixXfR>& samples) {
+                      const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples,
+                      const std::function<void(const char*, long, long)>& progress) {
   Interpolant best;
   best.leave_one_out = std::numeric_limits<double>::infinity();
   const bool single = centers.rows() < 2;
+  const auto grid = static_cast<long>(std::size(kNrbfWidthScales) * std::size(kNrbfRegularizations));
+  long done = 0;
+  if (progress && !single) progress("appearance nrbf tuning", 0, grid);
   for (float scale : kNrbfWidthScales) {
     const VectorXf widths = nrbf_widths(q_u, labels, centers, scale);
     for (float lambda : kNrbfRegularizations) {
       const double loo = single ? 0.0 : nrbf_leave_one_out(centers, widths, samples, lambda).relative;
+      if (progress && !single) progress("appearance nrbf tuning", ++done, grid);
       if (!(loo < best.leave_one_out)) continue;
       best.nrbf = fit_nrbf(centers, widths, samples, lambda);
       best.width_scale = scale;

@@ -92,11 +92,12 @@ std::vector<WeightedReduction> reductions(const Eigen::Ref<const MatrixXfR>& fie
 
 std::vector<Interpolant> candidates(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
                                     const MatrixXfR& centers, const MatrixXfR& samples,
-                                    InterpolantChoice choice) {
+                                    InterpolantChoice choice,
+                                    const std::function<void(const char*, long, long)>& progress) {
   std::vector<Interpolant> out;
   const bool all = choice == InterpolantChoice::best;
   if (all || choice == InterpolantChoice::nrbf)
-    out.push_back(tune_nrbf(q_u, clusters.labels, centers, samples));
+    out.push_back(tune_nrbf(q_u, clusters.labels, centers, samples, progress));
   if (all || choice == InterpolantChoice::knn) out.push_back(tune_knn(centers, samples));
   if (all || choice == InterpolantChoice::affine_knn) out.push_back(tune_affine_knn(centers, samples));
   if (all || choice == InterpolantChoice::affine_knn_slope)
@@ -451,7 +452,7 @@ AppearanceModel fit_appearance_model(const Eigen::Ref<const MatrixXfR>& q_u, con
       reductions(fields, clusters, o, !selection.nodes.empty(), a.singular_values, a.rel_error);
   for (const auto& [w, reduction] : tried) {
     const MatrixXfR samples = reduction.Q_a.transpose();  // q_a^j at centre j
-    for (auto& f : candidates(q_u, clusters, centers, samples, o.interpolant)) {
+    for (auto& f : candidates(q_u, clusters, centers, samples, o.interpolant, o.progress)) {
       CandidateReport c{std::move(f), w, {}, {}};
       if (!selection.nodes.empty())
         c.selection = truth_error(reduction, selection,

@@ -92,6 +92,7 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   const auto r = run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("appearance transfer: 10/10"), std::string::npos) << r.err;  // 4 clusters, 6 held out
+  EXPECT_NE(r.err.find("appearance nrbf tuning: 25/25"), std::string::npos) << r.err;  // 5 widths x 5 lambdas
   EXPECT_NE(r.out.find("appearance: N_a = 4 clusters"), std::string::npos) << r.out;
   const auto p = core::read_package(pkg);  // validates
   ASSERT_TRUE(p.appearance.has_value());

@@ -4,6 +4,7 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <cmath>
 #include <random>
@@ -95,6 +96,36 @@ TEST(Nrbf, LeaveOneOutSeparatesSmoothDataFromNoise) {
   const auto constant = nrbf_leave_one_out(s.x, s.widths, MatrixXfR::Constant(33, 1, 2.0f), 0.0f);
   EXPECT_LT(constant.rms, 1e-5);
   EXPECT_NEAR(constant.rms * std::sqrt(33.0), constant.errors.cast<double>().norm(), 1e-9);
+}
+
+// The N_a refits run side by side: each must be the refit a plain loop makes,
+// whatever the number of threads, so that packages stay bit-identical.
+TEST(Nrbf, LeaveOneOutIsEachRefitOnAnyNumberOfThreads) {
+  const MatrixXfR C = random_matrix(40, 3, 21), V = random_matrix(40, 2, 22);
+  const VectorXf w = VectorXf::Constant(40, 0.6f);
+  VectorXf by_hand(40);
+  double err2 = 0;
+  for (Eigen::Index j = 0; j < 40; ++j) {
+    MatrixXfR Cj(39, 3), Vj(39, 2);
+    for (Eigen::Index i = 0, k = 0; i < 40; ++i) {
+      if (i == j) continue;
+      Cj.row(k) = C.row(i);
+      Vj.row(k++) = V.row(i);
+    }
+    const double e =
+        (evaluate_nrbf(fit_nrbf(Cj, w.head(39), Vj, 1e-4f), C.row(j)) - V.row(j)).cast<double>().norm();
+    by_hand[j] = static_cast<float>(e);
+    err2 += e * e;
+  }
+  const auto threaded = nrbf_leave_one_out(C, w, V, 1e-4f);
+  const auto one = [&] {
+    const tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+    return nrbf_leave_one_out(C, w, V, 1e-4f);
+  }();
+  for (const auto& r : {threaded, one}) {
+    EXPECT_TRUE(r.errors == by_hand);
+    EXPECT_EQ(r.rms, std::sqrt(err2 / 40));
+  }
 }
 
 TEST(Nrbf, WidthsFromClusterSpread) {

@@ -22,6 +22,7 @@
 #include "phasecast/precompute/appearance/nrbf.h"
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -49,8 +50,11 @@ struct Interpolant {
 //   @param[in] labels   #N cluster of each node
 //   @param[in] centers  #N_a by r_u cluster nodes
 //   @param[in] samples  #N_a by r_a q_a at each centre
+//   @param[in] progress (optional) called with "appearance nrbf tuning", the
+//                       grid points done and their count
 Interpolant tune_nrbf(const Eigen::Ref<const MatrixXfR>& q_u, const std::vector<std::int32_t>& labels,
-                      const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples);
+                      const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples,
+                      const std::function<void(const char*, long, long)>& progress = {});
 
 // Tunes k of the k-nearest-neighbour interpolant by leave-one-out.
 Interpolant tune_knn(const Eigen::Ref<const MatrixXfR>& centers, const Eigen::Ref<const MatrixXfR>& samples);

@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <optional>
 
 #include "phasecast/core/package.h"
@@ -46,6 +47,9 @@ struct AppearanceOptions {
   // the held-out nodes (relative l2, the paper's equal-weight SVD) is at most
   // this, instead of the reduction's rule; the reported half never sees it.
   double held_out_target = 0;
+  // Ticks of the NRBF's tuning, one per grid point: its leave-one-out refits
+  // N_a samples N_a times (N_a^4 work, tens of minutes at N_a = 800).
+  std::function<void(const char*, long, long)> progress = nullptr;
 };
 
 // How held_out_target set r_a.
