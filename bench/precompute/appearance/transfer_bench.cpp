@@ -209,7 +209,9 @@ void BM_HeldOutTruncationCurve(benchmark::State& state) {
 
 // The NRBF's leave-one-out (§4.3, N_a refits of N_a - 1 samples) at N_a =
 // range(0), r_u = 20, r_a = 12, on range(1) threads (0: all cores): the
-// baseline is the same work on one thread in the same run.
+// baseline is the same work on one thread. Run each case in a process of its
+// own (--benchmark_filter=...threads:1, then threads:0): in one process the
+// second case reads faster whichever it is (docs/performance.md).
 void BM_NrbfLeaveOneOut(benchmark::State& state) {
   const Eigen::Index Na = state.range(0);
   const MatrixXfR centers = portrait(static_cast<int>(Na));

@@ -104,7 +104,7 @@ TEST(Nrbf, LeaveOneOutIsEachRefitOnAnyNumberOfThreads) {
   const MatrixXfR C = random_matrix(40, 3, 21), V = random_matrix(40, 2, 22);
   const VectorXf w = VectorXf::Constant(40, 0.6f);
   VectorXf by_hand(40);
-  double err2 = 0;
+  double err2 = 0, norm2 = 0;
   for (Eigen::Index j = 0; j < 40; ++j) {
     MatrixXfR Cj(39, 3), Vj(39, 2);
     for (Eigen::Index i = 0, k = 0; i < 40; ++i) {
@@ -116,6 +116,7 @@ TEST(Nrbf, LeaveOneOutIsEachRefitOnAnyNumberOfThreads) {
         (evaluate_nrbf(fit_nrbf(Cj, w.head(39), Vj, 1e-4f), C.row(j)) - V.row(j)).cast<double>().norm();
     by_hand[j] = static_cast<float>(e);
     err2 += e * e;
+    norm2 += V.row(j).cast<double>().squaredNorm();
   }
   const auto threaded = nrbf_leave_one_out(C, w, V, 1e-4f);
   const auto one = [&] {
@@ -125,6 +126,7 @@ TEST(Nrbf, LeaveOneOutIsEachRefitOnAnyNumberOfThreads) {
   for (const auto& r : {threaded, one}) {
     EXPECT_TRUE(r.errors == by_hand);
     EXPECT_EQ(r.rms, std::sqrt(err2 / 40));
+    EXPECT_EQ(r.relative, std::sqrt(err2 / norm2));
   }
 }
 

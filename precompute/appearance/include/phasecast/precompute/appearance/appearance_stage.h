@@ -99,7 +99,9 @@ std::vector<std::int32_t> draw_held_out_nodes(Eigen::Index N, const std::vector<
 // stores the model in package.appearance, package.portrait.q_a and
 // package.attributes.eps_a. The true transfer of `held_out` other nodes
 // measures it (fit_appearance_model). `progress(stage, done, total)` is
-// called as the transfers (representatives, then held-out nodes) complete.
+// called as the transfers (representatives, then held-out nodes) complete,
+// as "appearance transfer", then per grid point of the NRBF's tuning, as
+// "appearance nrbf tuning" (from 0 again for each weighting tried).
 //   @param[in] orbits       the store the package was reduced from
 //   @param[in] node_frames  package_node_frames(...) of that reduction
 // Throws std::invalid_argument for bad options (N_a above the node count

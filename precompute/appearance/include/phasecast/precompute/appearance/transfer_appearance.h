@@ -48,7 +48,7 @@ struct AppearanceOptions {
   // this, instead of the reduction's rule; the reported half never sees it.
   double held_out_target = 0;
   // Ticks of the NRBF's tuning, one per grid point: its leave-one-out refits
-  // N_a samples N_a times (N_a^4 work, tens of minutes at N_a = 800).
+  // N_a - 1 samples N_a times (N_a^4 work, tens of minutes at N_a = 800).
   std::function<void(const char*, long, long)> progress = nullptr;
 };
 
