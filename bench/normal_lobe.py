@@ -55,18 +55,23 @@ def vertex_normals(x, triangles):
 class Lobe:
     """The deformed normals' SH at every node of a transfers file, from the package that made it."""
 
-    def __init__(self, package, q_u, points):
+    def __init__(self, package, q_u, rest):
+        """rest: the transfers file's rest positions, which the package's must equal."""
         try:
             p = h5py.File(package, "r")
         except OSError as e:
             sys.exit(f"{package}: expected the package the transfers file was reduced into (HDF5): {e}")
-        for name in ("reduction/mean_shape", "reduction/U_u", "mesh/triangles"):
+        for name in ("reduction/mean_shape", "reduction/U_u", "mesh/triangles", "mesh/rest_positions"):
             if name not in p:
                 sys.exit(f"{package}: /{name}: missing dataset (a phasecast package, docs/package-format.md)")
         x_bar, u_u = p["reduction/mean_shape"][()].astype(np.float64), p["reduction/U_u"][()].astype(np.float64)
+        points = len(rest)
         if x_bar.size != 3 * points or u_u.shape != (3 * points, q_u.shape[1]):
             sys.exit(f"{package}: expected {points} scene points and r_u = {q_u.shape[1]} as in the transfers "
                      f"file, got {x_bar.size // 3} points and U_u {u_u.shape[0]} x {u_u.shape[1]}")
+        if not np.array_equal(p["mesh/rest_positions"][()], rest):
+            sys.exit(f"{package}: /mesh/rest_positions: expected the transfers file's (the package it was "
+                     f"reduced into), got other positions")
         triangles = p["mesh/triangles"][()].astype(np.int64)
         self.y = np.stack([sh_bands_1_2(vertex_normals((x_bar + u_u @ q).reshape(-1, 3), triangles))
                            for q in q_u]).astype(np.float32)  # (T, S, 9)

@@ -308,7 +308,7 @@ def main():
     paper_gram = None
     if a.lobe:
         weights = representative_weights(roles, labels, a.weighting)
-        lobe = Lobe(a.lobe, q_u, f["fields"].shape[1])
+        lobe = Lobe(a.lobe, q_u, f["rest_positions"][()])
         lobe.fit(f["fields"], roles, weights)
         paper_gram, gram_model = gram, centred_gram(f, lobe=lobe)
         figures["lobe_share"] = lobe_share(gram_model, gram, roles, labels, a.weighting, weights)

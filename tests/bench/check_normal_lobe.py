@@ -80,10 +80,15 @@ fields = fields.astype(np.float32).astype(np.float64)  # what the file holds
 
 path, package = f"{work}/lobe.transfers.h5", f"{work}/lobe.package.h5"
 write_transfers(path, fields, roles, q_u, rest, np.ones(S), "three flaps", np.repeat(np.arange(40), sizes))
-with h5py.File(package, "w") as f:
-    f["reduction/mean_shape"] = rest.reshape(-1).astype(np.float32)
-    f["reduction/U_u"] = u_u.astype(np.float32)
-    f["mesh/triangles"] = np.array(triangles, np.uint32)
+def write_package(name, rest_positions, mean_shape, basis):
+    with h5py.File(name, "w") as f:
+        f["reduction/mean_shape"] = mean_shape.reshape(-1).astype(np.float32)
+        f["reduction/U_u"] = basis.astype(np.float32)
+        f["mesh/triangles"] = np.array(triangles, np.uint32)
+        f["mesh/rest_positions"] = rest_positions.astype(np.float32)
+
+
+write_package(package, rest, rest, u_u)
 
 
 def run(*extra, ok=True):
@@ -153,11 +158,12 @@ n = vertex_normals(corners, np.array([[0, 1, 2], [0, 2, 3], [0, 1, 1]]))
 expected = np.array([0, 0, 1]) + np.array([1, 0, 1]) / np.sqrt(2)
 assert np.allclose(n[0], expected / np.linalg.norm(expected)) and np.allclose(n[4], [0, 0, 1]), n
 
-with h5py.File(f"{work}/lobe.bad.h5", "w") as f:
-    f["reduction/mean_shape"] = rest.reshape(-1)[:-3].astype(np.float32)
-    f["reduction/U_u"] = u_u[:-3].astype(np.float32)
-    f["mesh/triangles"] = np.array(triangles, np.uint32)
+write_package(f"{work}/lobe.bad.h5", rest[:-1], rest[:-1], u_u[:-3])
+moved = rest.copy()
+moved[0, 0] += 0.5
+write_package(f"{work}/lobe.other.h5", moved, rest, u_u)
 for bad, expected in ((f"{work}/lobe.bad.h5", "expected 48 scene points"), (path, "/reduction/mean_shape: missing"),
+                      (f"{work}/lobe.other.h5", "/mesh/rest_positions: expected the transfers file's"),
                       (f"{work}/missing.h5", "expected the package")):
     r = run("--lobe", bad, ok=False)
     assert r.returncode != 0 and expected in r.stderr and len(r.stderr.strip().splitlines()) == 1, (bad, r.stderr)
