@@ -81,13 +81,14 @@ class Lobe:
         rep = np.where(roles == REPRESENTATIVE)[0]
         y = self.y[rep].astype(np.float64)
         self.y_bar = np.einsum("i,isk->sk", weights, y)
+        samples = fields[rep]  # read once: (N_a, S, 3, 16) float32
         f_bar = np.zeros(fields.shape[1:])
-        for w, i in zip(weights, rep):
-            f_bar += w * fields[int(i)]
+        for w, sample in zip(weights, samples):
+            f_bar += w * sample
         num = [np.zeros(fields.shape[1:3]) for _ in BANDS]
         den = [np.zeros(fields.shape[1]) for _ in BANDS]
-        for w, i, yi in zip(weights, rep, y):
-            d = fields[int(i)] - f_bar
+        for w, sample, yi in zip(weights, samples, y):
+            d = sample - f_bar
             for b, band in enumerate(BANDS):
                 dy = yi[:, band] - self.y_bar[:, band]
                 num[b] += w * np.einsum("sck,sk->sc", d[:, :, band], dy)

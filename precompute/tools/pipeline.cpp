@@ -459,10 +459,9 @@ void run_reduce_stage(const precompute::Scene& scene, const ReduceArgs& a, const
     const auto report = precompute::run_appearance_stage(
         p, precompute::scene_point_embedding(scene), A,
         precompute::package_node_frames(index.irfs, built.filter.kept), stage,
-        [&transfer_bar, stage_name = std::string("appearance transfer")](const char* name, long done,
-                                                                         long total) mutable {
-          // the transfers, then the nrbf's tuning once per weighting tried
-          if (stage_name != name || done == 0) transfer_bar.restart(stage_name = name);
+        [&transfer_bar](const char* stage_name, long done, long total) {
+          // each of the stage's passes starts at 0: the transfers, then the nrbf's tuning per weighting
+          if (done == 0) transfer_bar.restart(stage_name);
           transfer_bar.update(done, total);
         });
     transfer_bar.finish();
