@@ -233,6 +233,7 @@ TEST(ElasticForces, RestStateHasNoForce) {
 }  // namespace
 }  // namespace phasecast::precompute
 
+#include "../scene_files.h"
 #include "phasecast/precompute/simulation/scene.h"
 #include "source_tree.h"
 
@@ -340,6 +341,40 @@ TEST(Integrator, DoorStopsAtTheEndOfItsRange) {
   const auto T = sim->support_transform();
   EXPECT_NEAR(T(0, 0), 0.0, 1e-12);  // rotated by exactly 90 degrees
   EXPECT_NEAR(std::abs(T(0, 2)), 1.0, 1e-12);
+}
+
+// A prop with drawn = false (the paper cloth's rail inside the towel's fold)
+// has no scene points, but the cloth must still collide with it: kicked off
+// the board, the cloth stops at the undrawn box, and swings past where it
+// stands when the box is left out.
+TEST(Integrator, TheClothCollidesWithAnUndrawnProp) {
+  const auto dir = testing::scratch_dir("physics_undrawn_prop");
+  constexpr double kFace = 0.06;  // z of the box's face towards the cloth (which hangs at z = 0.012)
+  const std::string box =
+      "[[obstacle]]\nname = \"undrawn\"\nmin = [0.1, 1.0, 0.06]\nmax = [0.9, 1.9, 0.1]\n"
+      "drawn = false\n\n[[palette]]";
+  const Scene with_box = load_scene_file(testing::edited_tiny_scene(dir, "[[palette]]", box));
+  ASSERT_EQ(with_box.model.obstacles.size(), 2u);
+  ASSERT_FALSE(with_box.props.at(1).drawn);
+  Scene without_box = with_box;
+  without_box.model.obstacles.pop_back();
+
+  const auto furthest_z = [](const Scene& scene) {
+    auto sim = make_simulator(scene);
+    SimState s = sim->rest_state();
+    for (int i = 0; i < scene.model.vertices(); ++i) {
+      if (!scene.model.pinned[static_cast<size_t>(i)]) s.v[3 * i + 2] = 1.0;  // towards +z, off the board
+    }
+    sim->reset(s);
+    double z = -1;
+    for (int frame = 0; frame < 25; ++frame) {
+      sim->step(alpha(0));
+      for (int i = 0; i < scene.model.vertices(); ++i) z = std::max(z, sim->state().x[3 * i + 2]);
+    }
+    return z;
+  };
+  EXPECT_GT(furthest_z(without_box), kFace + 0.02);  // the kick carries it well past the face
+  EXPECT_LE(furthest_z(with_box), kFace + 1e-9);     // the undrawn box stops it
 }
 
 }  // namespace
