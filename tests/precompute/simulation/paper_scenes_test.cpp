@@ -19,6 +19,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -179,6 +180,45 @@ TEST(PaperScenes, PaperScaleToyHasThePapersTetsAndAFineSurface) {
   ASSERT_EQ(scene.bodies.size(), 1u);
   ASSERT_TRUE(scene.bodies[0].render.has_value());
   EXPECT_NEAR(scene.bodies[0].render->weights.rows(), 24690, 0.15 * 24690);
+}
+
+// A scene file's settings: its lines without comments or blank lines.
+std::vector<std::string> settings_lines(const std::filesystem::path& path) {
+  std::vector<std::string> lines;
+  std::istringstream in(testing::read_file(path));
+  for (std::string line; std::getline(in, line);) {
+    line = line.substr(0, line.find('#'));
+    while (!line.empty() && line.back() == ' ') line.pop_back();
+    if (!line.empty()) lines.push_back(line);
+  }
+  return lines;
+}
+
+// The damped paper toy (the configuration that reaches Table 1's 4.4 %) is
+// the shipped paper toy with ten times its stiffness damping and more rays,
+// and nothing else: its figures say what damping and rays do, so the two
+// files must not drift apart.
+TEST(PaperScenes, DampedPaperToyDiffersFromTheShippedOneOnlyInDampingAndAppearance) {
+  const auto shipped = settings_lines(kScenes / "paper/toy_dashboard.toml");
+  const auto damped = settings_lines(kScenes / "paper/toy_dashboard_damped.toml");
+  const std::map<std::string, std::string> expected = {
+      {"name = \"paper_toy_dashboard\"", "name = \"paper_toy_dashboard_damped\""},
+      {"stiffness_damping = 0.004", "stiffness_damping = 0.04"},
+      {"eps_a = 0.1", "eps_a = 0.04"},
+      {"held_out = 40", "held_out = 100"}};
+  ASSERT_EQ(damped.size(), shipped.size() + 1);
+  size_t d = 0;
+  for (const auto& line : shipped) {
+    const auto changed = expected.find(line);
+    EXPECT_EQ(damped.at(d++), changed == expected.end() ? line : changed->second);
+    if (line == "held_out = 40") {
+      EXPECT_EQ(damped.at(d++), "rays = 8192");
+    }
+  }
+  const Scene scene = load_scene_file(kScenes / "paper/toy_dashboard_damped.toml");
+  EXPECT_EQ(scene.simulation.stiffness_damping, 0.04);
+  EXPECT_EQ(scene.appearance.rays, 8192);
+  EXPECT_NEAR(static_cast<double>(scene.model.tets.size()), 6499, 0.05 * 6499);
 }
 
 // CHOLMOD's supernodal LL^T against Eigen's simplicial LDL^T: two factorizations
