@@ -4,6 +4,8 @@
 #include "phasecast/client/curve_options.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <unistd.h>
@@ -50,7 +52,8 @@ int main(int argc, char** argv) {
   phasecast::client::CurveKeyFiles keys;
   phasecast::client::add_curve_options(app, keys);
   app.add_option("script", script, "Lua script file")->check(CLI::ExistingFile);
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-console"))
+    return *status;
   options.timeout = std::chrono::milliseconds(timeout_ms);
 
   try {

@@ -6,6 +6,8 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <exception>
@@ -33,15 +35,9 @@ int main(int argc, char** argv) {
                  fmt::format("SH light probe the vertex colours are lit by: {} (default grace, as "
                              "phasecast-render)",
                              fmt::join(phasecast::client::light_probe_names(), ", ")));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    // One line and exit status 2: bad usage, as opposed to 1, a failed export.
-    std::cerr << "phasecast-export: " << e.what() << " (see --help)\n";
-    return 2;
-  }
+  // Bad usage exits 2, as opposed to 1, a failed export.
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-export"))
+    return *status;
   try {
     o.package = package;
     o.out = out;

@@ -8,6 +8,8 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <iostream>
@@ -71,14 +73,8 @@ int main(int argc, char** argv) {
                  "network: seconds to wait for each reply (default 2)");
   phasecast::client::CurveKeyFiles keys;
   phasecast::client::add_curve_options(app, keys, "network: ");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::cerr << "phasecast-render: " << e.what() << " (see --help)\n";  // one line, like every other error
-    return e.get_exit_code();
-  }
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-render"))
+    return *status;
   try {
     const auto wh = phasecast::client::parse_size(size);
     o.width = wh[0];

@@ -4,6 +4,8 @@
 #include "phasecast/core/package_summary.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -22,7 +24,8 @@ int main(int argc, char** argv) {
   app.add_flag("--json", json, "print one JSON object instead of text");
   app.add_option("--rank", rank, "report the displacement error at this rank (default: r_u)")
       ->check(CLI::PositiveNumber);
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-inspect"))
+    return *status;
 
   try {
     const auto package = phasecast::core::read_package(path);

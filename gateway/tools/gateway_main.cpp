@@ -7,6 +7,8 @@
 #include "phasecast/client/curve_options.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -73,7 +75,8 @@ int main(int argc, char** argv) {
   phasecast::client::CurveKeyFiles keys;
   add_options(app, o, web_root);
   phasecast::client::add_curve_options(app, keys);
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-gateway"))
+    return *status;
   try {
     o.web_root = web_root.empty() ? phasecast::gateway::default_web_root("/proc/self/exe")
                                   : std::filesystem::path(web_root);

@@ -6,6 +6,7 @@
 
 #include "commands.h"
 
+#include "phasecast/core/command_line.h"
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/distributed/ranks.h"
 
@@ -52,11 +53,12 @@ int main(int argc, char** argv) {
   tools::add_validate_command(app);
   try {
     app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    // In an MPI run the other ranks would wait for this one: it names itself and ends them all.
-    if (e.get_exit_code() != 0 && phasecast::precompute::Ranks::world().distributed())
-      return fail(fmt::format("{} (see --help)", e.what()), e.get_exit_code());
+  } catch (const CLI::Success& e) {  // --help
     return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // One line, as every other error; in an MPI run the other ranks would wait for this one, so
+    // it names itself and ends them all.
+    return fail(fmt::format("{} (see --help)", e.what()), phasecast::core::kUsageExitStatus);
   } catch (const std::exception& e) {
     return fail(e.what(), 1);
   }

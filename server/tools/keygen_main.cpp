@@ -7,6 +7,8 @@
 
 #include <fmt/format.h>
 #include <zmq.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <array>
@@ -16,7 +18,8 @@ int main(int argc, char** argv) {
       "Make a CURVE key pair (NAME.key secret, NAME.pub public) for phasecast-server and its clients."};
   std::string name;
   app.add_option("name", name, "path stem of the two files, e.g. keys/server")->required();
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-keygen"))
+    return *status;
   std::array<char, 41> pub{}, sec{};
   if (zmq_curve_keypair(pub.data(), sec.data()) != 0) {
     fmt::print(stderr,

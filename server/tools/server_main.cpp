@@ -6,6 +6,8 @@
 #include "phasecast/server/server.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <csignal>
@@ -165,7 +167,8 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--replay-check", replay, "verify that this recording replays bit for bit, then exit")
       ->check(CLI::ExistingFile);
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-server"))
+    return *status;
   for (const auto& p : packages) o.packages.emplace_back(p);
   if (!secret_key.empty()) o.curve_secret_key = secret_key;
   if (!allow_clients.empty()) o.allow_clients = allow_clients;

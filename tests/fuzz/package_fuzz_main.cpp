@@ -6,6 +6,8 @@
 #include "synthetic_package.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -155,7 +157,8 @@ int main(int argc, char** argv) {
   app.add_option("--replay", o.replay, "read this one saved input and stop")->check(CLI::ExistingFile);
   app.add_flag("--keep-going", o.keep_going, "count violations instead of stopping at the first");
   app.add_flag("--in-process", o.in_process, "read each input in this process, not a child (for a debugger)");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-fuzz-package"))
+    return *status;
   try {
     return phasecast::fuzz::fuzz(o);
   } catch (const std::exception& e) {

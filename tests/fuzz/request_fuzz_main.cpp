@@ -5,6 +5,8 @@
 #include "request_harness.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -151,7 +153,8 @@ int main(int argc, char** argv) {
   app.add_option("--client", o.client, "with --replay: the client that sent it (see the report)");
   app.add_flag("--keep-going", o.keep_going, "count violations instead of stopping at the first");
   app.add_flag("--strict", o.strict, "treat notes (e.g. an error reply of several lines) as violations");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-fuzz-requests"))
+    return *status;
   try {
     return phasecast::fuzz::fuzz(o);
   } catch (const std::exception& e) {
