@@ -36,6 +36,7 @@ for args, message in [
     (["--bogus"], "demo: unknown argument '--bogus' (expected --scene, --tiny, --frames, --size, --script, "
                   "--no-build, --full-sampling, --web, --web-listen, --help)"),
     (["--frames", "x"], "demo: --frames 'x' is not a positive whole number"),
+    (["--frames"], "demo: --frames needs N"),
     (["--size", "big"], "demo: --size 'big' is not WxH (e.g. 640x480)"),
     (["--scene", "nope"], "demo: scene 'nope' has no file " + os.path.join(source, "scenes", "nope.toml")),
     (["--script", "/no/such.lua"], "demo: --script '/no/such.lua' is not a file"),
