@@ -355,9 +355,22 @@ struct CommandClient::Impl {
     monitor.reset();
     socket = std::make_unique<zmq::socket_t>(context(), zmq::socket_type::dealer);
     socket->set(zmq::sockopt::linger, 0);
+    // A send may wait at most one attempt's timeout. A DEALER whose only
+    // connection the server refused before the first request (a CURVE key
+    // not on its allow-list) has no pipe to queue on and never gets one
+    // (libzmq does not reconnect after a refused handshake): a blocking send
+    // would wait forever, and --timeout would never be reached.
+    socket->set(zmq::sockopt::sndtimeo, static_cast<int>(timeout.count()));
     apply_curve(*socket, curve);
     monitor = std::make_unique<SocketMonitor>(*socket, curve.enabled());
     socket->connect(endpoint);
+  }
+
+  // Queues `payload` as one request; false when it could not be sent within
+  // the timeout, which counts as an attempt without a reply.
+  bool send_request(const std::string& payload) {
+    if (!socket->send(zmq::message_t(), zmq::send_flags::sndmore)) return false;
+    return socket->send(zmq::buffer(payload), zmq::send_flags::none).has_value();
   }
 
   // The reply to `request` within one attempt's timeout, or nullopt.
@@ -413,11 +426,11 @@ v1::Reply CommandClient::call(v1::Request request, const std::string& what) {
   request.set_id(next_id_++);
   const std::string payload = request.SerializeAsString();
   for (int attempt = 0; attempt < impl_->attempts; ++attempt) {
-    impl_->socket->send(zmq::message_t(), zmq::send_flags::sndmore);
-    impl_->socket->send(zmq::buffer(payload), zmq::send_flags::none);
-    if (auto reply = impl_->await_reply(request, what)) {
-      if (!reply->ok()) throw NetworkError(fmt::format("{}: server refused: {}", what, reply->error()));
-      return *reply;
+    if (impl_->send_request(payload)) {
+      if (auto reply = impl_->await_reply(request, what)) {
+        if (!reply->ok()) throw NetworkError(fmt::format("{}: server refused: {}", what, reply->error()));
+        return *reply;
+      }
     }
     if (attempt + 1 < impl_->attempts)
       impl_->reconnect();  // Lazy Pirate: a fresh socket drops the lost request
