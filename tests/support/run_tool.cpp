@@ -13,6 +13,9 @@
 namespace phasecast::testing {
 namespace {
 
+// Below ctest's --timeout 600 (scripts/test), above the slowest tool run of any test.
+constexpr int kPatienceSeconds = 480;
+
 std::string quote(const std::string& word) {
   std::string q = "'";
   for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
@@ -35,7 +38,9 @@ ToolResult run_tool(const std::string& tool, const std::vector<std::string>& arg
 
 ToolResult run_command(const std::vector<std::string>& argv) {
   const auto dir = scratch_dir("run_tool_" + std::to_string(::getpid()));
-  std::string cmd;
+  // A tool that hangs fails its test after kPatienceSeconds, with what it printed,
+  // rather than silently at ctest's 600 s timeout.
+  std::string cmd = "timeout -k 10 " + std::to_string(kPatienceSeconds) + " ";
   for (const auto& a : argv) cmd += quote(a) + " ";
   cmd += ">" + quote((dir / "out").string()) + " 2>" + quote((dir / "err").string()) + " </dev/null";
   const int status = std::system(cmd.c_str());
@@ -43,6 +48,8 @@ ToolResult run_command(const std::vector<std::string>& argv) {
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   r.out = read_file(dir / "out");
   r.err = read_file(dir / "err");
+  if (r.exit_code == 124 || r.exit_code == 128 + 9)
+    r.err += "[run_command: killed after " + std::to_string(kPatienceSeconds) + " s]\n";
   return r;
 }
 
