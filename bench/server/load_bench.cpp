@@ -13,6 +13,8 @@
 #include "phasecast/core/process_memory.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
@@ -305,7 +307,8 @@ int main(int argc, char** argv) {
   app.add_option("--server-arg", o.server_args, "an argument passed on to the server (repeat for more)")
       ->allow_extra_args(false);
   app.add_flag("--baseline", o.baseline, "the server is an older build without the limit options");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-bench-server-load"))
+    return *status;
   if (o.package.empty()) o.package = phasecast::bench::cloth_ranks_package_file().string();
   try {
     return run(o);

@@ -3,7 +3,7 @@
 
   check_tool_usage.py SOURCE_DIR BIN_DIR
 
-For each phasecast-* tool a user runs: --help exits 0 with the options on
+For each phasecast-* tool (the benchmark drivers too): --help exits 0 with the options on
 stdout; an unknown option, a value that does not convert and a missing file
 each print exactly one line "<tool>: ... (see --help)" on stderr, nothing on
 stdout, and exit 2 (bad usage), never CLI11's two lines and its own codes.
@@ -40,6 +40,12 @@ tools = {
     "phasecast-keygen": ([], None, None),
     "phasecast-fuzz-requests": ([], "--iterations", ["--package", missing]),
     "phasecast-fuzz-package": ([], "--iterations", ["--package", missing]),
+    "phasecast-make-fixture": ([], None, None),
+    "phasecast-bench-svd": ([], None, None),
+    "phasecast-bench-irf-cache": ([], None, None),
+    "phasecast-bench-orbit-svd": ([], None, None),
+    "phasecast-bench-reduce-memory": ([], None, None),
+    "phasecast-bench-server-load": ([], None, None),
 }
 for tool, (prefix, number_option, missing_file) in tools.items():
     path = os.path.join(bin_dir, tool)

@@ -4,6 +4,8 @@
 #include "synthetic_package.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 int main(int argc, char** argv) {
@@ -28,7 +30,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--seed", o.seed, "random seed of IRF phases and amplitudes")->capture_default_str();
   app.add_flag("--no-appearance", no_appearance, "omit the /appearance block");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-make-fixture"))
+    return *status;
   o.appearance = !no_appearance;
   try {
     phasecast::core::write_package(phasecast::testing::make_plate_package(o), out);

@@ -15,6 +15,8 @@
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <unistd.h>
@@ -70,7 +72,9 @@ int main(int argc, char** argv) {
   app.add_option("--cols", cols, "N, its state nodes")->capture_default_str();
   app.add_option("--modes", modes, "smooth motions in the synthetic frames")->capture_default_str();
   app.add_option("--max-rank", options.max_rank, "singular triplets computed")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status =
+          phasecast::core::parse_command_line(app, argc, argv, "phasecast-bench-reduce-memory"))
+    return *status;
 
   std::filesystem::path path = store;
   if (store.empty()) {

@@ -10,6 +10,8 @@
 #include "phasecast/precompute/reduction/randomized_svd.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 #include <Eigen/QR>
 #include <Eigen/SVD>
@@ -53,7 +55,8 @@ int main(int argc, char** argv) {
   app.add_option("--cols", N, "columns N (state nodes)")->capture_default_str();
   app.add_option("--rank", rank, "rank r")->capture_default_str();
   app.add_option("--decay", decay, "singular value decay per index")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-bench-svd"))
+    return *status;
 
   const Eigen::MatrixXf A = orbit_like_matrix(M, N, decay);
   const double norm = A.norm();

@@ -6,6 +6,8 @@
 #include "phasecast/precompute/reduction/phase_portrait.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 
 #include <chrono>
@@ -19,7 +21,8 @@ int main(int argc, char** argv) {
   app.add_option("--entries", D, "palette entries D")->capture_default_str();
   app.add_option("--rank", r, "r_u")->capture_default_str();
   app.add_option("--irfs", n_irf, "IRFs (equal lengths)")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-bench-irf-cache"))
+    return *status;
   if (N < 1 || D < 1 || r < 1 || n_irf < 1 || n_irf > N) {
     fmt::print(stderr, "phasecast-bench-irf-cache: expected N, D, r >= 1 and 1 <= IRFs <= N\n");
     return 1;

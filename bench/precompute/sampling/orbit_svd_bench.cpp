@@ -10,6 +10,8 @@
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 
 #include <fmt/format.h>
+#include "phasecast/core/command_line.h"
+
 #include <CLI/CLI.hpp>
 #include <Eigen/SVD>
 
@@ -67,7 +69,8 @@ int main(int argc, char** argv) {
   app.add_option("orbits", path, "orbit store (.h5)")->required();
   app.add_option("--rank", rank, "rank r")->capture_default_str();
   app.add_option("--power-iterations", power_iterations, "q")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-bench-orbit-svd"))
+    return *status;
   try {
     run(path, rank, power_iterations);
   } catch (const std::exception& e) {
