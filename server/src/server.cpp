@@ -1,7 +1,7 @@
 #include "phasecast/server/server.h"
 
 #include "phasecast/core/curve_keys.h"
-#include "thread_priority.h"
+#include "phasecast/server/thread_priority.h"
 
 #include <fmt/format.h>
 #include <zmq.hpp>
