@@ -6,6 +6,7 @@
 // writer enforces the very same rules.
 
 #include "package_shapes.h"
+#include "package_upgrade.h"
 #include "phasecast/core/hdf5_file.h"
 #include "phasecast/core/kinematics_rows.h"
 #include "phasecast/core/package.h"
@@ -27,13 +28,19 @@ namespace {
 
 using Reader = h5::Reader;
 
+// The version the file was written in: today's, or one package_upgrade.h reads.
+int stored_format_version(const Reader& r) {
+  const double version = r.number("format_version");
+  if (version != kFormatVersion && version != kOldestFormatVersion) {
+    r.fail("/@format_version", fmt::format("unknown format_version {} (this build reads {} to {})", version,
+                                           kOldestFormatVersion, kFormatVersion));
+  }
+  return static_cast<int>(version);
+}
+
+// Read into today's version: the in-memory package knows no other.
 PackageAttributes read_attributes(const Reader& r) {
   PackageAttributes a;
-  const double version = r.number("format_version");
-  if (version != kFormatVersion) {
-    r.fail("/@format_version",
-           fmt::format("unknown format_version {} (this build reads {})", version, kFormatVersion));
-  }
   a.format_version = kFormatVersion;
   a.scene = r.text("scene");
   a.dt = r.number("dt");
@@ -91,22 +98,32 @@ constexpr DatasetSpec kAppearance[] = {
     {"/appearance/nrbf_regularization", Dtype::f32, 1},
 };
 // Optional inside /appearance: the interpolant's name and parameters, the
-// held-out truth and the paper's r_a (packages before them have none).
+// paper's r_a and how the transfer was sampled.
 constexpr DatasetSpec kAppearanceOptional[] = {
     {"/appearance/interpolant", Dtype::string, 1},
     {"/appearance/interpolant_parameters", Dtype::f32, 1},
-    {"/appearance/held_out_nodes", Dtype::i32, 1},
-    {"/appearance/held_out_error", Dtype::f32, 1},
     {"/appearance/paper_rank", Dtype::i32, 1},
     {"/appearance/transfer_sampling", Dtype::i32, 1},
-    {"/appearance/held_out_spread", Dtype::f32, 1},
     {"/appearance/transfer_weighting", Dtype::string, 1},
-    {"/appearance/held_out_truncation_curve", Dtype::f32, 1},
 };
+
+// The held-out figures' extents as the file declares them (absent ones absent).
+void add_held_out_datasets(const Reader& r, PackageShapes& s) {
+  const auto add = [&](const char* name, Dtype dtype) {
+    if (r.file().exists(name)) s[name] = r.require(name, dtype, 1).dims;
+  };
+  add(kHeldOutNodes, Dtype::i32);
+  for (const auto& f : kHeldOutFigures) add(f.name, Dtype::f32);
+  for (const auto& f : kOptionalHeldOutFigures) add(f.name, Dtype::f32);
+  for (const auto& f : kHeldOutSpreads) add(f.name, Dtype::f32);
+  add(kHeldOutCurve, Dtype::f32);
+}
 
 // The extents the file declares, each checked against what the file stores,
 // with the defaults read_from() fills in for absent optional datasets.
-PackageShapes declared_shapes(const Reader& r) {
+// `upgraded_held_out`: the held-out figures an older version's layout held,
+// read by the upgrade, whose extents stand for the datasets today's holds.
+PackageShapes declared_shapes(const Reader& r, const std::optional<HeldOutFigures>& upgraded_held_out) {
   PackageShapes s;
   const auto add = [&](const DatasetSpec& d) { s[d.name] = r.require(d.name, d.dtype, d.rank).dims; };
   for (const auto& d : kRequired) add(d);
@@ -117,6 +134,11 @@ PackageShapes declared_shapes(const Reader& r) {
     for (const auto& d : kAppearance) add(d);
     for (const auto& d : kAppearanceOptional) {
       if (r.file().exists(d.name)) add(d);
+    }
+    if (upgraded_held_out) {
+      add_held_out_shapes(*upgraded_held_out, s);
+    } else {
+      add_held_out_datasets(r, s);
     }
   } else {
     s["/portrait/q_a"] = {s["/portrait/q_u"][0], 0};
@@ -147,6 +169,25 @@ ImpulsePalette read_palette(const Reader& r) {
   return p;
 }
 
+// Today's held-out figures, after check_shapes() (absent: not measured).
+std::optional<HeldOutFigures> read_held_out(const Reader& r) {
+  if (!r.file().exists(kHeldOutNodes)) return std::nullopt;
+  HeldOutFigures h;
+  h.nodes = r.vector<std::int32_t>(kHeldOutNodes);
+  const auto figure = [&r](const char* name) { return r.column<float>(name, 1)[0]; };
+  for (const auto& f : kHeldOutFigures) h.*f.member = figure(f.name);
+  for (const auto& f : kOptionalHeldOutFigures)
+    if (r.file().exists(f.name)) h.*f.member = figure(f.name);
+  for (const auto& f : kHeldOutSpreads) {
+    if (r.file().exists(f.name)) {
+      const VectorXf v = r.column<float>(f.name, 2);
+      h.*f.member = Percentiles{v[0], v[1]};
+    }
+  }
+  if (r.file().exists(kHeldOutCurve)) h.truncation_curve = r.column<float>(kHeldOutCurve);
+  return h;
+}
+
 Appearance read_appearance(const Reader& r) {
   Appearance a;
   a.mean_transfer = r.column<float>("/appearance/mean_transfer");
@@ -164,13 +205,6 @@ Appearance read_appearance(const Reader& r) {
     a.interpolant_parameters = r.column<float>("/appearance/interpolant_parameters");
   if (exists("/appearance/transfer_weighting"))
     a.transfer_weighting = r.strings("/appearance/transfer_weighting").at(0);
-  if (exists("/appearance/held_out_nodes"))
-    a.held_out_nodes = r.vector<std::int32_t>("/appearance/held_out_nodes");
-  if (exists("/appearance/held_out_error")) a.held_out_error = r.column<float>("/appearance/held_out_error");
-  if (exists("/appearance/held_out_spread"))
-    a.held_out_spread = r.column<float>("/appearance/held_out_spread");
-  if (exists("/appearance/held_out_truncation_curve"))
-    a.held_out_truncation_curve = r.column<float>("/appearance/held_out_truncation_curve");
   if (exists("/appearance/paper_rank")) a.paper_rank = r.vector<std::int32_t>("/appearance/paper_rank").at(0);
   if (exists("/appearance/transfer_sampling")) {
     const auto sampling = r.vector<std::int32_t>("/appearance/transfer_sampling");
@@ -184,8 +218,12 @@ Appearance read_appearance(const Reader& r) {
 // allocation below is bounded by the shape rules and the file's size.
 ScenePackage read_from(const Reader& r) {
   ScenePackage pkg;
+  const int version = stored_format_version(r);
   pkg.attributes = read_attributes(r);
-  check_shapes(declared_shapes(r), r.source());
+  const bool appearance = r.file().exists("/appearance");
+  std::optional<HeldOutFigures> upgraded_held_out;
+  if (appearance && version < kFormatVersion) upgraded_held_out = upgrade_held_out(r, version);
+  check_shapes(declared_shapes(r, upgraded_held_out), r.source());
 
   pkg.mesh.rest_positions = r.matrix<float>("/mesh/rest_positions");
   pkg.mesh.triangles = r.matrix<std::uint32_t>("/mesh/triangles");
@@ -209,8 +247,9 @@ ScenePackage read_from(const Reader& r) {
   pp.nearest_irf = r.matrix<std::int32_t>("/portrait/nearest_irf");
   if (r.file().exists("/portrait/support")) pp.support = r.matrix<float>("/portrait/support");
 
-  if (r.file().exists("/appearance")) {
+  if (appearance) {
     pkg.appearance = read_appearance(r);
+    pkg.appearance->held_out = version < kFormatVersion ? upgraded_held_out : read_held_out(r);
     pp.q_a = r.matrix<float>("/portrait/q_a");
   } else {
     pp.q_a.resize(pp.q_u.rows(), 0);
@@ -219,6 +258,17 @@ ScenePackage read_from(const Reader& r) {
 }
 
 // ---- writing -------------------------------------------------------------------
+
+void write_held_out(h5::File& f, const HeldOutFigures& h) {
+  const auto figure = [&f](const char* name, float v) { f.write(name, std::vector<float>{v}); };
+  f.write(kHeldOutNodes, h.nodes);
+  for (const auto& fig : kHeldOutFigures) figure(fig.name, h.*fig.member);
+  for (const auto& fig : kOptionalHeldOutFigures)
+    if (const auto& v = h.*fig.member) figure(fig.name, *v);
+  for (const auto& fig : kHeldOutSpreads)
+    if (const auto& v = h.*fig.member) f.write(fig.name, std::vector<float>{v->p10, v->p90});
+  if (h.truncation_curve.size() > 0) f.write(kHeldOutCurve, h.truncation_curve);
+}
 
 void write_to(h5::File& f, const ScenePackage& pkg) {
   const auto& a = pkg.attributes;
@@ -275,13 +325,7 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
     f.write_strings("/appearance/interpolant", {ap->interpolant});
     f.write("/appearance/interpolant_parameters", ap->interpolant_parameters);
     f.write_strings("/appearance/transfer_weighting", {ap->transfer_weighting});
-    if (ap->held_out_error.size() > 0) {
-      f.write("/appearance/held_out_nodes", ap->held_out_nodes);
-      f.write("/appearance/held_out_error", ap->held_out_error);
-      if (ap->held_out_spread.size() > 0) f.write("/appearance/held_out_spread", ap->held_out_spread);
-      if (ap->held_out_truncation_curve.size() > 0)
-        f.write("/appearance/held_out_truncation_curve", ap->held_out_truncation_curve);
-    }
+    if (ap->held_out) write_held_out(f, *ap->held_out);
     if (ap->paper_rank > 0) f.write("/appearance/paper_rank", std::vector<std::int32_t>{ap->paper_rank});
     if (ap->transfer_rays > 0)
       f.write("/appearance/transfer_sampling",

@@ -54,26 +54,7 @@ void summarize_appearance(const Appearance& a, PackageSummary& s) {
   s.transfer_weighting = a.transfer_weighting;
   s.transfer_rays = a.transfer_rays;
   s.transfer_bounces = a.transfer_bounces;
-  if (a.held_out_error.size() >= 4) {
-    s.held_out_nodes = static_cast<int>(a.held_out_nodes.size());
-    s.held_out_total = a.held_out_error[0];
-    s.held_out_truncation = a.held_out_error[1];
-    s.held_out_interpolation = a.held_out_error[2];
-    s.held_out_of_transfer = a.held_out_error[3];
-  }
-  const bool l2 = a.held_out_error.size() >= 6;  // packages before the l2 figures hold 4
-  s.held_out_l2_total = l2 ? a.held_out_error[4] : std::nan("");
-  s.held_out_l2_truncation = l2 ? a.held_out_error[5] : std::nan("");
-  s.clusters_l2_truncation_at_held_out_size =
-      a.held_out_error.size() >= 7 ? a.held_out_error[6] : std::nan("");
-  s.held_out_l2_floor = a.held_out_error.size() >= 8 ? a.held_out_error[7] : std::nan("");
-  const bool of_variation = a.held_out_error.size() >= 11;
-  s.held_out_of_variation = of_variation ? a.held_out_error[8] : std::nan("");
-  s.held_out_l2_of_variation = of_variation ? a.held_out_error[9] : std::nan("");
-  s.held_out_l2_floor_of_variation = of_variation ? a.held_out_error[10] : std::nan("");
-  s.held_out_l2_spread.assign(a.held_out_spread.data(), a.held_out_spread.data() + a.held_out_spread.size());
-  const VectorXf& curve = a.held_out_truncation_curve;
-  s.held_out_l2_truncation_curve.assign(curve.data(), curve.data() + curve.size());
+  s.held_out = a.held_out;
 }
 
 std::string percent_or_na(double ratio) {
@@ -90,6 +71,78 @@ std::string curve_text(const PackageSummary& s) {
     points.push_back(fmt::format("{}: {:.3g}%", r, 100 * s.error_a_curve[static_cast<size_t>(r - 1)]));
   }
   return fmt::format("{}", fmt::join(points, ", "));
+}
+
+double nan_if_absent(const std::optional<float>& v) { return v ? *v : std::nan(""); }
+
+// The held-out truth's lines of to_text().
+std::string held_out_text(const PackageSummary& s, const HeldOutFigures& h) {
+  std::string out;
+  auto line = [&out]<class... Args>(fmt::format_string<Args...> f, Args&&... args) {
+    out += "             " + fmt::format(f, std::forward<Args>(args)...) + "\n";
+  };
+  const auto nodes = static_cast<int>(h.nodes.size());
+  line("held-out truth ({} other nodes): error {:.3g}% = truncation {:.3g}% + interpolation {:.3g}% "
+       "(in quadrature, of |M - M-bar|); {:.3g}% of |M|",
+       nodes, 100 * h.total, 100 * h.truncation, 100 * h.interpolation, 100 * h.of_transfer);
+  if (h.l2_total && h.l2_truncation)
+    line("held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, of which truncation {:.3g}%",
+         100 * *h.l2_total, 100 * *h.l2_truncation);
+  if (h.l2_total_spread && h.l2_truncation_spread)
+    line("over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%, truncation {:.3g}-{:.3g}%",
+         100 * h.l2_total_spread->p10, 100 * h.l2_total_spread->p90, 100 * h.l2_truncation_spread->p10,
+         100 * h.l2_truncation_spread->p90);
+  if (h.clusters_l2_truncation)
+    line("the clusters' own truncation measured alike (relative l2 over {}): {:.3g}%",
+         nodes < s.clusters ? fmt::format("{} of them, median of random draws", nodes)
+                            : fmt::format("all {}{}", s.clusters,
+                                          s.transfer_weighting == "equal" ? ": sigma_{r+1}/sigma_1" : ""),
+         100 * *h.clusters_l2_truncation);
+  if (h.l2_floor)
+    line("the least any rank-{} model about M-bar reaches at those nodes (sigma_{{r+1}}/sigma_1 of their "
+         "M - M-bar): {:.3g}%",
+         s.rank_a, 100 * *h.l2_floor);
+  if (h.of_variation && h.l2_of_variation && h.l2_floor_of_variation)
+    line("of the nodes' own variation |M - their mean| (moves with no model): error {:.3g}%, relative l2 "
+         "{:.3g}%; the least any rank-{} model reaches there, whatever its mean, {:.3g}%",
+         100 * *h.of_variation, 100 * *h.l2_of_variation, s.rank_a, 100 * *h.l2_floor_of_variation);
+  if (h.l2_of_variation_spread)
+    line("of their own variation over resampled nodes (10th-90th percentile): relative l2 {:.3g}-{:.3g}%",
+         100 * h.l2_of_variation_spread->p10, 100 * h.l2_of_variation_spread->p90);
+  if (h.truncation_curve.size() > 0)
+    line("held-out truncation by rank (Fig. 12 out of sample, relative l2): {}",
+         held_out_curve_text(std::vector<double>(h.truncation_curve.begin(), h.truncation_curve.end()), s.rank_a,
+                             s.paper_rank_a, nan_if_absent(h.clusters_l2_truncation)));
+  return out;
+}
+
+// inspect --json's "held_out": the figures by name, null where not measured;
+// the spreads as one list of (10th, 90th) pairs: l2 total, truncation, of the
+// nodes' own variation.
+nlohmann::json held_out_json(const HeldOutFigures& h) {
+  std::vector<double> spread;
+  for (const auto& p : {h.l2_total_spread, h.l2_truncation_spread, h.l2_of_variation_spread}) {
+    if (!p) break;
+    spread.insert(spread.end(), {p->p10, p->p90});
+  }
+  const auto optional = [](const std::optional<float>& v) { return number_or_null(nan_if_absent(v)); };
+  return {{"nodes", h.nodes.size()},
+          {"total", double{h.total}},
+          {"truncation", double{h.truncation}},
+          {"interpolation", double{h.interpolation}},
+          {"of_transfer", double{h.of_transfer}},
+          {"l2_total", optional(h.l2_total)},
+          {"l2_truncation", optional(h.l2_truncation)},
+          {"clusters_l2_truncation", optional(h.clusters_l2_truncation)},
+          {"l2_floor", optional(h.l2_floor)},
+          {"of_variation", optional(h.of_variation)},
+          {"l2_of_variation", optional(h.l2_of_variation)},
+          {"l2_floor_of_variation", optional(h.l2_floor_of_variation)},
+          {"l2_spread", spread.empty() ? nlohmann::json() : nlohmann::json(spread)},
+          {"l2_truncation_curve",
+           h.truncation_curve.size() == 0
+               ? nlohmann::json()
+               : nlohmann::json(std::vector<double>(h.truncation_curve.begin(), h.truncation_curve.end()))}};
 }
 
 }  // namespace
@@ -189,52 +242,7 @@ std::string to_text(const PackageSummary& s) {
     if (s.transfer_rays > 0)
       line("             transfer sampled with {} rays, {} interreflection bounces", s.transfer_rays,
            s.transfer_bounces);
-    if (s.held_out_nodes > 0) {
-      line(
-          "             held-out truth ({} other nodes): error {:.3g}% = truncation {:.3g}% + interpolation "
-          "{:.3g}% "
-          "(in quadrature, of |M - M-bar|); {:.3g}% of |M|",
-          s.held_out_nodes, 100 * s.held_out_total, 100 * s.held_out_truncation,
-          100 * s.held_out_interpolation, 100 * s.held_out_of_transfer);
-      if (std::isfinite(s.held_out_l2_total))
-        line(
-            "             held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, "
-            "of which truncation {:.3g}%",
-            100 * s.held_out_l2_total, 100 * s.held_out_l2_truncation);
-      if (s.held_out_l2_spread.size() >= 4)
-        line(
-            "             over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%, truncation "
-            "{:.3g}-{:.3g}%",
-            100 * s.held_out_l2_spread[0], 100 * s.held_out_l2_spread[1], 100 * s.held_out_l2_spread[2],
-            100 * s.held_out_l2_spread[3]);
-      if (std::isfinite(s.clusters_l2_truncation_at_held_out_size))
-        line("             the clusters' own truncation measured alike (relative l2 over {}): {:.3g}%",
-             s.held_out_nodes < s.clusters
-                 ? fmt::format("{} of them, median of random draws", s.held_out_nodes)
-                 : fmt::format("all {}{}", s.clusters,
-                               s.transfer_weighting == "equal" ? ": sigma_{r+1}/sigma_1" : ""),
-             100 * s.clusters_l2_truncation_at_held_out_size);
-      if (std::isfinite(s.held_out_l2_floor))
-        line(
-            "             the least any rank-{} model about M-bar reaches at those nodes "
-            "(sigma_{{r+1}}/sigma_1 of their M - M-bar): {:.3g}%",
-            s.rank_a, 100 * s.held_out_l2_floor);
-      if (std::isfinite(s.held_out_of_variation))
-        line(
-            "             of the nodes' own variation |M - their mean| (moves with no model): error {:.3g}%, "
-            "relative l2 {:.3g}%; the least any rank-{} model reaches there, whatever its mean, {:.3g}%",
-            100 * s.held_out_of_variation, 100 * s.held_out_l2_of_variation, s.rank_a,
-            100 * s.held_out_l2_floor_of_variation);
-      if (s.held_out_l2_spread.size() == 6)
-        line(
-            "             of their own variation over resampled nodes (10th-90th percentile): relative l2 "
-            "{:.3g}-{:.3g}%",
-            100 * s.held_out_l2_spread[4], 100 * s.held_out_l2_spread[5]);
-      if (!s.held_out_l2_truncation_curve.empty())
-        line("             held-out truncation by rank (Fig. 12 out of sample, relative l2): {}",
-             held_out_curve_text(s.held_out_l2_truncation_curve, s.rank_a, s.paper_rank_a,
-                                 s.clusters_l2_truncation_at_held_out_size));
-    }
+    if (s.held_out) out += held_out_text(s, *s.held_out);
   } else {
     line("appearance   none");
   }
@@ -278,28 +286,7 @@ nlohmann::json to_json(const PackageSummary& s) {
       {"transfer_weighting", s.transfer_weighting},
       {"transfer_rays", s.transfer_rays > 0 ? nlohmann::json(s.transfer_rays) : nlohmann::json()},
       {"transfer_bounces", s.transfer_rays > 0 ? nlohmann::json(s.transfer_bounces) : nlohmann::json()},
-      {"held_out",
-       s.held_out_nodes > 0
-           ? nlohmann::json{{"nodes", s.held_out_nodes},
-                            {"total", s.held_out_total},
-                            {"truncation", s.held_out_truncation},
-                            {"interpolation", s.held_out_interpolation},
-                            {"of_transfer", s.held_out_of_transfer},
-                            {"l2_total", number_or_null(s.held_out_l2_total)},
-                            {"l2_truncation", number_or_null(s.held_out_l2_truncation)},
-                            {"clusters_l2_truncation",
-                             number_or_null(s.clusters_l2_truncation_at_held_out_size)},
-                            {"l2_floor", number_or_null(s.held_out_l2_floor)},
-                            {"of_variation", number_or_null(s.held_out_of_variation)},
-                            {"l2_of_variation", number_or_null(s.held_out_l2_of_variation)},
-                            {"l2_floor_of_variation", number_or_null(s.held_out_l2_floor_of_variation)},
-                            {"l2_spread", s.held_out_l2_spread.empty()
-                                              ? nlohmann::json()
-                                              : nlohmann::json(s.held_out_l2_spread)},
-                            {"l2_truncation_curve", s.held_out_l2_truncation_curve.empty()
-                                                        ? nlohmann::json()
-                                                        : nlohmann::json(s.held_out_l2_truncation_curve)}}
-           : nlohmann::json()},
+      {"held_out", s.held_out ? held_out_json(*s.held_out) : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},
       {"full_vertex_frame_bytes", s.full_vertex_frame_bytes},

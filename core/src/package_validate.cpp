@@ -172,6 +172,35 @@ void check_portrait_shapes(const ShapeChecker& s) {
   if (s.has("/portrait/support")) s.shape("/portrait/support", N, kSupportFloats, "N x 12");
 }
 
+// The held-out figures come together: present, they need their nodes and the
+// four plain figures; each figure is one value, each spread two.
+void check_held_out_shapes(const ShapeChecker& s, std::uint64_t r_a, std::uint64_t Na) {
+  const auto any_figure = [&s] {
+    for (const auto& f : kOptionalHeldOutFigures)
+      if (s.has(f.name)) return true;
+    for (const auto& f : kHeldOutSpreads)
+      if (s.has(f.name)) return true;
+    return s.has(kHeldOutCurve) || s.has(kHeldOutFigures[0].name);
+  };
+  if (!s.has(kHeldOutNodes)) {
+    if (any_figure()) s.checker().fail(kHeldOutNodes, "expected the nodes of the held-out figures beside them");
+    return;
+  }
+  for (const auto& f : kHeldOutFigures) s.length(f.name, 1, "1 (a figure)");
+  for (const auto& f : kOptionalHeldOutFigures)
+    if (s.has(f.name)) s.length(f.name, 1, "1 (a figure)");
+  for (const auto& f : kHeldOutSpreads)
+    if (s.has(f.name)) s.length(f.name, 2, "2 (10th and 90th percentile)");
+  if (s.has(kHeldOutCurve)) {
+    // One value per direction the clusters' SVD resolves: at least r_a, and
+    // at most N_a - 1 (the centred fields sum to 0 under any weighting).
+    const std::uint64_t K = s.dim(kHeldOutCurve, 0);
+    if (K < std::max<std::uint64_t>(r_a, 1) || K + 1 > Na)
+      s.checker().fail(kHeldOutCurve, fmt::format("expected at least r_a = {} and at most N_a - 1 = {} values, got {}",
+                                                  std::max<std::uint64_t>(r_a, 1), Na - 1, K));
+  }
+}
+
 void check_appearance_shapes(const ShapeChecker& s) {
   const std::uint64_t T = kTransferPerPoint * s.dim("/mesh/rest_positions", 0);
   s.length("/appearance/mean_transfer", T, "48S");
@@ -205,50 +234,10 @@ void check_appearance_shapes(const ShapeChecker& s) {
               affine_knn, m));
     }
   }
-  if (s.has("/appearance/held_out_error")) {
-    // 4 figures in packages written before the paper's relErr was added, 6
-    // before the clusters' own figure at the held-out size, 7 before the
-    // floor of any rank-r_a model at the held-out nodes, 8 before the
-    // figures relative to the nodes' own variation, 11 since.
-    const std::uint64_t figures = s.dim("/appearance/held_out_error", 0);
-    if (figures != 4 && figures != 6 && figures != 7 && figures != 8 && figures != 11) {
-      s.checker().fail(
-          "/appearance/held_out_error",
-          fmt::format("expected 11 values (total, truncation, interpolation, of |M|, relative l2 "
-                      "total and truncation, the clusters' relative l2 truncation, the least any "
-                      "rank-r_a model reaches, the total of the nodes' variation in Frobenius and "
-                      "l2 and its least) or the older 4, 6, 7 or 8, got {}",
-                      figures));
-    }
-    if (!s.has("/appearance/held_out_nodes"))
-      s.checker().fail("/appearance/held_out_nodes", "expected the nodes of /appearance/held_out_error");
-  }
   if (s.has("/appearance/paper_rank")) s.length("/appearance/paper_rank", 1, "1 (the paper's r_a)");
-  if (s.has("/appearance/held_out_spread")) {
-    // 4 in packages written before the spread of the nodes' own variation.
-    const std::uint64_t values = s.dim("/appearance/held_out_spread", 0);
-    if (values != 4 && values != 6)
-      s.checker().fail("/appearance/held_out_spread",
-                       fmt::format("expected 6 values (relative l2 total, truncation and total of the nodes' "
-                                   "own variation, each a 10th and a 90th percentile) or the older 4, got {}",
-                                   values));
-    if (!s.has("/appearance/held_out_error"))
-      s.checker().fail("/appearance/held_out_spread", "expected /appearance/held_out_error beside it");
-  }
   if (s.has("/appearance/transfer_sampling"))
     s.length("/appearance/transfer_sampling", 2, "2 (rays, bounces)");
-  if (s.has("/appearance/held_out_truncation_curve")) {
-    // One value per direction the clusters' SVD resolves: at least r_a, and
-    // at most N_a - 1 (the centred fields sum to 0 under any weighting).
-    const std::uint64_t K = s.dim("/appearance/held_out_truncation_curve", 0);
-    if (K < std::max<std::uint64_t>(r_a, 1) || K + 1 > Na)
-      s.checker().fail("/appearance/held_out_truncation_curve",
-                       fmt::format("expected at least r_a = {} and at most N_a - 1 = {} values, got {}",
-                                   std::max<std::uint64_t>(r_a, 1), Na - 1, K));
-    if (!s.has("/appearance/held_out_error"))
-      s.checker().fail("/appearance/held_out_truncation_curve",
-                       "expected /appearance/held_out_error beside it");
-  }
+  check_held_out_shapes(s, r_a, Na);
 }
 
 Extent extent(Eigen::Index rows, Eigen::Index cols) {
@@ -273,13 +262,7 @@ void add_appearance_shapes(const Appearance& a, PackageShapes& s) {
   s["/appearance/interpolant"] = {1};
   s["/appearance/interpolant_parameters"] = extent(a.interpolant_parameters);
   s["/appearance/transfer_weighting"] = {1};
-  if (a.held_out_error.size() > 0) {
-    s["/appearance/held_out_nodes"] = extent(a.held_out_nodes);
-    s["/appearance/held_out_error"] = extent(a.held_out_error);
-    if (a.held_out_spread.size() > 0) s["/appearance/held_out_spread"] = extent(a.held_out_spread);
-  }
-  if (a.held_out_truncation_curve.size() > 0)
-    s["/appearance/held_out_truncation_curve"] = extent(a.held_out_truncation_curve);
+  if (a.held_out) add_held_out_shapes(*a.held_out, s);
   if (a.paper_rank > 0) s["/appearance/paper_rank"] = {1};
   if (a.transfer_rays > 0) s["/appearance/transfer_sampling"] = {2};
 }
@@ -394,22 +377,38 @@ void check_portrait(const Checker& c, const PhasePortrait& p, int D) {
 
 // Fig. 12 out of sample: relative l2 norms in [0, 1] that never rise with the
 // rank (a larger basis spans the smaller), and that agree at r_a with the
-// truncation held_out_error reports from the stored U_a (float round-off aside).
-void check_held_out_truncation_curve(const Checker& c, const Appearance& a) {
-  const VectorXf& curve = a.held_out_truncation_curve;
-  const char* where = "/appearance/held_out_truncation_curve";  // length, company: checked with the shapes
+// l2 truncation measured with the stored U_a (float round-off aside).
+void check_held_out_truncation_curve(const Checker& c, const HeldOutFigures& h, int r_a) {
+  const VectorXf& curve = h.truncation_curve;
   constexpr float kRoundOff = 1e-3f;
   for (Eigen::Index i = 0; i < curve.size(); ++i) {
     if (!(curve[i] >= 0 && curve[i] <= 1 + kRoundOff))
-      c.fail(where, fmt::format("expected relative errors in [0, 1], got {} at rank {}", curve[i], i + 1));
+      c.fail(kHeldOutCurve, fmt::format("expected relative errors in [0, 1], got {} at rank {}", curve[i], i + 1));
     if (i > 0 && curve[i] > curve[i - 1] + kRoundOff)
-      c.fail(where, fmt::format("expected no rise with the rank, got {} at rank {} after {}", curve[i], i + 1,
-                                curve[i - 1]));
+      c.fail(kHeldOutCurve, fmt::format("expected no rise with the rank, got {} at rank {} after {}", curve[i],
+                                        i + 1, curve[i - 1]));
   }
-  if (curve.size() > 0 && a.rank() > 0 && a.held_out_error.size() >= 6 &&
-      std::abs(curve[a.rank() - 1] - a.held_out_error[5]) > kRoundOff)
-    c.fail(where, fmt::format("expected {} at r_a = {} (held_out_error's l2 truncation), got {}",
-                              a.held_out_error[5], a.rank(), curve[a.rank() - 1]));
+  if (curve.size() > 0 && r_a > 0 && h.l2_truncation && std::abs(curve[r_a - 1] - *h.l2_truncation) > kRoundOff)
+    c.fail(kHeldOutCurve, fmt::format("expected {} at r_a = {} (the held-out l2_truncation), got {}",
+                                      *h.l2_truncation, r_a, curve[r_a - 1]));
+}
+
+void check_held_out(const Checker& c, const HeldOutFigures& h, int r_a, Eigen::Index N) {
+  c.index_range(kHeldOutNodes, h.nodes.data(), h.nodes.size(), 0, N, "state nodes");
+  const auto error = [&c](const char* name, float v) {
+    if (!(v >= 0 && std::isfinite(v))) c.fail(name, fmt::format("expected a finite error >= 0, got {}", v));
+  };
+  for (const auto& f : kHeldOutFigures) error(f.name, h.*f.member);
+  for (const auto& f : kOptionalHeldOutFigures)
+    if (const auto& v = h.*f.member) error(f.name, *v);
+  for (const auto& f : kHeldOutSpreads) {
+    if (const auto& v = h.*f.member) {
+      error(f.name, v->p10);
+      error(f.name, v->p90);
+      if (v->p10 > v->p90) c.fail(f.name, "expected the 10th percentile <= the 90th");
+    }
+  }
+  check_held_out_truncation_curve(c, h, r_a);
 }
 
 void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
@@ -459,24 +458,7 @@ void check_appearance(const Checker& c, const Appearance& a, Eigen::Index N) {
   if (a.transfer_weighting != "equal" && a.transfer_weighting != "cluster size")
     c.fail("/appearance/transfer_weighting",
            fmt::format("expected \"equal\" or \"cluster size\", got \"{}\"", a.transfer_weighting));
-  c.index_range("/appearance/held_out_nodes", a.held_out_nodes.data(), a.held_out_nodes.size(), 0, N,
-                "state nodes");
-  for (Eigen::Index i = 0; i < a.held_out_error.size(); ++i) {
-    if (!(a.held_out_error[i] >= 0 && std::isfinite(a.held_out_error[i])))
-      c.fail("/appearance/held_out_error",
-             fmt::format("expected finite errors >= 0, got {} at {}", a.held_out_error[i], i));
-  }
-  for (Eigen::Index i = 0; i < a.held_out_spread.size(); ++i) {
-    if (!(a.held_out_spread[i] >= 0 && std::isfinite(a.held_out_spread[i])))
-      c.fail("/appearance/held_out_spread",
-             fmt::format("expected finite errors >= 0, got {} at {}", a.held_out_spread[i], i));
-  }
-  if (a.held_out_spread.size() > 0 && a.held_out_error.size() == 0)
-    c.fail("/appearance/held_out_spread", "expected /appearance/held_out_error beside it");
-  for (Eigen::Index i = 0; i + 1 < a.held_out_spread.size(); i += 2)
-    if (a.held_out_spread[i] > a.held_out_spread[i + 1])
-      c.fail("/appearance/held_out_spread", "expected each 10th percentile <= its 90th");
-  check_held_out_truncation_curve(c, a);
+  if (a.held_out) check_held_out(c, *a.held_out, a.rank(), N);
   if (a.paper_rank < 0)
     c.fail("/appearance/paper_rank", fmt::format("expected r_a >= 0, got {}", a.paper_rank));
   if (a.transfer_rays < 0 || a.transfer_bounces < 0 || (a.transfer_rays == 0 && a.transfer_bounces > 0))
@@ -530,6 +512,16 @@ bool ImpulsePalette::can_move_support(int to, double s, double dt) const {
   const auto& k = kinematics[static_cast<size_t>(to)];
   if (k.pulse_tau > 0) return true;  // a jolt returns to rest wherever the support stands
   return frames_of_support_motion(k.rate, k.range_min, k.range_max, s, dt, 1) >= 1;
+}
+
+void add_held_out_shapes(const HeldOutFigures& h, PackageShapes& s) {
+  s[kHeldOutNodes] = extent(h.nodes);
+  for (const auto& f : kHeldOutFigures) s[f.name] = {1};
+  for (const auto& f : kOptionalHeldOutFigures)
+    if (h.*f.member) s[f.name] = {1};
+  for (const auto& f : kHeldOutSpreads)
+    if (h.*f.member) s[f.name] = {2};
+  if (h.truncation_curve.size() > 0) s[kHeldOutCurve] = extent(h.truncation_curve);
 }
 
 PackageShapes shapes_of(const ScenePackage& p) {

@@ -12,7 +12,7 @@ def main(make_fixture: str, path: str) -> None:
     subprocess.run([make_fixture, "-o", path], check=True, stdout=subprocess.DEVNULL)
     with h5py.File(path, "r") as f:
         a = f.attrs
-        assert int(a["format_version"]) == 1
+        assert int(a["format_version"]) == 2
         scene = a["scene"]
         assert (scene.decode() if isinstance(scene, bytes) else scene) == "plate"
         for name in ("dt", "beta", "blend_lambda", "eps_u", "eps_a"):

@@ -68,15 +68,22 @@ TEST_F(InspectCli, ValidPackageJson) {
   EXPECT_EQ(j["file_bytes"], std::filesystem::file_size(dir_ / "plate.h5"));
 }
 
-// A package written before the weighting and the figures of the nodes' own
-// variation (8 held-out values, no /appearance/transfer_weighting) reads as
-// equal weights, with those figures unknown rather than 0.
-TEST_F(InspectCli, OlderHeldOutFiguresReadAsEqualWeightsAndUnknownVariation) {
-  package_.appearance->held_out_nodes = {1, 2};
-  package_.appearance->held_out_error =
-      (VectorXf(8) << 0.3f, 0.2f, 0.1f, 0.01f, 0.25f, 0.2f, 0.15f, 0.1f).finished();
-  // A spread written before its own-variation pair: 4 values.
-  package_.appearance->held_out_spread = (VectorXf(4) << 0.2f, 0.3f, 0.15f, 0.25f).finished();
+// A package without the weighting and the figures of the nodes' own
+// variation (no /appearance/transfer_weighting) reads as equal weights, with
+// those figures unknown rather than 0.
+TEST_F(InspectCli, AbsentHeldOutFiguresReadAsEqualWeightsAndUnknownVariation) {
+  core::HeldOutFigures& h = package_.appearance->held_out.emplace();
+  h.nodes = {1, 2};
+  h.total = 0.3f;
+  h.truncation = 0.2f;
+  h.interpolation = 0.1f;
+  h.of_transfer = 0.01f;
+  h.l2_total = 0.25f;
+  h.l2_truncation = 0.2f;
+  h.clusters_l2_truncation = 0.15f;
+  h.l2_floor = 0.1f;
+  h.l2_total_spread = core::Percentiles{0.2f, 0.3f};
+  h.l2_truncation_spread = core::Percentiles{0.15f, 0.25f};
   const auto path = dir_ / "older.h5";
   core::write_package(package_, path);
   core::h5::File::open_write(path).remove("/appearance/transfer_weighting");
@@ -120,14 +127,16 @@ TEST(HeldOutCurveText, NamesTheRanksAndWhereTheInSampleFigureIsReached) {
 TEST_F(InspectCli, HeldOutTruncationCurveIsPrintedAndInTheJson) {
   auto& a = *package_.appearance;
   const int r_a = a.rank(), K = a.clusters() - 1;
-  a.held_out_nodes = {1, 2};
-  a.held_out_error = VectorXf::Constant(11, 0.1f);
-  a.held_out_error[6] = 0.005f;  // the clusters' own truncation measured alike: below the whole curve
-  a.held_out_truncation_curve = VectorXf::LinSpaced(K, 0.1f, 0.01f);
-  a.held_out_error[5] = a.held_out_truncation_curve[r_a - 1];
+  core::HeldOutFigures& h = a.held_out.emplace();
+  h.nodes = {1, 2};
+  h.total = h.truncation = h.interpolation = h.of_transfer = 0.1f;
+  h.l2_total = h.l2_floor = h.of_variation = h.l2_of_variation = h.l2_floor_of_variation = 0.1f;
+  h.clusters_l2_truncation = 0.005f;  // the clusters' own truncation measured alike: below the whole curve
+  h.truncation_curve = VectorXf::LinSpaced(K, 0.1f, 0.01f);
+  h.l2_truncation = h.truncation_curve[r_a - 1];
   const auto path = dir_ / "curve.h5";
   core::write_package(package_, path);
-  EXPECT_EQ(core::read_package(path).appearance->held_out_truncation_curve, a.held_out_truncation_curve);
+  EXPECT_EQ(core::read_package(path).appearance->held_out->truncation_curve, h.truncation_curve);
   const auto j = nlohmann::json::parse(testing::run_tool("phasecast-inspect", {path.string(), "--json"}).out);
   ASSERT_EQ(j["held_out"]["l2_truncation_curve"].size(), static_cast<size_t>(K));
   EXPECT_NEAR(j["held_out"]["l2_truncation_curve"][0].get<double>(), 0.1, 1e-7);

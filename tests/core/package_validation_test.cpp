@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 
 namespace phasecast {
 namespace {
@@ -131,9 +132,9 @@ TEST_F(PackageFileRejection, TriangleIndexOutOfRange) {
 }
 
 TEST_F(PackageFileRejection, UnknownFormatVersion) {
-  core::h5::File::open_write(path_).write_attribute("format_version", std::int32_t{2});
+  core::h5::File::open_write(path_).write_attribute("format_version", std::int32_t{3});
   EXPECT_THAT(package_rejection(path_),
-              HasSubstr("/@format_version: unknown format_version 2 (this build reads 1)"));
+              HasSubstr("/@format_version: unknown format_version 3 (this build reads 1 to 2)"));
 }
 
 TEST_F(PackageFileRejection, MissingAttribute) {
@@ -155,12 +156,21 @@ TEST_F(PackageFileRejection, OptionalAppearanceFiguresOfTheWrongLength) {
   EXPECT_THAT(package_rejection(path_),
               HasSubstr("/appearance/transfer_sampling: expected length 2 (rays, bounces) = 2, got 3"));
   remove("/appearance/transfer_sampling");
-  core::h5::File::open_write(path_).write("/appearance/held_out_spread", std::vector<float>(3, 0.1f).data(),
-                                          {3});
+  const auto figure = [this](const std::string& name, const std::vector<float>& values) {
+    core::h5::File::open_write(path_).write("/appearance/held_out/" + name, values);
+  };
+  figure("l2_total_spread", {0.1f, 0.1f, 0.1f});
   EXPECT_THAT(package_rejection(path_),
-              HasSubstr("/appearance/held_out_spread: expected 6 values (relative l2 total, truncation and "
-                        "total of the nodes' own variation, each a 10th and a 90th percentile) or the older "
-                        "4, got 3"));
+              HasSubstr("/appearance/held_out/nodes: expected the nodes of the held-out figures beside them"));
+  core::h5::File::open_write(path_).write("/appearance/held_out/nodes", std::vector<std::int32_t>{1, 2});
+  EXPECT_THAT(package_rejection(path_), HasSubstr("/appearance/held_out/total: missing dataset"));
+  for (const char* name : {"total", "truncation", "interpolation", "of_transfer"}) figure(name, {0.1f});
+  EXPECT_THAT(package_rejection(path_), HasSubstr("/appearance/held_out/l2_total_spread: expected length 2 "
+                                                  "(10th and 90th percentile) = 2, got 3"));
+  remove("/appearance/held_out/l2_total_spread");
+  figure("l2_floor", {0.1f, 0.2f});
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("/appearance/held_out/l2_floor: expected length 1 (a figure) = 1, got 2"));
 }
 
 // Read before the name: a length that fits no interpolant.
@@ -271,29 +281,6 @@ TEST_F(PackageRule, NrbfWidthsPositive) {
   EXPECT_THAT(invalid(p), HasSubstr("/appearance/nrbf_widths: expected positive finite widths, got 0 at 2"));
 }
 
-// Packages written before the paper's relErr figures hold 4, before the
-// clusters' figure at the held-out size 6, before the floor 7, before the
-// figures of the nodes' own variation 8; all still load.
-TEST_F(PackageRule, HeldOutErrorHoldsElevenFiguresOrTheOlderFourSixSevenOrEight) {
-  p.appearance->held_out_nodes = {1, 2};
-  for (int figures : {11, 8, 7, 6, 4}) {
-    p.appearance->held_out_error = VectorXf::Constant(figures, 0.1f);
-    EXPECT_EQ(invalid(p), "") << figures;
-  }
-  for (int figures : {5, 9, 12}) {
-    p.appearance->held_out_error = VectorXf::Constant(figures, 0.1f);
-    EXPECT_THAT(
-        invalid(p),
-        HasSubstr(fmt::format(
-            "/appearance/held_out_error: expected 11 values (total, truncation, interpolation, of |M|, "
-            "relative l2 total and truncation, the clusters' relative l2 truncation, the least any "
-            "rank-r_a model reaches, the total of the nodes' variation in Frobenius and l2 and its "
-            "least) or the older 4, 6, 7 or 8, got {}",
-            figures)));
-  }
-}
-
-// "equal" is also what a package written before the choice reads as.
 TEST_F(PackageRule, TransferWeightingIsEqualOrClusterSize) {
   for (const char* weighting : {"equal", "cluster size"}) {
     p.appearance->transfer_weighting = weighting;
@@ -351,80 +338,77 @@ TEST_F(PackageRule, InterpolantParametersFitTheInterpolant) {
                                     "\"affine-knn-slope\", got \"spline\""));
 }
 
-TEST_F(PackageRule, HeldOutSpreadIsOrderedPercentilesBesideTheFigures) {
-  p.appearance->held_out_nodes = {1, 2};
-  p.appearance->held_out_error = VectorXf::Constant(11, 0.1f);
-  p.appearance->held_out_spread = (VectorXf(4) << 0.1f, 0.2f, 0.05f, 0.15f).finished();
-  EXPECT_EQ(invalid(p), "");  // as written before the spread of the nodes' own variation
-  p.appearance->held_out_spread = (VectorXf(6) << 0.1f, 0.2f, 0.05f, 0.15f, 0.2f, 0.3f).finished();
+// Every figure finite and >= 0, each 10th percentile at most its 90th.
+TEST_F(PackageRule, HeldOutFiguresAreFiniteErrorsAndOrderedPercentiles) {
+  core::HeldOutFigures& h = p.appearance->held_out.emplace();
+  h.nodes = {1, 2};
+  h.total = h.truncation = h.interpolation = h.of_transfer = 0.1f;
+  EXPECT_EQ(invalid(p), "");  // the four plain figures alone
+  h.l2_total_spread = core::Percentiles{0.1f, 0.2f};
+  h.l2_of_variation_spread = core::Percentiles{0.2f, 0.3f};
   EXPECT_EQ(invalid(p), "");
-  p.appearance->held_out_spread[4] = 0.4f;
+  h.l2_of_variation_spread = core::Percentiles{0.4f, 0.3f};
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out/l2_of_variation_spread: expected the 10th percentile "
+                                    "<= the 90th"));
+  h.l2_of_variation_spread.reset();
+  h.l2_total_spread->p10 = std::nanf("");
   EXPECT_THAT(invalid(p),
-              HasSubstr("/appearance/held_out_spread: expected each 10th percentile <= its 90th"));
-  p.appearance->held_out_spread[4] = 0.2f;
-  p.appearance->held_out_spread.conservativeResize(5);
-  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out_spread: expected 6 values"));
-  p.appearance->held_out_spread.conservativeResize(6);
-  p.appearance->held_out_spread[5] = 0.3f;
-  p.appearance->held_out_spread[0] = 0.3f;
-  EXPECT_THAT(invalid(p),
-              HasSubstr("/appearance/held_out_spread: expected each 10th percentile <= its 90th"));
-  p.appearance->held_out_spread[0] = std::nanf("");
-  EXPECT_THAT(invalid(p),
-              HasSubstr("/appearance/held_out_spread: expected finite errors >= 0, got nan at 0"));
-  p.appearance->held_out_spread[0] = 0.1f;
-  p.appearance->held_out_error.resize(0);
-  p.appearance->held_out_nodes.clear();
-  EXPECT_THAT(invalid(p),
-              HasSubstr("/appearance/held_out_spread: expected /appearance/held_out_error beside it"));
+              HasSubstr("/appearance/held_out/l2_total_spread: expected a finite error >= 0, got nan"));
+  h.l2_total_spread.reset();
+  h.interpolation = -0.1f;
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out/interpolation: expected a finite error >= 0, got -0.1"));
+  h.interpolation = 0.1f;
+  h.l2_floor = std::numeric_limits<float>::infinity();
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out/l2_floor: expected a finite error >= 0, got inf"));
+  h.l2_floor.reset();
+  h.nodes = {1, 999999};
+  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out/nodes: expected state nodes in [0, "));
 }
 
 // Fig. 12 out of sample: relative errors that never rise with the rank, at
-// least r_a and at most N_a - 1 of them, agreeing at r_a with
-// held_out_error's l2 truncation.
+// least r_a and at most N_a - 1 of them, agreeing at r_a with the l2
+// truncation.
 TEST_F(PackageRule, HeldOutTruncationCurveFallsAndMeetsTheTruncationAtRa) {
   auto& a = *p.appearance;
   const int r_a = a.rank(), K = a.clusters() - 1;
   ASSERT_GE(r_a, 1);
   ASSERT_GT(K, r_a);
-  a.held_out_nodes = {1, 2};
-  a.held_out_error = VectorXf::Constant(11, 0.1f);
-  a.held_out_error[5] = 0.3f;
-  a.held_out_truncation_curve = VectorXf::LinSpaced(K, 0.3f, 0.01f);
-  a.held_out_truncation_curve[r_a - 1] = 0.3f;
-  a.held_out_truncation_curve.head(r_a - 1).setConstant(0.4f);
+  core::HeldOutFigures& h = a.held_out.emplace();
+  h.nodes = {1, 2};
+  h.total = h.truncation = h.interpolation = h.of_transfer = 0.1f;
+  h.l2_truncation = 0.3f;
+  VectorXf& curve = h.truncation_curve;
+  curve = VectorXf::LinSpaced(K, 0.3f, 0.01f);
+  curve[r_a - 1] = 0.3f;
+  curve.head(r_a - 1).setConstant(0.4f);
   EXPECT_EQ(invalid(p), "");
-  a.held_out_truncation_curve[r_a - 1] = 0.32f;
+  curve[r_a - 1] = 0.32f;
   EXPECT_THAT(invalid(p),
-              HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected 0.3 at r_a = "
-                                    "{} (held_out_error's l2 truncation), got 0.32",
+              HasSubstr(fmt::format("/appearance/held_out/truncation_curve: expected 0.3 at r_a = "
+                                    "{} (the held-out l2_truncation), got 0.32",
                                     r_a)));
-  a.held_out_truncation_curve[r_a - 1] = 0.3f;
-  a.held_out_truncation_curve[K - 1] = 0.2f;
+  curve[r_a - 1] = 0.3f;
+  curve[K - 1] = 0.2f;
   EXPECT_THAT(invalid(p),
-              HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected no rise with the rank, "
+              HasSubstr(fmt::format("/appearance/held_out/truncation_curve: expected no rise with the rank, "
                                     "got 0.2 at rank {}",
                                     K)));
-  a.held_out_truncation_curve[K - 1] = std::nanf("");
-  EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected relative "
+  curve[K - 1] = std::nanf("");
+  EXPECT_THAT(invalid(p), HasSubstr(fmt::format("/appearance/held_out/truncation_curve: expected relative "
                                                 "errors in [0, 1], got nan at rank {}",
                                                 K)));
-  a.held_out_truncation_curve[K - 1] = 0.0f;
+  curve[K - 1] = 0.0f;
   std::vector<Eigen::Index> lengths{K + 1};  // beyond what N_a centred fields resolve
   if (r_a > 1) lengths.push_back(r_a - 1);   // short of r_a (none stored is no curve)
   for (const Eigen::Index length : lengths) {
-    VectorXf curve = VectorXf::Zero(length);
-    std::swap(curve, a.held_out_truncation_curve);
+    VectorXf other = VectorXf::Zero(length);
+    std::swap(other, curve);
     EXPECT_THAT(invalid(p),
-                HasSubstr(fmt::format("/appearance/held_out_truncation_curve: expected at least r_a = {} and "
+                HasSubstr(fmt::format("/appearance/held_out/truncation_curve: expected at least r_a = {} and "
                                       "at most N_a - 1 = {} values, got {}",
                                       std::max(r_a, 1), K, length)));
-    std::swap(curve, a.held_out_truncation_curve);
+    std::swap(other, curve);
   }
-  a.held_out_error.resize(0);
-  a.held_out_nodes.clear();
-  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out_truncation_curve: expected "
-                                    "/appearance/held_out_error beside it"));
 }
 
 TEST_F(PackageRule, TransferSamplingIsRaysAndBouncesOrUnrecorded) {

@@ -119,12 +119,12 @@ def main(server_bin, make_fixture, proto_dir, work):
     with open(package, "rb") as src, open(future, "wb") as dst:
         dst.write(src.read())
     with h5py.File(future, "r+") as f:
-        f.attrs["format_version"] = np.int32(2)
+        f.attrs["format_version"] = np.int32(3)
     r = subprocess.run([server_bin, future, "--cmd", "tcp://127.0.0.1:*", "--pub", "tcp://127.0.0.1:*"],
                        capture_output=True, text=True, timeout=30)
     assert r.returncode == 1, r.returncode
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("phasecast-server: "), r.stderr
-    assert "future.h5" in r.stderr and "unknown format_version 2 (this build reads 1)" in r.stderr, r.stderr
+    assert "future.h5" in r.stderr and "unknown format_version 3 (this build reads 1 to 2)" in r.stderr, r.stderr
     print("ok: frames decoded, impulse landed in frame", at, "and U_u downloaded")
 
 

@@ -16,7 +16,9 @@
 
 namespace phasecast::core {
 
-inline constexpr int kFormatVersion = 1;
+// The version write_package() writes; read_package() also reads every older
+// one (docs/package-format.md, "Older versions").
+inline constexpr int kFormatVersion = 2;
 inline constexpr int kTransferPerPoint = kShChannels * kShCoefficients;  // 48 per scene point
 inline constexpr int kKinematicsColumns = 11;                            // columns of /palette/kinematics
 inline constexpr int kSupportFloats = 12;                                // 3x4 support transform
@@ -142,6 +144,41 @@ struct PhasePortrait {
   int irf_count() const { return static_cast<int>(irf_start.size()); }
 };
 
+// The 10th and 90th percentiles of a figure over bootstrap resamples of the
+// held-out nodes.
+struct Percentiles {
+  float p10 = 0, p90 = 0;
+};
+
+// The appearance model measured at held-out state nodes (docs/transfer.md,
+// "Held-out truth"), each a dataset under /appearance/held_out/. The four
+// plain figures are always measured; the optional ones may be absent from
+// packages measured before them, and the figures about the nodes' own
+// variation need at least two nodes.
+struct HeldOutFigures {
+  std::vector<std::int32_t> nodes;  // the reported held-out state nodes
+  // RMS over the nodes relative to |M - M-bar|; total² = truncation² + interpolation².
+  float total = 0, truncation = 0, interpolation = 0;
+  float of_transfer = 0;  // total relative to |M|
+  // Relative l2 norms, the paper's relErr: total and truncation alone.
+  std::optional<float> l2_total, l2_truncation;
+  // The clusters' own relative l2 truncation over as many clusters as there
+  // are held-out nodes: what l2_truncation compares with.
+  std::optional<float> clusters_l2_truncation;
+  // The least relative l2 any rank-r_a model about M-bar reaches at the nodes.
+  std::optional<float> l2_floor;
+  // The total relative to the nodes' variation about their own mean
+  // (Frobenius, relative l2), and the least relative l2 any rank-r_a model
+  // about that mean reaches.
+  std::optional<float> of_variation, l2_of_variation, l2_floor_of_variation;
+  std::optional<Percentiles> l2_total_spread, l2_truncation_spread, l2_of_variation_spread;
+  // Fig. 12's red curve out of sample: the nodes' relative l2 truncation at
+  // rank 1..K of the SVD U_a was cut from (K the directions it resolves).
+  // Entry r_a - 1 is l2_truncation; the last is what the clusters' whole span
+  // leaves. Empty: not measured.
+  VectorXf truncation_curve;
+};
+
 // Reduced radiance transfer (§4).
 struct Appearance {
   VectorXf mean_transfer;  // 48S: M-bar
@@ -164,27 +201,9 @@ struct Appearance {
   // "equal" (the paper's, and every package written before the choice) or
   // "cluster size".
   std::string transfer_weighting = "equal";
-  // Held-out truth (empty when not measured): the served transfer against
-  // the true transfer at state nodes that are not cluster nodes.
-  std::vector<std::int32_t> held_out_nodes;  // the nodes the error is measured at
-  VectorXf held_out_error;  // 11: total, truncation, interpolation, total relative to |M|, then total and
-                            // truncation as relative l2 norms, then the clusters' own truncation as a
-                            // relative l2 norm over as many clusters as there are held-out nodes, then
-                            // the least relative l2 any rank-r_a model about this M-bar has at the
-                            // held-out nodes, then the total relative to the nodes' variation about
-                            // their own mean (Frobenius, relative l2) and the least relative l2 any
-                            // rank-r_a model about that mean has (older packages: the first 4, 6, 7
-                            // or 8)
-  // 6 (empty: not measured): 10th and 90th percentiles of the relative l2 total,
-  // then of the truncation, then of the total relative to the nodes' own
-  // variation, over bootstrap resamples of the held-out nodes (older: the first 4).
-  VectorXf held_out_spread;
-  // Fig. 12's red curve out of sample (empty: not measured): the reported
-  // held-out nodes' truncation alone, as a relative l2 norm (the paper's
-  // relErr), at rank 1..K of the SVD U_a was cut from, K the directions it
-  // resolves. Its entry r_a - 1 is held_out_error[5]; its last entry is what
-  // the clusters' whole span leaves, which no rank of them can beat.
-  VectorXf held_out_truncation_curve;
+  // Held-out truth: the served transfer against the ray-cast transfer at
+  // state nodes that are not cluster nodes (absent: not measured).
+  std::optional<HeldOutFigures> held_out;
   std::int32_t paper_rank = 0;  // the paper's r_a for this scene (Table 1; 0: none)
   // How the cluster and held-out transfers were sampled, so that a figure can
   // be reproduced: ray directions of the fixed sphere set and interreflection

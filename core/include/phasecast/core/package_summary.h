@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 namespace phasecast::core {
@@ -38,28 +39,7 @@ struct PackageSummary {
   std::string interpolant;                // its name ("nrbf", "knn", "affine-knn(-slope)") and parameters
   std::string transfer_weighting;         // "equal" or "cluster size"
   int transfer_rays = 0, transfer_bounces = 0;  // how the transfer was sampled (0 rays: unrecorded)
-  int held_out_nodes = 0;                       // 0: no held-out truth in the package
-  double held_out_total = 0, held_out_truncation = 0, held_out_interpolation = 0, held_out_of_transfer = 0;
-  // The same in the paper's relErr: relative l2 (spectral) norms; NaN in older packages.
-  double held_out_l2_total = 0, held_out_l2_truncation = 0;
-  // The clusters' own truncation in that norm over as many of them as there are
-  // held-out nodes: what held_out_l2_truncation compares with. NaN in older packages.
-  double clusters_l2_truncation_at_held_out_size = 0;
-  // The least relative l2 error any rank-r_a model about this M-bar has at
-  // the held-out nodes (sigma_{r_a+1} / sigma_1 of their truth less M-bar):
-  // what no basis or interpolant about it can beat. NaN in older packages.
-  double held_out_l2_floor = 0;
-  // The total relative to the held-out nodes' variation about their own mean
-  // (Frobenius, relative l2), a denominator no model moves, and the least
-  // relative l2 any rank-r_a model has there, whatever its mean. NaN in older packages.
-  double held_out_of_variation = 0, held_out_l2_of_variation = 0, held_out_l2_floor_of_variation = 0;
-  // 10th and 90th percentiles of held_out_l2_total, then of held_out_l2_truncation,
-  // then of held_out_l2_of_variation, over bootstrap resamples of the held-out
-  // nodes; empty (or without the last two) in older packages.
-  std::vector<double> held_out_l2_spread;
-  // Fig. 12's red curve out of sample: the held-out truncation as a relative
-  // l2 norm at rank 1..K of the clusters' SVD; empty in older packages.
-  std::vector<double> held_out_l2_truncation_curve;
+  std::optional<HeldOutFigures> held_out;     // absent: no held-out truth in the package
   std::uint64_t client_download_bytes = 0;    // sum of basis parts
   std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
   std::uint64_t full_vertex_frame_bytes = 0;  // streaming vertices instead
@@ -72,7 +52,8 @@ std::string to_text(const PackageSummary& s);
 // The held-out truncation curve at ranks 1, 2, 4, 8, ..., r_a, the paper's
 // r_a and all K, and the first rank at which it reaches `in_sample`: the
 // clusters' own truncation at r_a over as many of them as there are reported
-// nodes (held_out_error[6]; NaN: not said). Empty for an empty curve.
+// nodes (HeldOutFigures::clusters_l2_truncation; NaN: not said). Empty for an
+// empty curve.
 std::string held_out_curve_text(const std::vector<double>& curve, int rank_a, int paper_rank_a,
                                 double in_sample);
 nlohmann::json to_json(const PackageSummary& s);

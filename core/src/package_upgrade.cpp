@@ -1,0 +1,77 @@
+// Version 1 stored the held-out figures by position: /appearance/held_out_error
+// held 4, 6, 7, 8 or 11 floats (each length a set of figures added in turn),
+// /appearance/held_out_spread 4 or 6 percentiles, beside
+// /appearance/held_out_nodes and /appearance/held_out_truncation_curve.
+
+#include "package_upgrade.h"
+
+#include <fmt/format.h>
+
+namespace phasecast::core {
+namespace {
+
+using h5::Dtype;
+
+constexpr const char* kV1Nodes = "/appearance/held_out_nodes";
+constexpr const char* kV1Error = "/appearance/held_out_error";
+constexpr const char* kV1Spread = "/appearance/held_out_spread";
+constexpr const char* kV1Curve = "/appearance/held_out_truncation_curve";
+
+// The figures of held_out_error by position (the first four always there).
+void assign_v1_figures(const VectorXf& e, HeldOutFigures& h) {
+  h.total = e[0];
+  h.truncation = e[1];
+  h.interpolation = e[2];
+  h.of_transfer = e[3];
+  if (e.size() >= 6) {
+    h.l2_total = e[4];
+    h.l2_truncation = e[5];
+  }
+  if (e.size() >= 7) h.clusters_l2_truncation = e[6];
+  if (e.size() >= 8) h.l2_floor = e[7];
+  if (e.size() >= 11) {
+    h.of_variation = e[8];
+    h.l2_of_variation = e[9];
+    h.l2_floor_of_variation = e[10];
+  }
+}
+
+// The percentile pairs of held_out_spread by position.
+void assign_v1_spread(const VectorXf& s, HeldOutFigures& h) {
+  h.l2_total_spread = Percentiles{s[0], s[1]};
+  h.l2_truncation_spread = Percentiles{s[2], s[3]};
+  if (s.size() >= 6) h.l2_of_variation_spread = Percentiles{s[4], s[5]};
+}
+
+std::optional<HeldOutFigures> upgrade_v1_held_out(const h5::Reader& r) {
+  const auto exists = [&r](const char* name) { return r.file().exists(name); };
+  if (!exists(kV1Error)) {
+    for (const char* name : {kV1Spread, kV1Curve})
+      if (exists(name)) r.fail(name, fmt::format("expected {} beside it", kV1Error));
+    return std::nullopt;
+  }
+  const auto figures = r.require(kV1Error, Dtype::f32, 1).dims[0];
+  if (figures != 4 && figures != 6 && figures != 7 && figures != 8 && figures != 11)
+    r.fail(kV1Error, fmt::format("expected 4, 6, 7, 8 or 11 figures (format_version 1), got {}", figures));
+  if (!exists(kV1Nodes)) r.fail(kV1Nodes, fmt::format("expected the nodes of {}", kV1Error));
+  HeldOutFigures h;
+  h.nodes = r.vector<std::int32_t>(kV1Nodes);
+  assign_v1_figures(r.column<float>(kV1Error), h);
+  if (exists(kV1Spread)) {
+    const auto values = r.require(kV1Spread, Dtype::f32, 1).dims[0];
+    if (values != 4 && values != 6)
+      r.fail(kV1Spread, fmt::format("expected 4 or 6 percentiles (format_version 1), got {}", values));
+    assign_v1_spread(r.column<float>(kV1Spread), h);
+  }
+  if (exists(kV1Curve)) h.truncation_curve = r.column<float>(kV1Curve);
+  return h;
+}
+
+}  // namespace
+
+std::optional<HeldOutFigures> upgrade_held_out(const h5::Reader& r, int version) {
+  if (version != 1) r.fail("/@format_version", fmt::format("no upgrade from format_version {}", version));
+  return upgrade_v1_held_out(r);
+}
+
+}  // namespace phasecast::core
