@@ -1,7 +1,10 @@
 // phasecast-precompute reduce: model reduction of sampled orbits into a scene package (§2.3, §5.2).
 
 #include "commands.h"
-#include "pipeline.h"
+#include "phasecast/precompute/pipeline/report_text.h"
+#include "stage_options.h"
+
+#include <fmt/format.h>
 
 #include <memory>
 #include <string>
@@ -13,8 +16,8 @@ struct Options {
   std::string scene;
   std::string orbits;
   std::string output;
-  ReduceArgs reduce;
-  AppearanceArgs appearance;
+  ReduceStageOptions reduce;
+  AppearanceChoices appearance;
 };
 
 }  // namespace
@@ -31,7 +34,8 @@ void add_reduce_command(CLI::App& app) {
   add_appearance_options(cmd, o->appearance);
   cmd->callback([o] {
     const auto scene = phasecast::precompute::load_scene_file(o->scene);
-    run_reduce_stage(scene, o->reduce, o->appearance, o->orbits, o->output);
+    const auto report = run_reduce_stage(scene, o->reduce, o->appearance, o->orbits, o->output);
+    if (report.writer) fmt::print("{}", reduce_report_text(report));
   });
 }
 

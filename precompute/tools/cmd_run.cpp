@@ -1,7 +1,10 @@
 // phasecast-precompute run: sample -> reduce -> appearance in one command.
 
 #include "commands.h"
-#include "pipeline.h"
+#include "phasecast/precompute/pipeline/report_text.h"
+#include "stage_options.h"
+
+#include <fmt/format.h>
 
 #include <memory>
 #include <string>
@@ -12,9 +15,9 @@ namespace {
 struct Options {
   std::string scene;
   std::string output;
-  SampleArgs sample;
-  ReduceArgs reduce;
-  AppearanceArgs appearance;
+  SampleStageOptions sample;
+  ReduceStageOptions reduce;
+  AppearanceChoices appearance;
 };
 
 }  // namespace
@@ -35,10 +38,12 @@ void add_run_command(CLI::App& app) {
     if (!o->appearance.skip) appearance_stage_options(scene, o->appearance);
     auto sample = o->sample;
     if (sample.work_dir.empty()) sample.work_dir = o->output + ".work";
-    const std::filesystem::path orbits = std::filesystem::path(sample.work_dir) / "orbits.h5";
+    const std::filesystem::path orbits = sample.work_dir / "orbits.h5";
     check_save_transfers(o->appearance, {orbits, o->output});
-    run_sample_stage(scene, sample, orbits);
-    run_reduce_stage(scene, o->reduce, o->appearance, orbits, o->output);
+    const auto sampled = run_sample_stage(scene, sample, orbits);
+    if (sampled.writer) fmt::print("{}", sample_report_text(sampled));
+    const auto reduced = run_reduce_stage(scene, o->reduce, o->appearance, orbits, o->output);
+    if (reduced.writer) fmt::print("{}", reduce_report_text(reduced));
   });
 }
 

@@ -1,7 +1,10 @@
 // phasecast-precompute sample: random IRF chains obeying the palette rules (§3.4).
 
 #include "commands.h"
-#include "pipeline.h"
+#include "phasecast/precompute/pipeline/report_text.h"
+#include "stage_options.h"
+
+#include <fmt/format.h>
 
 #include <memory>
 #include <string>
@@ -12,7 +15,7 @@ namespace {
 struct Options {
   std::string scene;
   std::string output;
-  SampleArgs sample;
+  SampleStageOptions sample;
 };
 
 }  // namespace
@@ -26,7 +29,8 @@ void add_sample_command(CLI::App& app) {
   add_sample_options(cmd, o->sample);
   cmd->callback([o] {
     const auto scene = phasecast::precompute::load_scene_file(o->scene);
-    run_sample_stage(scene, o->sample, o->output);
+    const auto report = run_sample_stage(scene, o->sample, o->output);
+    if (report.writer) fmt::print("{}", sample_report_text(report));
   });
 }
 

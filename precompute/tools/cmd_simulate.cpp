@@ -1,7 +1,7 @@
 // phasecast-precompute simulate: run a scene through a schedule of palette entries.
 
 #include "commands.h"
-#include "contact_report.h"
+#include "phasecast/precompute/pipeline/contact_report.h"
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/distributed/ranks.h"
 #include "phasecast/precompute/sampling/obj_frames.h"

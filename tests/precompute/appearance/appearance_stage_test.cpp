@@ -121,40 +121,41 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
             std::string::npos)
       << inspect.out;
   EXPECT_GE(p.appearance->transfer_rays, 1);  // the tiny scene's
-  ASSERT_EQ(p.appearance->held_out_error.size(), 11);
-  EXPECT_GT(p.appearance->held_out_error[0], 0.0f);  // nodes the model never saw
-  ASSERT_EQ(p.appearance->held_out_spread.size(), 6);
+  ASSERT_TRUE(p.appearance->held_out);
+  const core::HeldOutFigures& h = *p.appearance->held_out;
+  ASSERT_TRUE(h.l2_floor_of_variation && h.l2_of_variation_spread);  // every figure measured
+  EXPECT_GT(h.total, 0.0f);                                           // nodes the model never saw
   EXPECT_NE(inspect.out.find(
                 fmt::format("of their own variation over resampled nodes (10th-90th percentile): "
                             "relative l2 {:.3g}-{:.3g}%",
-                            100 * p.appearance->held_out_spread[4], 100 * p.appearance->held_out_spread[5])),
+                            100 * h.l2_of_variation_spread->p10, 100 * h.l2_of_variation_spread->p90)),
             std::string::npos)
       << inspect.out;
   EXPECT_NE(inspect.out.find(fmt::format("over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%",
-                                         100 * p.appearance->held_out_spread[0],
-                                         100 * p.appearance->held_out_spread[1])),
+                                         100 * h.l2_total_spread->p10,
+                                         100 * h.l2_total_spread->p90)),
             std::string::npos)
       << inspect.out;
   // The paper's-metric figures reach the JSON that bench/paper_tables.py reads.
   const auto json = run_tool("phasecast-inspect", {pkg, "--json"});
   ASSERT_EQ(json.exit_code, 0) << json.err;
   const auto held_out = nlohmann::json::parse(json.out)["held_out"];
-  EXPECT_NEAR(held_out["l2_total"].get<double>(), p.appearance->held_out_error[4], 1e-6);
-  EXPECT_NEAR(held_out["l2_truncation"].get<double>(), p.appearance->held_out_error[5], 1e-6);
-  EXPECT_NEAR(held_out["clusters_l2_truncation"].get<double>(), p.appearance->held_out_error[6], 1e-6);
+  EXPECT_NEAR(held_out["l2_total"].get<double>(), *h.l2_total, 1e-6);
+  EXPECT_NEAR(held_out["l2_truncation"].get<double>(), *h.l2_truncation, 1e-6);
+  EXPECT_NEAR(held_out["clusters_l2_truncation"].get<double>(), *h.clusters_l2_truncation, 1e-6);
   // 3 reported nodes and r_a up to 3: the floor may be 0 here. Its value is
   // tested in appearance_test.cpp; this checks that it reaches the package,
   // inspect and the JSON.
-  EXPECT_NEAR(held_out["l2_floor"].get<double>(), p.appearance->held_out_error[7], 1e-6);
-  EXPECT_LE(p.appearance->held_out_error[7], p.appearance->held_out_error[5] + 1e-6);
+  EXPECT_NEAR(held_out["l2_floor"].get<double>(), *h.l2_floor, 1e-6);
+  EXPECT_LE(*h.l2_floor, *h.l2_truncation + 1e-6);
   // Fig. 12 out of sample reaches the package, the run's output and inspect alike.
-  const VectorXf& curve = p.appearance->held_out_truncation_curve;
+  const VectorXf& curve = h.truncation_curve;
   ASSERT_GE(curve.size(), p.rank_a());
   ASSERT_LE(curve.size(), 3);
-  EXPECT_NEAR(curve[p.rank_a() - 1], p.appearance->held_out_error[5], 1e-4);
+  EXPECT_NEAR(curve[p.rank_a() - 1], *h.l2_truncation, 1e-4);
   const std::string curve_line =
       core::held_out_curve_text(std::vector<double>(curve.data(), curve.data() + curve.size()), p.rank_a(),
-                                12, p.appearance->held_out_error[6]);
+                                12, *h.clusters_l2_truncation);
   EXPECT_NE(r.out.find("appearance: held-out truncation by rank (Fig. 12 out of sample, relative l2): " +
                        curve_line + "\n"),
             std::string::npos)
@@ -165,20 +166,20 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
       << inspect.out;
   EXPECT_NE(inspect.out.find(fmt::format("the least any rank-{} model about M-bar reaches at those nodes "
                                          "(sigma_{{r+1}}/sigma_1 of their M - M-bar): {:.3g}%",
-                                         p.appearance->U_a.cols(), 100 * p.appearance->held_out_error[7])),
+                                         p.appearance->U_a.cols(), 100 * *h.l2_floor)),
             std::string::npos)
       << inspect.out;
   EXPECT_NE(inspect.out.find("the clusters' own truncation measured alike (relative l2 over 3 of them"),
             std::string::npos)
       << inspect.out;
   // The figures of the nodes' own variation, and the weighting the picking half kept.
-  EXPECT_NEAR(held_out["of_variation"].get<double>(), p.appearance->held_out_error[8], 1e-6);
-  EXPECT_NEAR(held_out["l2_of_variation"].get<double>(), p.appearance->held_out_error[9], 1e-6);
-  EXPECT_NEAR(held_out["l2_floor_of_variation"].get<double>(), p.appearance->held_out_error[10], 1e-6);
+  EXPECT_NEAR(held_out["of_variation"].get<double>(), *h.of_variation, 1e-6);
+  EXPECT_NEAR(held_out["l2_of_variation"].get<double>(), *h.l2_of_variation, 1e-6);
+  EXPECT_NEAR(held_out["l2_floor_of_variation"].get<double>(), *h.l2_floor_of_variation, 1e-6);
   EXPECT_NE(inspect.out.find(
                 fmt::format("of the nodes' own variation |M - their mean| (moves with no model): "
                             "error {:.3g}%, relative l2 {:.3g}%",
-                            100 * p.appearance->held_out_error[8], 100 * p.appearance->held_out_error[9])),
+                            100 * *h.of_variation, 100 * *h.l2_of_variation)),
             std::string::npos)
       << inspect.out;
   EXPECT_EQ(nlohmann::json::parse(json.out)["transfer_weighting"], p.appearance->transfer_weighting);
@@ -233,7 +234,7 @@ TEST(AppearanceStage, RunComparesTheClustersBasisWithOneOfThePickingHalf) {
       << r.out;
   const double truncation = std::stod(r.out.substr(at + served.size(), 6));
   EXPECT_GT(truncation, 0);
-  EXPECT_LE(truncation, p.appearance->held_out_error[8] + 1e-4) << r.out;  // part of the total error
+  EXPECT_LE(truncation, *p.appearance->held_out->of_variation + 1e-4) << r.out;  // part of the total error
   // The paired verdict: its direction and one of its three readings.
   const bool more = r.out.find("% more squared error, noise ", at) != std::string::npos;
   const bool less = r.out.find("% less squared error, noise ", at) != std::string::npos;
@@ -269,7 +270,8 @@ TEST(AppearanceStage, HeldOutTargetChoosesRaAtThePickingHalf) {
                                "half's 3 nodes to 0.6000") != std::string::npos;
   EXPECT_NE(reached, not_reached) << r.out;
   EXPECT_EQ(p.attributes.eps_a, 0.0);
-  ASSERT_GE(p.appearance->held_out_truncation_curve.size(), p.rank_a());
+  ASSERT_TRUE(p.appearance->held_out);
+  ASSERT_GE(p.appearance->held_out->truncation_curve.size(), p.rank_a());
 }
 
 // --save-transfers keeps what the model was made from and measured against:
@@ -294,7 +296,7 @@ TEST(AppearanceStage, SaveTransfersKeepsEveryTransferOfTheStage) {
     if (j < Na) {
       EXPECT_EQ(t.nodes[j], a.cluster_nodes[j]);
     } else if (j >= Na + 3) {
-      EXPECT_EQ(t.nodes[j], a.held_out_nodes[j - Na - 3]);
+      EXPECT_EQ(t.nodes[j], a.held_out->nodes[j - Na - 3]);
     }
     EXPECT_TRUE(t.q_u.row(static_cast<Eigen::Index>(j)) == p.portrait.q_u.row(t.nodes[j])) << j;
   }
@@ -329,7 +331,7 @@ TEST(AppearanceStage, SaveTransfersKeepsEveryTransferOfTheStage) {
   EXPECT_LT((mean - a.mean_transfer).norm(), 1e-5f * a.mean_transfer.norm());
   const MatrixXfR centred = t.fields.bottomRows(3).rowwise() - a.mean_transfer.transpose();
   const MatrixXfR residual = centred - (centred * a.U_a) * a.U_a.transpose();
-  EXPECT_NEAR(residual.norm() / centred.norm(), a.held_out_error[1], 1e-4);
+  EXPECT_NEAR(residual.norm() / centred.norm(), a.held_out->truncation, 1e-4);
 }
 
 TEST(AppearanceStage, TransfersFileReaderNamesWhatIsWrong) {

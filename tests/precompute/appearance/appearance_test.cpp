@@ -73,7 +73,7 @@ TEST(Appearance, FillsAValidPackage) {
   EXPECT_EQ(model.q_a.cols(), a.rank());
   ASSERT_EQ(model.candidates.size(), 4u);  // nrbf, knn and affine-knn by both metrics, tuned by leave-one-out
   for (const auto& c : model.candidates) EXPECT_TRUE(std::isfinite(c.interpolant.leave_one_out));
-  EXPECT_EQ(a.held_out_error.size(), 0);  // no held-out truth given
+  EXPECT_FALSE(a.held_out);  // no held-out truth given
   // At a cluster node the k-nearest-neighbour interpolant returns that node's own q_a^j.
   const auto r = reduce_transfer(fields, {.eps_a = 1e-3});
   const auto knn =
@@ -183,7 +183,7 @@ TEST(Appearance, OneClusterHasRankZero) {
   EXPECT_EQ(model.appearance.rank(), 0);
   EXPECT_EQ(model.q_a.rows(), p.portrait.nodes());
   EXPECT_EQ(model.q_a.cols(), 0);
-  EXPECT_EQ(model.appearance.held_out_error.size(), 0);
+  EXPECT_FALSE(model.appearance.held_out);
   p.appearance = model.appearance;
   p.portrait.q_a = model.q_a;
   EXPECT_NO_THROW(core::validate_package(p, "one cluster"));
@@ -202,15 +202,15 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
       fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
                            {.reduction = {.rank = 3}, .weighting = WeightingChoice::equal}, truth);
   const auto& a = model.appearance;
-  ASSERT_EQ(a.held_out_error.size(), 11);
+  ASSERT_TRUE(a.held_out && a.held_out->l2_floor_of_variation);  // every figure measured
   EXPECT_EQ(a.transfer_weighting, "equal");
-  ASSERT_EQ(a.held_out_nodes.size(), 6u);  // the second half: the first picked the interpolant
-  EXPECT_TRUE(std::equal(a.held_out_nodes.begin(), a.held_out_nodes.end(), truth.nodes.begin() + 6));
+  ASSERT_EQ(a.held_out->nodes.size(), 6u);  // the second half: the first picked the interpolant
+  EXPECT_TRUE(std::equal(a.held_out->nodes.begin(), a.held_out->nodes.end(), truth.nodes.begin() + 6));
   // A second reader: plain sums over the served fields.
   double err2 = 0, centred2 = 0, truth2 = 0;
   Eigen::MatrixXd E(a.mean_transfer.size(), 6), D(a.mean_transfer.size(), 6);  // columns: nodes
   for (size_t i = 0; i < 6; ++i) {
-    const auto node = a.held_out_nodes[i];
+    const auto node = a.held_out->nodes[i];
     const Eigen::VectorXd served = (a.mean_transfer + a.U_a * model.q_a.row(node).transpose()).cast<double>();
     const Eigen::VectorXd m = truth.fields.row(static_cast<Eigen::Index>(6 + i)).transpose().cast<double>();
     E.col(static_cast<Eigen::Index>(i)) = m - served;
@@ -219,45 +219,45 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
     centred2 += (m - a.mean_transfer.cast<double>()).squaredNorm();
     truth2 += m.squaredNorm();
   }
-  EXPECT_NEAR(a.held_out_error[0], std::sqrt(err2 / centred2), 1e-4);
+  EXPECT_NEAR(a.held_out->total, std::sqrt(err2 / centred2), 1e-4);
   // The paper's relErr: the relative l2 (spectral) norm, by a full SVD here.
   const auto l2 = [](const Eigen::MatrixXd& X) { return core::spectral_norm(X); };
-  EXPECT_NEAR(a.held_out_error[4], l2(E) / l2(D), 1e-4);
-  EXPECT_LE(a.held_out_error[5], a.held_out_error[4] + 1e-6);  // the truncation is part of the error
+  EXPECT_NEAR(*a.held_out->l2_total, l2(E) / l2(D), 1e-4);
+  EXPECT_LE(*a.held_out->l2_truncation, *a.held_out->l2_total + 1e-6);  // the truncation is part of the error
   // As many reported nodes (6) as clusters: the clusters' own figure is the paper's sigma_4 / sigma_1.
-  EXPECT_NEAR(a.held_out_error[6], a.singular_values[3] / a.singular_values[0], 1e-5);
+  EXPECT_NEAR(*a.held_out->clusters_l2_truncation, a.singular_values[3] / a.singular_values[0], 1e-5);
   // The floor: sigma_4 / sigma_1 of the centred truth itself, which the
   // clusters' basis can approach but not beat.
   const Eigen::VectorXd sigma_d = core::singular_values(D);
-  EXPECT_NEAR(a.held_out_error[7], sigma_d[3] / sigma_d[0], 1e-4);
-  EXPECT_GT(a.held_out_error[7], 1e-3);  // six nodes, rank 3: not vacuous
-  EXPECT_LE(a.held_out_error[7], a.held_out_error[5] + 1e-6);
+  EXPECT_NEAR(*a.held_out->l2_floor, sigma_d[3] / sigma_d[0], 1e-4);
+  EXPECT_GT(*a.held_out->l2_floor, 1e-3);  // six nodes, rank 3: not vacuous
+  EXPECT_LE(*a.held_out->l2_floor, *a.held_out->l2_truncation + 1e-6);
   // Fig. 12 out of sample: at r_a, the truncation above; with all N_a - 1 = 5
   // directions in, what the cluster fields' span leaves (the 5 leading left
   // singular vectors of their centred matrix, by a dense SVD here; the sixth
   // is round-off of the float M-bar).
-  ASSERT_EQ(a.held_out_truncation_curve.size(), 5);
-  EXPECT_NEAR(a.held_out_truncation_curve[2], a.held_out_error[5], 1e-4);
+  ASSERT_EQ(a.held_out->truncation_curve.size(), 5);
+  EXPECT_NEAR(a.held_out->truncation_curve[2], *a.held_out->l2_truncation, 1e-4);
   const Eigen::MatrixXd F =
       (transfer_fields(p, clusters).rowwise() - a.mean_transfer.transpose()).transpose().cast<double>();
   const Eigen::MatrixXd Q = core::dense_svd(F, core::SvdVectors::left).U.leftCols(5);
   const double span = l2(D - Q * (Q.transpose() * D)) / l2(D);
-  EXPECT_NEAR(a.held_out_truncation_curve[4], span, 1e-4);
+  EXPECT_NEAR(a.held_out->truncation_curve[4], span, 1e-4);
   EXPECT_GT(span, 1e-3) << "not vacuous: the held-out fields leave the clusters' span";
-  EXPECT_LT(span, a.held_out_error[5]) << "more directions leave less";
-  EXPECT_NEAR(a.held_out_error[3], std::sqrt(err2 / truth2), 1e-5);
+  EXPECT_LT(span, *a.held_out->l2_truncation) << "more directions leave less";
+  EXPECT_NEAR(a.held_out->of_transfer, std::sqrt(err2 / truth2), 1e-5);
   // Of the nodes' own variation: M less their own mean, which no model moves.
   const Eigen::MatrixXd V = D.colwise() - D.rowwise().mean();
-  EXPECT_NEAR(a.held_out_error[8], E.norm() / V.norm(), 1e-4);
-  EXPECT_NEAR(a.held_out_error[9], l2(E) / l2(V), 1e-4);
+  EXPECT_NEAR(*a.held_out->of_variation, E.norm() / V.norm(), 1e-4);
+  EXPECT_NEAR(*a.held_out->l2_of_variation, l2(E) / l2(V), 1e-4);
   const Eigen::VectorXd sigma_v = core::singular_values(V);
-  EXPECT_NEAR(a.held_out_error[10], sigma_v[3] / sigma_v[0], 1e-4);
-  EXPECT_GT(a.held_out_error[10], 1e-3);  // five independent columns, rank 3: not vacuous
-  EXPECT_LE(a.held_out_error[10], a.held_out_error[9] + 1e-6);  // |E|_2 >= |E J|_2 >= sigma_4(M J)
-  EXPECT_GE(a.held_out_error[9], a.held_out_error[4] - 1e-6);   // |D J|_2 <= |D|_2
-  EXPECT_GT(a.held_out_error[0], 1e-3);                         // not vacuous: these nodes are not samples
-  EXPECT_NEAR(a.held_out_error[0] * a.held_out_error[0],
-              a.held_out_error[1] * a.held_out_error[1] + a.held_out_error[2] * a.held_out_error[2], 1e-5);
+  EXPECT_NEAR(*a.held_out->l2_floor_of_variation, sigma_v[3] / sigma_v[0], 1e-4);
+  EXPECT_GT(*a.held_out->l2_floor_of_variation, 1e-3);  // five independent columns, rank 3: not vacuous
+  EXPECT_LE(*a.held_out->l2_floor_of_variation, *a.held_out->l2_of_variation + 1e-6);  // |E|_2 >= |E J|_2 >= sigma_4(M J)
+  EXPECT_GE(*a.held_out->l2_of_variation, *a.held_out->l2_total - 1e-6);   // |D J|_2 <= |D|_2
+  EXPECT_GT(a.held_out->total, 1e-3);                         // not vacuous: these nodes are not samples
+  EXPECT_NEAR(a.held_out->total * a.held_out->total,
+              a.held_out->truncation * a.held_out->truncation + a.held_out->interpolation * a.held_out->interpolation, 1e-5);
   // The kept interpolant is the one the picking half preferred.
   ASSERT_EQ(model.candidates.size(), 4u);
   for (size_t i = 1; i < 4; ++i)
@@ -267,7 +267,7 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   // truncation there, against a basis of the picking half's six fields.
   ASSERT_TRUE(model.basis_comparison.has_value());
   EXPECT_EQ(model.basis_comparison->drawn_fields, 6);
-  EXPECT_NEAR(model.basis_comparison->served.total, a.held_out_error[1], 1e-5);
+  EXPECT_NEAR(model.basis_comparison->served.total, a.held_out->truncation, 1e-5);
   const Eigen::MatrixXd T = D - a.U_a.cast<double>() * (a.U_a.cast<double>().transpose() * D);
   EXPECT_NEAR(model.basis_comparison->served.of_variation, T.norm() / V.norm(), 1e-4);
   // Written and read back, the figures survive.
@@ -277,8 +277,16 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   const auto path = testing::scratch_dir("appearance_held_out") / "plate.h5";
   core::write_package(out, path);
   const auto back = core::read_package(path);
-  EXPECT_EQ(back.appearance->held_out_error, a.held_out_error);
-  EXPECT_EQ(back.appearance->held_out_nodes, a.held_out_nodes);
+  ASSERT_TRUE(back.appearance->held_out);
+  const core::HeldOutFigures& h = *back.appearance->held_out;
+  EXPECT_EQ(h.nodes, a.held_out->nodes);
+  EXPECT_EQ(h.total, a.held_out->total);
+  EXPECT_EQ(h.of_transfer, a.held_out->of_transfer);
+  EXPECT_EQ(h.l2_floor, a.held_out->l2_floor);
+  EXPECT_EQ(h.l2_floor_of_variation, a.held_out->l2_floor_of_variation);
+  ASSERT_TRUE(h.l2_of_variation_spread);
+  EXPECT_EQ(h.l2_of_variation_spread->p90, a.held_out->l2_of_variation_spread->p90);
+  EXPECT_EQ(h.truncation_curve, a.held_out->truncation_curve);
   EXPECT_EQ(back.appearance->interpolant, a.interpolant);
   EXPECT_EQ(back.appearance->transfer_weighting, "equal");
 }
@@ -350,8 +358,8 @@ TEST(Appearance, WeightingByClusterSizeIsKeptWhenItServesTheStatesBetter) {
   const auto equal = fit_appearance_model(
       q_u, clusters, fields, {.reduction = {.rank = 2}, .weighting = WeightingChoice::equal}, truth);
   EXPECT_EQ(equal.appearance.transfer_weighting, "equal");
-  const float weighted_error = model.appearance.held_out_error[8],
-              equal_error = equal.appearance.held_out_error[8];
+  const float weighted_error = *model.appearance.held_out->of_variation,
+              equal_error = *equal.appearance.held_out->of_variation;
   EXPECT_LT(weighted_error, 0.9f * equal_error) << weighted_error << " vs " << equal_error;
   // Without held-out truth nothing compares the two: equal weights, as the paper.
   const auto unjudged = fit_appearance_model(q_u, clusters, fields, best);
@@ -392,11 +400,12 @@ TEST(Appearance, OneReportedNodeKeepsTheFirstEightFigures) {
   const auto model = fit_appearance_model(p.portrait.q_u, clusters, transfer_fields(p, clusters),
                                           {.reduction = {.rank = 3}}, truth);
   const auto& a = model.appearance;
-  ASSERT_EQ(a.held_out_nodes.size(), 1u);
-  EXPECT_EQ(a.held_out_error.size(), 8);
-  EXPECT_GT(a.held_out_error[0], 1e-3);  // the served error itself is still measured
-  EXPECT_EQ(a.held_out_spread.size(), 0);
-  EXPECT_EQ(a.held_out_truncation_curve.size(), 5);  // one node still has a curve
+  ASSERT_EQ(a.held_out->nodes.size(), 1u);
+  EXPECT_TRUE(a.held_out->l2_floor);  // the first eight figures
+  EXPECT_FALSE(a.held_out->of_variation || a.held_out->l2_of_variation || a.held_out->l2_floor_of_variation);
+  EXPECT_GT(a.held_out->total, 1e-3);  // the served error itself is still measured
+  EXPECT_FALSE(a.held_out->l2_total_spread || a.held_out->l2_truncation_spread);
+  EXPECT_EQ(a.held_out->truncation_curve.size(), 5);  // one node still has a curve
   core::ScenePackage out = p;
   out.appearance = a;
   out.portrait.q_a = model.q_a;

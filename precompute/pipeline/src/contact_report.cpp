@@ -1,4 +1,4 @@
-#include "contact_report.h"
+#include "phasecast/precompute/pipeline/contact_report.h"
 
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
@@ -9,7 +9,7 @@
 #include <cmath>
 #include <limits>
 
-namespace phasecast::precompute::tools {
+namespace phasecast::precompute {
 
 double close_distance(const Scene& scene) {
   return 2 * scene.model.thickness;
@@ -54,4 +54,4 @@ std::string contact_line(const ContactSummary& c, double close) {
       100.0 * c.frames_close / std::max(1, c.frames), 1e3 * close, closest);
 }
 
-}  // namespace phasecast::precompute::tools
+}  // namespace phasecast::precompute

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-namespace phasecast::precompute::tools {
+namespace phasecast::precompute {
 
 // Pairs closer than this count as close: twice the contact thickness.
 double close_distance(const Scene& scene);
@@ -25,4 +25,4 @@ ContactSummary combined(const ContactSummary& a, const ContactSummary& b);
 // "contact: 0 of N frames with intersecting triangle pairs (worst 0); ..."
 std::string contact_line(const ContactSummary& c, double close);
 
-}  // namespace phasecast::precompute::tools
+}  // namespace phasecast::precompute
