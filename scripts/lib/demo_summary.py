@@ -6,7 +6,8 @@
 Reads OUT/inspect.json (phasecast-inspect --json), OUT/validation.json
 (phasecast-precompute validate --json: playback against the full simulation),
 OUT/stats.json (the server's Stats after the impulses), OUT/logs/render-{a,b}.log (the renderers' summary
-lines) and compares the two renderers' frames file by file. Links OUT/contact_sheet.png
+lines), the size of OUT/session.glb (phasecast-export) and compares the two renderers' frames file
+by file. Links OUT/contact_sheet.png
 (scripts/lib/contact_sheet.py, its line in OUT/logs/contact_sheet.log) and OUT/demo.mp4 when the demo
 made them, or says why not.
 """
@@ -116,6 +117,9 @@ def main():
     rows += validation_rows(os.path.join(out, "validation.json"))
     rows.append(("renderers a / b: frames, common frames, byte-identical PNGs",
                  f"{na} / {nb}, {len(common)}, {same}"))
+    glb = os.path.join(out, "session.glb")
+    rows.append(("glTF export `session.glb` (phasecast-export, docs/gltf.md)",
+                 f"{os.path.getsize(glb)} bytes" if os.path.exists(glb) else "failed (see logs/export.log)"))
 
     print(f"# Phasecast demo: scene '{s['scene']}'\n")
     print("\n".join(pictures(out)) + "\n")

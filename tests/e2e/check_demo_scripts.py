@@ -45,6 +45,17 @@ for args, message in [
     lines = r.stderr.strip().splitlines()
     check(r.returncode == 2, f"scripts/demo {args}: exit {r.returncode}, expected 2")
     check(len(lines) == 1 and lines[0].startswith(message), f"scripts/demo {args}: stderr {r.stderr!r}")
+# A scene file names its demo script and seed in [demo]; without one, the demo needs --script.
+scene_demo = os.path.join(source, "scripts", "lib", "scene_demo.py")
+r = run(["/usr/bin/python3", scene_demo, os.path.join(source, "scenes", "tiny", "toy_dashboard.toml")])
+check(r.stdout.splitlines() == [os.path.join(source, "scenes", "scripts", "dashboard_jolts.lua"), "2"],
+      f"scene_demo.py on the tiny toy: {r.stdout!r} {r.stderr!r}")
+bare_scene = os.path.join(work + ".bare.toml")
+with open(bare_scene, "w") as f:
+    f.write('name = "x"\n')
+r = run(["/usr/bin/python3", scene_demo, bare_scene])
+check(r.returncode != 0 and r.stderr.strip() == f"{bare_scene}: [demo] script: expected the example Lua script "
+      "to play (or give one with --script FILE)", f"scene_demo.py without [demo]: {r.stderr!r}")
 r = run([demo, "--help"])
 check(r.returncode == 0 and "--tiny" in r.stdout and "--script" in r.stdout, f"scripts/demo --help: {r.stdout!r}")
 
@@ -74,6 +85,8 @@ if r.returncode == 0:
           f"summary: the two renderers' frames differ: {m.group(0) if m else 'no line'}")
     check("swing 1: open at frame" in open(os.path.join(work, "logs", "console.log")).read(),
           "the console did not run door_open_close.lua")
+    check(re.search(r"\| glTF export `session.glb` \(phasecast-export, docs/gltf.md\) \| [1-9]\d* bytes \|", summary),
+          "summary: no glTF export row with its size")
     check("demo: outputs in " + work in r.stderr, "the demo did not say where its outputs are")
     # The MP4 and the contact sheet: 4 x 3 tiles of half the frame size (48x36) with a 2-pixel border.
     sheet = os.path.join(work, "contact_sheet.png")

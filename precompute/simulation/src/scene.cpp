@@ -503,6 +503,18 @@ PaletteEntry read_entry(Fields e, const Scene& scene) {
   return p;
 }
 
+DemoDefaults read_demo(Fields d, const std::filesystem::path& folder) {
+  DemoDefaults demo;
+  // Not required to exist: precompute never runs it, and a scene copied
+  // elsewhere as a template still loads (scripts/demo checks the file).
+  demo.script = std::filesystem::absolute(folder / d.string("script")).lexically_normal();
+  const double seed = d.number("seed", demo.seed);
+  if (!(seed >= 0 && seed <= 1e9 && seed == std::floor(seed))) d.fail("seed", "a whole number >= 0");
+  demo.seed = static_cast<int>(seed);
+  d.finish();
+  return demo;
+}
+
 }  // namespace
 
 int Scene::palette_index(const std::string& entry) const {
@@ -565,6 +577,7 @@ Scene load_scene_file(const std::filesystem::path& path) {
     scene.standard_schedule = v.string("schedule");
     v.finish();
   }
+  if (top.has("demo")) scene.demo = read_demo(top.table("demo"), path.parent_path());
   top.finish();
   for (int v = 0; v < scene.model.vertices(); ++v) {
     if (!(scene.model.mass[v] > 0)) {

@@ -115,6 +115,29 @@ TEST(SceneErrors, ValidBaseLoads) {
   EXPECT_NO_THROW(load_scene_file(write_scene("valid", kValid)));
 }
 
+// [demo] names the demo's script relative to the scene file, and its seed.
+TEST(Scene, DemoSectionNamesTheScriptAndTheSeed) {
+  for (const char* scene : {"cloth_door", "tiny/toy_dashboard", "paper/toy_dashboard_damped"}) {
+    const Scene s = load_scene_file(kScenes / (std::string(scene) + ".toml"));
+    ASSERT_TRUE(s.demo) << scene;
+    EXPECT_TRUE(std::filesystem::is_regular_file(s.demo->script)) << s.demo->script;
+    EXPECT_EQ(s.demo->script.parent_path(), std::filesystem::absolute(kScenes / "scripts").lexically_normal());
+  }
+  EXPECT_EQ(load_scene_file(kScenes / "toy_dashboard.toml").demo->seed, 2);
+  EXPECT_FALSE(load_scene_file(write_scene("no_demo", kValid)).demo);
+  const auto with_demo = [](const std::string& body) { return kValid + "\n[demo]\n" + body + "\n"; };
+  const auto path = write_scene("demo_ok", with_demo("script = \"scene.toml\"\nseed = 7"));
+  const Scene s = load_scene_file(path);
+  EXPECT_EQ(s.demo->script, std::filesystem::absolute(path).lexically_normal());
+  EXPECT_EQ(s.demo->seed, 7);
+  EXPECT_EQ(rejection("demo_seed", with_demo("script = \"scene.toml\"\nseed = -1")),
+            ": field 'demo.seed': expected a whole number >= 0, got integer -1");
+  EXPECT_EQ(rejection("demo_script", with_demo("script = 3")),
+            ": field 'demo.script': expected a string, got integer 3");
+  EXPECT_NE(rejection("demo_key", with_demo("script = \"scene.toml\"\nsed = 2")).find("demo.sed"),
+            std::string::npos);
+}
+
 TEST(SceneErrors, MissingField) {
   EXPECT_EQ(rejection("missing", edited(kValid, "frame_dt = 0.02", "")),
             ": field 'simulation.frame_dt': expected a positive number, got nothing (missing)");

@@ -72,6 +72,13 @@ struct AppearanceDefaults {
   int paper_rank_a = 0;  // the paper's r_a for this scene (Table 1): inspect prints the error there
 };
 
+// [demo]: what `scripts/demo` plays on this scene: the example Lua script
+// phasecast-console runs and the sampling seed of its small package.
+struct DemoDefaults {
+  std::filesystem::path script;  // absolute, resolved against the scene file's folder (may not exist)
+  int seed = 1;
+};
+
 struct Scene {
   std::string name;
   std::filesystem::path source;
@@ -85,6 +92,7 @@ struct Scene {
   // [validation] schedule: the interaction `phasecast-precompute validate`
   // plays by default ("open 0.8; stop 1.5; ..."); parsed where it is used.
   std::string standard_schedule;
+  std::optional<DemoDefaults> demo;
 
   // Index of the palette entry `name`; throws SceneError listing the known names.
   int palette_index(const std::string& entry) const;
