@@ -6,6 +6,15 @@ string(APPEND _text "#include <string_view>\nnamespace phasecast::client::shader
 string(REPLACE "|" ";" SHADERS "${SHADERS}")
 foreach(_file IN LISTS SHADERS)
   file(READ ${_file} _source)
+  # `#include "NAME"` lines take the text of NAME beside the shader: GLSL has
+  # no includes of its own, and bindings.glsl is shared with the C++.
+  get_filename_component(_folder ${_file} DIRECTORY)
+  string(REGEX MATCHALL "#include \"[^\"]+\"" _includes "${_source}")
+  foreach(_include IN LISTS _includes)
+    string(REGEX REPLACE "#include \"([^\"]+)\"" "\\1" _name "${_include}")
+    file(READ ${_folder}/${_name} _included)
+    string(REPLACE "${_include}\n" "${_included}" _source "${_source}")
+  endforeach()
   get_filename_component(_name ${_file} NAME)
   string(MAKE_C_IDENTIFIER ${_name} _id)
   string(APPEND _text "inline constexpr std::string_view ${_id} = R\"glsl(${_source})glsl\";\n")

@@ -1,4 +1,5 @@
 #version 450 core
+#include "bindings.glsl"
 // The light-dotted form of the transfer model (§4.2, §5.3): per scene point
 // and colour channel, M_bar . L and U_a . L (one value per transfer mode).
 // Exit radiance is then M_bar.L + sum_j (U_a.L)_j q_a[j]: 3 (1 + r_a) values
@@ -10,11 +11,11 @@
 
 layout(local_size_x = 64) in;
 
-layout(std430, binding = 2) readonly buffer MeanTransfer { vec4 M_bar[]; };  // [S][3][4]: k in vec4s
-layout(std430, binding = 3) readonly buffer TransferBasis { vec4 U_a[]; };  // [48S][r_a4]
-layout(std430, binding = 4) readonly buffer PointFlags { uint flags[]; };     // bit 1 attached
-layout(std430, binding = 7) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [S]: xyz = M_bar_c . L_c
-layout(std430, binding = 8) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [S][3][r_a4]: (U_a . L)_j
+layout(std430, binding = PHASECAST_BINDING_MEAN_TRANSFER) readonly buffer MeanTransfer { vec4 M_bar[]; };  // [S][3][4]: k in vec4s
+layout(std430, binding = PHASECAST_BINDING_TRANSFER_BASIS) readonly buffer TransferBasis { vec4 U_a[]; };  // [48S][r_a4]
+layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };     // bit 1 attached
+layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [S]: xyz = M_bar_c . L_c
+layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [S][3][r_a4]: (U_a . L)_j
 
 uniform int r_a4;
 uniform vec4 light[24];  // as in low_rank.vert: world at 0, support frame at 12

@@ -1,4 +1,5 @@
 #version 450 core
+#include "bindings.glsl"
 // The thin client's low-rank superposition (§5.3). Bases live in shader
 // storage buffers uploaded once; per frame only q_u, q_a (buffer Reduced) and
 // the support transform change. No vertex attributes: gl_VertexID is the
@@ -11,13 +12,13 @@
 // layout): ranks are padded to whole vec4 blocks, r_u4 = ceil(r_u / 4) and
 // r_a4 = ceil(r_a / 4), so each basis row is read with vec4 loads.
 
-layout(std430, binding = 0) readonly buffer MeanShape { float x_bar[]; };         // 3S (eq. 7)
-layout(std430, binding = 1) readonly buffer DisplacementBasis { vec4 U_u[]; };   // [3S][r_u4]
-layout(std430, binding = 4) readonly buffer PointFlags { uint flags[]; };         // bit 0 deformable, 1 attached
-layout(std430, binding = 5) readonly buffer RestNormals { float normals[]; };     // 3S
-layout(std430, binding = 6) readonly buffer Reduced { vec4 q[]; };                // q_u (r_u4) then q_a (r_a4)
-layout(std430, binding = 7) readonly buffer MeanDotted { vec4 M_dot[]; };         // [S]: xyz = M_bar_c . L_c
-layout(std430, binding = 8) readonly buffer BasisDotted { vec4 U_dot[]; };        // [S][3][r_a4]: (U_a . L)_j
+layout(std430, binding = PHASECAST_BINDING_MEAN_SHAPE) readonly buffer MeanShape { float x_bar[]; };         // 3S (eq. 7)
+layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer DisplacementBasis { vec4 U_u[]; };   // [3S][r_u4]
+layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };         // bit 0 deformable, 1 attached
+layout(std430, binding = PHASECAST_BINDING_REST_NORMALS) readonly buffer RestNormals { float normals[]; };     // 3S
+layout(std430, binding = PHASECAST_BINDING_REDUCED) readonly buffer Reduced { vec4 q[]; };                // q_u (r_u4) then q_a (r_a4)
+layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) readonly buffer MeanDotted { vec4 M_dot[]; };         // [S]: xyz = M_bar_c . L_c
+layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) readonly buffer BasisDotted { vec4 U_dot[]; };        // [S][3][r_a4]: (U_a . L)_j
 
 uniform int r_u4;
 uniform int r_a4;

@@ -12,7 +12,21 @@
 
 #include <CLI/CLI.hpp>
 
+#include <atomic>
+#include <csignal>
 #include <iostream>
+
+namespace {
+
+// Ctrl-C or a TERM ends the session after the frame in hand: the video is
+// finished and the summary printed.
+std::atomic<bool> g_interrupted{false};
+
+extern "C" void on_interrupt(int) {
+  g_interrupted = true;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using phasecast::client::RenderOptions;
@@ -104,7 +118,9 @@ int main(int argc, char** argv) {
       o.dump_path = dump[1];
     }
     // Progress and the summary go to stdout; stderr carries only the error line.
-    phasecast::client::run_render(o, std::cout);
+    std::signal(SIGINT, on_interrupt);
+    std::signal(SIGTERM, on_interrupt);
+    phasecast::client::run_render(o, std::cout, g_interrupted);
   } catch (const std::exception& e) {
     std::cerr << "phasecast-render: " << e.what() << "\n";
     return 1;

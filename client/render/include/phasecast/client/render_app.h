@@ -3,6 +3,7 @@
 // the frame source (server, recording or the package's own portrait), set up
 // backend, renderer, camera and light, render, report.
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
@@ -45,7 +46,9 @@ struct RenderOptions {
 bool parse_on_off(const std::string& value, const std::string& option);
 
 // Throws std::invalid_argument naming the offending option; every failure
-// is one line in the exception. Progress and the summary go to `log`.
-void run_render(const RenderOptions& options, std::ostream& log);
+// is one line in the exception. Progress and the summary go to `log`. The
+// session ends, with its summary, once `interrupted` is set (the tool's
+// SIGINT and SIGTERM handlers set it).
+void run_render(const RenderOptions& options, std::ostream& log, const std::atomic<bool>& interrupted);
 
 }  // namespace phasecast::client

@@ -1,7 +1,10 @@
 #include "phasecast/client/low_rank_renderer.h"
 
+#include "bindings.glsl"
 #include "gl_functions.h"
 #include "gl_handles.h"
+#include "gl_program.h"
+#include "ground_plane.h"
 #include "phasecast/client/embedded_shaders.h"
 
 #include <fmt/format.h>
@@ -19,107 +22,26 @@ namespace phasecast::client {
 using detail::Buffer;
 using detail::Framebuffer;
 using detail::GlFunctions;
-using detail::Program;
+using detail::GlProgram;
+using detail::GroundPlane;
 using detail::Renderbuffer;
-using detail::Shader;
 using detail::VertexArray;
 
 namespace {
 
-// Half the side of the backdrop's ground square, in scene radii: its fade
-// (shaders/backdrop.frag) is below 1/255 there.
-constexpr float kGroundExtent = 6.5f;
-
-// Linear radiance -> display value, clamped: what radiance.frag does per pixel.
-float srgb_encode(double linear) {
-  const double l = std::clamp(linear, 0.0, 1.0);
-  return static_cast<float>(l <= 0.0031308 ? 12.92 * l : 1.055 * std::pow(l, 1 / 2.4) - 0.055);
-}
-
-// Shader storage bindings of shaders/low_rank.vert.
+// Shader storage bindings, named as shaders/bindings.glsl numbers them.
 enum Binding : GLuint {
-  kMeanShape = 0,
-  kDisplacementBasis = 1,
-  kMeanTransfer = 2,
-  kTransferBasis = 3,
-  kPointFlags = 4,
-  kRestNormals = 5,
-  kReduced = 6,
-  kMeanDotted = 7,
-  kBasisDotted = 8,
-  kBindingCount = 9
+  kMeanShape = PHASECAST_BINDING_MEAN_SHAPE,
+  kDisplacementBasis = PHASECAST_BINDING_DISPLACEMENT_BASIS,
+  kMeanTransfer = PHASECAST_BINDING_MEAN_TRANSFER,
+  kTransferBasis = PHASECAST_BINDING_TRANSFER_BASIS,
+  kPointFlags = PHASECAST_BINDING_POINT_FLAGS,
+  kRestNormals = PHASECAST_BINDING_REST_NORMALS,
+  kReduced = PHASECAST_BINDING_REDUCED,
+  kMeanDotted = PHASECAST_BINDING_MEAN_DOTTED,
+  kBasisDotted = PHASECAST_BINDING_BASIS_DOTTED,
+  kBindingCount = PHASECAST_BINDING_COUNT
 };
-
-// The first line of a GL info log: enough for a one-line error.
-std::string first_line(const std::array<char, 4096>& log) {
-  const std::string text(log.data());
-  return text.substr(0, text.find('\n'));
-}
-
-Shader compile(const GlFunctions& gl, GLenum stage, std::string_view source, const char* name) {
-  Shader shader(gl, stage);
-  const char* text = source.data();
-  const auto length = static_cast<GLint>(source.size());
-  gl.glShaderSource(shader.get(), 1, &text, &length);
-  gl.glCompileShader(shader.get());
-  GLint ok = GL_FALSE;
-  gl.glGetShaderiv(shader.get(), GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    std::array<char, 4096> log{};
-    gl.glGetShaderInfoLog(shader.get(), static_cast<GLsizei>(log.size()), nullptr, log.data());
-    throw RenderError(fmt::format("shader {} does not compile: {}", name, first_line(log)));
-  }
-  return shader;
-}
-
-void check_link(const GlFunctions& gl, const Program& program, const char* name) {
-  GLint ok = GL_FALSE;
-  gl.glGetProgramiv(program.get(), GL_LINK_STATUS, &ok);
-  if (!ok) {
-    std::array<char, 4096> log{};
-    gl.glGetProgramInfoLog(program.get(), static_cast<GLsizei>(log.size()), nullptr, log.data());
-    throw RenderError(fmt::format("shader program {} does not link: {}", name, first_line(log)));
-  }
-}
-
-// A vertex program with radiance.frag; `capture`: record world_position and
-// radiance by transform feedback. The shaders are freed on return: a linked
-// program no longer needs them.
-Program link(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture) {
-  const Shader vs = compile(gl, GL_VERTEX_SHADER, vertex, vertex_name);
-  const Shader fs = compile(gl, GL_FRAGMENT_SHADER, shaders::radiance_frag, "radiance.frag");
-  Program program(gl);
-  gl.glAttachShader(program.get(), vs.get());
-  gl.glAttachShader(program.get(), fs.get());
-  if (capture) {
-    const char* varyings[] = {"world_position", "radiance"};
-    gl.glTransformFeedbackVaryings(program.get(), 2, varyings, GL_INTERLEAVED_ATTRIBS);
-  }
-  gl.glLinkProgram(program.get());
-  check_link(gl, program, vertex_name);
-  return program;
-}
-
-// The backdrop's program: the ground square (backdrop.vert) and its shading (backdrop.frag).
-Program link_backdrop(const GlFunctions& gl) {
-  const Shader vs = compile(gl, GL_VERTEX_SHADER, shaders::backdrop_vert, "backdrop.vert");
-  const Shader fs = compile(gl, GL_FRAGMENT_SHADER, shaders::backdrop_frag, "backdrop.frag");
-  Program program(gl);
-  gl.glAttachShader(program.get(), vs.get());
-  gl.glAttachShader(program.get(), fs.get());
-  gl.glLinkProgram(program.get());
-  check_link(gl, program, "backdrop.vert");
-  return program;
-}
-
-Program link_compute(const GlFunctions& gl, std::string_view source, const char* name) {
-  const Shader cs = compile(gl, GL_COMPUTE_SHADER, source, name);
-  Program program(gl);
-  gl.glAttachShader(program.get(), cs.get());
-  gl.glLinkProgram(program.get());
-  check_link(gl, program, name);
-  return program;
-}
 
 // Row-major rows x cols -> rows x (4 ceil(cols / 4)), zero-padded, so the
 // shader reads each row in vec4 blocks.
@@ -196,7 +118,7 @@ struct LowRankRenderer::Impl {
   ClientBasis basis;  // sizes and flags; the bulk data lives on the GPU
   int width, height;
   float radius;
-  Program program, static_program, dot_program;
+  GlProgram program, static_program, dot_program;
   std::optional<std::array<float, 96>> dotted_lights;  // lights the dotted form was made with
   std::uint64_t light_dot_passes = 0;
   VertexArray vao, static_vao, evaluated_vao;
@@ -212,45 +134,25 @@ struct LowRankRenderer::Impl {
   bool has_transfer = false;
   int r_u4 = 0, r_a4 = 0;  // ranks in vec4 blocks (shaders/low_rank.vert)
   Backdrop backdrop = Backdrop::none;
-  Program backdrop_program;  // made on the first set_backdrop(ground)
-  VertexArray backdrop_vao;  // empty: the square's vertices come from gl_VertexID
-  // The ground: the rest mesh's lowest y, under its bounding-box centre.
-  float ground_height = 0;
-  Eigen::Vector2f ground_centre = Eigen::Vector2f::Zero();
+  std::optional<GroundPlane> ground;  // made on the first set_backdrop(ground)
 
   Impl(RenderBackend& b, const ClientBasis& bases, int w, int h)
       : backend(b), gl(detail::load_gl_functions(b)), basis(bases), width(w), height(h) {
     basis.validate("renderer");
     radius = scene_radius(basis);
     camera = scene_camera(basis);
-    place_ground();
     light = light_probe("grace");
-    program = link(gl, shaders::low_rank_vert, "low_rank.vert", true);
-    static_program = link(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
-    dot_program = link_compute(gl, shaders::light_dot_comp, "light_dot.comp");
+    program = detail::link_vertex_program(gl, shaders::low_rank_vert, "low_rank.vert", true);
+    static_program = detail::link_vertex_program(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
+    dot_program = detail::link_compute_program(gl, shaders::light_dot_comp, "light_dot.comp");
     upload_bases();
     create_framebuffer();
     check("setting up the renderer");
   }
 
-  // The ground under the rest mesh (x_bar; what scene_camera frames too).
-  void place_ground() {
-    Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
-    Eigen::Vector3f hi = -lo;
-    for (std::size_t v = 0; v < static_cast<std::size_t>(basis.points); ++v) {
-      const Eigen::Vector3f x(basis.mean_shape[3 * v], basis.mean_shape[3 * v + 1],
-                              basis.mean_shape[3 * v + 2]);
-      lo = lo.cwiseMin(x);
-      hi = hi.cwiseMax(x);
-    }
-    ground_height = lo.y();
-    ground_centre = {0.5f * (lo.x() + hi.x()), 0.5f * (lo.z() + hi.z())};
-  }
-
   void set_backdrop(Backdrop b) {
-    if (b == Backdrop::ground && !backdrop_program) {
-      backdrop_program = link_backdrop(gl);
-      backdrop_vao = VertexArray(gl);
+    if (b == Backdrop::ground && !ground) {
+      ground.emplace(gl, basis, radius);
       check("setting up the backdrop");
     }
     backdrop = b;
@@ -366,26 +268,25 @@ struct LowRankRenderer::Impl {
     return renderbuffer;
   }
 
-  void set_uniforms(const Program& p, const FrameState& f) {
-    gl.glUseProgram(p.get());
+  void set_uniforms(const GlProgram& p, const FrameState& f) {
+    p.use();
     const Eigen::Matrix4f vp = view_projection(camera, width, height, radius);
-    gl.glUniformMatrix4fv(gl.glGetUniformLocation(p.get(), "view_projection"), 1, GL_FALSE, vp.data());
-    gl.glUniform1f(gl.glGetUniformLocation(p.get(), "exposure"), exposure);
-    if (p.get() == program.get()) set_low_rank_uniforms(f);
+    gl.glUniformMatrix4fv(p.uniform("view_projection"), 1, GL_FALSE, vp.data());
+    gl.glUniform1f(p.uniform("exposure"), exposure);
+    if (&p == &program) set_low_rank_uniforms(f);
   }
 
   // What only low_rank.vert reads: ranks, support, lights and q.
   void set_low_rank_uniforms(const FrameState& f) {
-    const GLuint p = program.get();
-    gl.glUniform1i(gl.glGetUniformLocation(p, "r_u4"), r_u4);
-    gl.glUniform1i(gl.glGetUniformLocation(p, "r_a4"), r_a4);
-    gl.glUniform1i(gl.glGetUniformLocation(p, "has_transfer"), has_transfer ? 1 : 0);
+    gl.glUniform1i(program.uniform("r_u4"), r_u4);
+    gl.glUniform1i(program.uniform("r_a4"), r_a4);
+    gl.glUniform1i(program.uniform("has_transfer"), has_transfer ? 1 : 0);
     const Eigen::Matrix4f support = support_matrix(f);
-    gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "support"), 1, GL_FALSE, support.data());
+    gl.glUniformMatrix4fv(program.uniform("support"), 1, GL_FALSE, support.data());
     const auto lights = frame_lights(support);
     if (has_transfer) update_light_dotted(lights);
-    gl.glUseProgram(p);  // update_light_dotted may have switched to dot_program
-    gl.glUniform4fv(gl.glGetUniformLocation(p, "light"), 24, lights.data());
+    program.use();  // update_light_dotted may have switched to dot_program
+    gl.glUniform4fv(program.uniform("light"), 24, lights.data());
     upload_reduced(f);
   }
 
@@ -412,11 +313,10 @@ struct LowRankRenderer::Impl {
   // changed (a new light or a rotated support); otherwise nothing to do.
   void update_light_dotted(const std::array<float, 96>& lights) {
     if (dotted_lights && *dotted_lights == lights) return;
-    const GLuint p = dot_program.get();
-    gl.glUseProgram(p);
-    gl.glUniform1i(gl.glGetUniformLocation(p, "r_a4"), r_a4);
-    gl.glUniform4fv(gl.glGetUniformLocation(p, "light"), 24, lights.data());
-    gl.glUniform1i(gl.glGetUniformLocation(p, "points"), basis.points);
+    dot_program.use();
+    gl.glUniform1i(dot_program.uniform("r_a4"), r_a4);
+    gl.glUniform4fv(dot_program.uniform("light"), 24, lights.data());
+    gl.glUniform1i(dot_program.uniform("points"), basis.points);
     gl.glDispatchCompute(static_cast<GLuint>((basis.points + 63) / 64), 1, 1);
     gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     dotted_lights = lights;
@@ -429,7 +329,7 @@ struct LowRankRenderer::Impl {
     const auto& clear = backdrop == Backdrop::ground ? kBackdropBackground : kPlainBackground;
     gl.glClearColor(clear[0], clear[1], clear[2], 1.0f);
     gl.glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    if (backdrop == Backdrop::ground) draw_backdrop();
+    if (backdrop == Backdrop::ground) ground->draw(camera, width, height, light, exposure);
     gl.glEnable(GL_DEPTH_TEST);
     gl.glDepthFunc(GL_LESS);
     // Thin surfaces (cloth, leaves) are two coincident layers of scene points
@@ -437,47 +337,6 @@ struct LowRankRenderer::Impl {
     // facing the camera may be drawn (package triangles are counter-clockwise
     // seen from their normal's side, docs/package-format.md).
     gl.glEnable(GL_CULL_FACE);
-  }
-
-  // The ground behind everything: no depth test, no depth written, so the
-  // scene drawn next always covers it. Seen from above only.
-  void draw_backdrop() {
-    if (!(camera.eye.y() > ground_height)) return;
-    // The square's corners bound its view depths: near and far planes around them.
-    const float extent = kGroundExtent * radius;
-    const Eigen::Vector3f forward = (camera.target - camera.eye).normalized();
-    float nearest = std::numeric_limits<float>::max(), farthest = 0;
-    for (const float dx : {-extent, extent}) {
-      for (const float dz : {-extent, extent}) {
-        const Eigen::Vector3f corner(ground_centre.x() + dx, ground_height, ground_centre.y() + dz);
-        const float depth = (corner - camera.eye).dot(forward);
-        nearest = std::min(nearest, depth);
-        farthest = std::max(farthest, depth);
-      }
-    }
-    if (!(farthest > 0)) return;  // all of it behind the camera
-    const float far_plane = 1.01f * farthest;
-    const float near_plane = std::max(0.99f * nearest, 1e-4f * far_plane);
-    const GLuint p = backdrop_program.get();
-    gl.glDisable(GL_DEPTH_TEST);
-    gl.glDisable(GL_CULL_FACE);
-    gl.glUseProgram(p);
-    const Eigen::Matrix4f vp = view_projection(camera, width, height, near_plane, far_plane);
-    gl.glUniformMatrix4fv(gl.glGetUniformLocation(p, "view_projection"), 1, GL_FALSE, vp.data());
-    gl.glUniform1f(gl.glGetUniformLocation(p, "ground_height"), ground_height);
-    gl.glUniform2f(gl.glGetUniformLocation(p, "ground_centre"), ground_centre.x(), ground_centre.y());
-    gl.glUniform1f(gl.glGetUniformLocation(p, "ground_extent"), extent);
-    gl.glUniform1f(gl.glGetUniformLocation(p, "scene_radius"), radius);
-    const auto floor = diffuse_radiance(light, Eigen::Vector3d::UnitY(), kGroundAlbedo);
-    for (const auto& [name, scale] : {std::pair{"floor_colour", 1.0}, std::pair{"floor_dark", 0.88}}) {
-      gl.glUniform3f(gl.glGetUniformLocation(p, name), srgb_encode(scale * exposure * floor[0]),
-                     srgb_encode(scale * exposure * floor[1]), srgb_encode(scale * exposure * floor[2]));
-    }
-    gl.glUniform3f(gl.glGetUniformLocation(p, "background"), kBackdropBackground[0], kBackdropBackground[1],
-                   kBackdropBackground[2]);
-    gl.glBindVertexArray(backdrop_vao.get());
-    gl.glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
-    gl.glBindVertexArray(0);
   }
 
   void show() {
@@ -502,7 +361,7 @@ struct LowRankRenderer::Impl {
     gl.glDisable(GL_RASTERIZER_DISCARD);
   }
 
-  void draw_triangles(const Program& p, const VertexArray& vertex_array, const FrameState& f) {
+  void draw_triangles(const GlProgram& p, const VertexArray& vertex_array, const FrameState& f) {
     begin_frame();
     set_uniforms(p, f);
     gl.glBindVertexArray(vertex_array.get());

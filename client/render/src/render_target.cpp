@@ -1,0 +1,60 @@
+#include "render_target.h"
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <ostream>
+#include <stdexcept>
+
+namespace phasecast::client {
+
+Camera camera_for(const ClientBasis& basis, const RenderOptions& o) {
+  Camera c = scene_camera(basis);
+  if (!o.eye.empty()) c.eye = parse_vector3(o.eye, "--eye");
+  if (!o.target.empty()) c.target = parse_vector3(o.target, "--target");
+  if (!o.up.empty()) c.up = parse_vector3(o.up, "--up");
+  if (o.fov_y_deg) {
+    if (!(*o.fov_y_deg > 0 && *o.fov_y_deg < 180)) {
+      throw std::invalid_argument(
+          fmt::format("--fov {} is invalid (expected degrees in (0, 180))", *o.fov_y_deg));
+    }
+    c.fov_y_deg = *o.fov_y_deg;
+  }
+  const Eigen::Vector3f view = c.target - c.eye;
+  if (!(view.norm() > 0)) {
+    throw std::invalid_argument("camera eye and target coincide (expected distinct --eye and --target)");
+  }
+  if (!(view.normalized().cross(c.up).norm() > 1e-6f)) {
+    throw std::invalid_argument(
+        "camera --up is parallel to the view direction (expected a vector across it)");
+  }
+  return c;
+}
+
+void RenderTarget::make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
+  renderer = std::make_unique<LowRankRenderer>(*backend, basis, o.width, o.height);
+  renderer->set_light(light);
+  renderer->set_camera(camera_for(basis, o));
+  renderer->set_exposure(o.exposure);
+  renderer->set_backdrop(o.backdrop ? Backdrop::ground : Backdrop::none);
+}
+
+void report(std::ostream& log, const RenderStats& s, int width, int height) {
+  fmt::print(
+      log, "phasecast-render: {} frames at {}x{}: {:.1f} frames/s render-only, {:.1f} frames/s end-to-end\n",
+      s.frames, width, height, s.render_fps(), s.end_to_end_fps());
+}
+
+void report_progress(std::ostream& log, const RenderStats& s, std::uint64_t frame, std::uint64_t total) {
+  static thread_local double next_report = 2;
+  if (s.frames == 1) next_report = 2;
+  if (s.wall_seconds < next_report) return;
+  next_report = s.wall_seconds + 2;
+  fmt::print(log, "phasecast-render: frame {}: {} rendered{} ({:.1f} frames/s)\n", frame, s.frames,
+             total ? fmt::format(" of {}", total) : std::string(), s.end_to_end_fps());
+  log.flush();
+}
+
+}  // namespace phasecast::client

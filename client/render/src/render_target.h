@@ -1,0 +1,61 @@
+#pragma once
+// What a render session draws with: the backend, the renderer holding one set
+// of bases, and the outputs (PNG frames, video, vertex dump); the camera the
+// options ask for; and the progress lines both sessions print.
+
+#include "phasecast/client/client_basis.h"
+#include "phasecast/client/frame_output.h"
+#include "phasecast/client/low_rank_renderer.h"
+#include "phasecast/client/render_app.h"
+#include "phasecast/client/render_backend.h"
+#include "phasecast/client/sh_light.h"
+
+#include <cstdint>
+#include <iosfwd>
+#include <memory>
+
+namespace phasecast::client {
+
+// The scene's camera with the options' --eye, --target, --up and --fov.
+// Throws std::invalid_argument naming the option that makes no camera.
+Camera camera_for(const ClientBasis& basis, const RenderOptions& o);
+
+// Backend, renderer and outputs. The renderer holds one set of bases; the
+// backend and the outputs last the whole run.
+struct RenderTarget {
+  std::unique_ptr<RenderBackend> backend;
+  std::unique_ptr<LowRankRenderer> renderer;
+  std::unique_ptr<FrameOutput> output;
+
+  // `frame_rate`: frames per second of the stream (1 / dt), for the video.
+  RenderTarget(const ClientBasis& basis, const RenderOptions& o, const ShLight& light, double frame_rate) {
+    backend = make_render_backend(o.backend, o.width, o.height);
+    make_renderer(basis, o, light);
+    OutputOptions out;
+    out.png_dir = o.out_dir;
+    out.video = o.video;
+    out.video_fps = frame_rate > 0 && std::isfinite(frame_rate) ? frame_rate : 60;
+    out.dump_frame = o.dump_frame;
+    out.dump_path = o.dump_path;
+    output = std::make_unique<FrameOutput>(*renderer, o.width, o.height, out);
+  }
+
+  // New bases (the server came back with another package): a new renderer on
+  // the same context; the window, the PNG numbering and the video go on.
+  void replace_bases(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
+    renderer.reset();  // frees the old bases' GPU buffers first
+    make_renderer(basis, o, light);
+    output->set_renderer(*renderer);
+  }
+
+ private:
+  void make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light);
+};
+
+// "phasecast-render: N frames at WxH: ... frames/s render-only, ... end-to-end".
+void report(std::ostream& log, const RenderStats& s, int width, int height);
+
+// A line every two seconds on long runs: frames done (of how many) and the rate.
+void report_progress(std::ostream& log, const RenderStats& s, std::uint64_t frame, std::uint64_t total);
+
+}  // namespace phasecast::client
