@@ -91,6 +91,66 @@ TEST(IrfCache, MatchesBruteForceEq9) {
   }
 }
 
+// The brute force the cache must equal: eq. 9 with each difference in
+// double, the lowest index among equals.
+int brute_force_nearest(const MatrixXfR& q, const MatrixXfR& v, double beta, const std::vector<std::int32_t>& start,
+                        const std::vector<std::int32_t>& palette, int node, int d) {
+  int best = -1;
+  double best_dist = INFINITY;
+  for (size_t i = 0; i < start.size(); ++i) {
+    if (palette[i] != d) continue;
+    const double dist = (q.row(node).cast<double>() - q.row(start[i]).cast<double>()).squaredNorm() +
+                        beta * (v.row(node).cast<double>() - v.row(start[i]).cast<double>()).squaredNorm();
+    if (dist < best_dist) best_dist = dist, best = static_cast<int>(i);
+  }
+  return best;
+}
+
+// Many starts near one rest state far from the origin (|b|^2 large, the
+// differences tiny): float32 |b|^2 - 2 a.b would pick wrong ones here.
+TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
+  std::mt19937 rng(11);
+  std::normal_distribution<float> jitter(0.0f, 1e-4f);
+  const int N = 2000, r = 12, D = 2, n_irf = 400;
+  MatrixXfR q(N, r), v(N, r);
+  for (int i = 0; i < N; ++i) {
+    for (int c = 0; c < r; ++c) {
+      q(i, c) = 30.0f + static_cast<float>(c) + jitter(rng);  // the rest state, far out
+      v(i, c) = jitter(rng);
+    }
+  }
+  std::vector<std::int32_t> start, palette;
+  for (int i = 0; i < n_irf; ++i) {
+    start.push_back(i * (N / n_irf));
+    palette.push_back(i % D);
+  }
+  start[7] = start[5];  // two IRFs of entry 1 start at the same node: the first sampled wins
+  const double beta = 2.5;
+  const MatrixXiR cache = nearest_irf_cache(q, v, beta, start, palette, D);
+  int checked = 0;
+  for (int j = 0; j < N; ++j) {
+    for (int d = 0; d < D; ++d) {
+      ASSERT_EQ(cache(j, d), brute_force_nearest(q, v, beta, start, palette, j, d)) << "node " << j << " entry " << d;
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, N * D);
+  EXPECT_EQ(cache(start[5], 1), 5);  // not 7, at the same distance 0
+  // Not vacuous: the float32 score |b|^2 - 2 a.b misorders these starts.
+  int float_misses = 0;
+  for (int j = 0; j < N; ++j) {
+    float least = INFINITY;
+    int pick = -1;
+    for (int i = 0; i < n_irf; i += D) {
+      const float score = q.row(start[i]).squaredNorm() + beta * v.row(start[i]).squaredNorm() -
+                          2 * (q.row(j).dot(q.row(start[i])) + static_cast<float>(beta) * v.row(j).dot(v.row(start[i])));
+      if (score < least) least = score, pick = i;
+    }
+    float_misses += pick != cache(j, 0);
+  }
+  EXPECT_GT(float_misses, N / 10);
+}
+
 TEST(IrfCache, AnIrfStartMapsToItself) {
   MatrixXfR q(6, 1), v = MatrixXfR::Zero(6, 1);
   q << 0, 1, 2, 5, 6, 7;

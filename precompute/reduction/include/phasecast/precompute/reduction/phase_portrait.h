@@ -14,9 +14,12 @@ namespace phasecast::precompute {
 double default_beta(const MatrixXfR& q_u, const MatrixXfR& qdot_u);
 
 // §5.2: for every node j and palette entry d, the IRF of entry d whose start
-// node is nearest to node j under eq. 9, or -1 if entry d has no IRF.
-// Exact search in blocks of nodes with one matrix product per block, so
-// N = 20 000 nodes against thousands of IRF starts takes well under a second.
+// node is nearest to node j under eq. 9, or -1 if entry d has no IRF. Exact
+// under eq. 9 with each difference taken in double; of IRFs at the same
+// distance, the one sampled first (lowest index). A matrix product per block
+// of nodes (in double) finds the candidates, and each start within its
+// rounding of the least is measured again directly, so N = 20 000 nodes
+// against thousands of IRF starts takes about a second.
 //   returns N x D
 MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
                             const std::vector<std::int32_t>& irf_start,
