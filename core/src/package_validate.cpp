@@ -180,7 +180,9 @@ void check_held_out_shapes(const ShapeChecker& s, std::uint64_t r_a, std::uint64
       if (s.has(f.name)) return true;
     for (const auto& f : kHeldOutSpreads)
       if (s.has(f.name)) return true;
-    return s.has(kHeldOutCurve) || s.has(kHeldOutFigures[0].name);
+    for (const auto& f : kHeldOutFigures)
+      if (s.has(f.name)) return true;
+    return s.has(kHeldOutCurve);
   };
   if (!s.has(kHeldOutNodes)) {
     if (any_figure()) s.checker().fail(kHeldOutNodes, "expected the nodes of the held-out figures beside them");

@@ -36,6 +36,13 @@ class PackageUpgrade : public ::testing::Test {
     if (curve > 0) f.write("/appearance/held_out_truncation_curve", std::vector<float>(curve, 0.0f));
   }
 
+  template <class T>
+  void rewrite(const std::string& name, const std::vector<T>& values) {
+    auto f = core::h5::File::open_write(path_);
+    f.remove(name);
+    f.write(name, values);
+  }
+
   static std::vector<float> counting(int n, float scale) {
     std::vector<float> v(n);
     std::iota(v.begin(), v.end(), 1.0f);
@@ -116,9 +123,21 @@ TEST_F(PackageUpgrade, LengthsNoVersionOneWriterMadeAreOneLineErrors) {
   EXPECT_THAT(testing::package_rejection(path_),
               HasSubstr("/appearance/held_out_spread: expected /appearance/held_out_error beside it"));
   SetUp();
-  write_v1(11, 6, 99);  // more directions than the plate's clusters resolve: today's rule applies
+  write_v1(11, 6, 99);  // more directions than the plate's clusters resolve: named as the file has it
   EXPECT_THAT(testing::package_rejection(path_),
-              HasSubstr("/appearance/held_out/truncation_curve: expected at least r_a = "));
+              HasSubstr("/appearance/held_out_truncation_curve: expected at least r_a = "));
+  SetUp();
+  write_v1(11, 6, 0);
+  std::vector<float> figures(11, 0.1f);
+  figures[6] = NAN;
+  rewrite("/appearance/held_out_error", figures);
+  EXPECT_THAT(testing::package_rejection(path_),
+              HasSubstr("/appearance/held_out_error: expected finite errors >= 0, got nan at 6"));
+  SetUp();
+  write_v1(4, 0, 0);
+  rewrite("/appearance/held_out_nodes", std::vector<std::int32_t>{1, 999999});
+  EXPECT_THAT(testing::package_rejection(path_),
+              HasSubstr("/appearance/held_out_nodes: expected state nodes in [0, "));
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // The static data a thin client downloads once per scene (§5.3): every part
 // of SceneInfo.parts, in chunks of at most 1 MiB, each chunk checked against
-// the scene's content hash and the bytes so far (as client/src/network.cpp).
+// the scene's content hash and the bytes so far (as client/network/src/network.cpp).
 import { asHex, asNumber, utf8 } from './protocol.js';
 
 export const CHUNK_BYTES = 1 << 20;

@@ -1,4 +1,4 @@
-// The view, as client/src/camera.cpp computes it, in float32 arithmetic step
+// The view, as client/scene/src/camera.cpp computes it, in float32 arithmetic step
 // by step (Math.fround after every operation, in Eigen's order), so the page
 // gets the same view_projection bits as phasecast-render; and an orbit camera
 // for the page (drag rotates about the target, wheel zooms).

@@ -83,7 +83,7 @@ export class RateMeter {
 }
 
 // Why a frame cannot be drawn with the bases of `scene` (SceneInfo), or
-// null; the checks of validate_frame in client/src/frame_state.cpp.
+// null; the checks of validate_frame in client/scene/src/frame_state.cpp.
 export function frameProblem(frame, scene) {
   const where = `frame ${asNumber(frame.frame)}`;
   if (frame.q_u.length !== scene.rank_u) return `${where}: q_u has ${frame.q_u.length} values (expected r_u = ${scene.rank_u})`;

@@ -1,5 +1,5 @@
 // WebGL2 renderer of the low-rank superposition (§5.3), after
-// client/src/low_rank_renderer.cpp: the bases go to the GPU once per scene
+// client/render/src/low_rank_renderer.cpp: the bases go to the GPU once per scene
 // (RGBA32F textures, packing.js); per frame only q_u, q_a (uniforms), the
 // support matrix and the lights change. Each frame: a per-point pass
 // evaluates x̄ + U_u q_u, the support transform and the light-dotted transfer

@@ -1,5 +1,5 @@
 // Spherical harmonics of the lights (core/include/phasecast/core/sh.h and
-// client/src/sh_light.cpp): real SH of order 4 (16 functions, k = l(l+1)+m,
+// client/scene/src/sh_light.cpp): real SH of order 4 (16 functions, k = l(l+1)+m,
 // Condon-Shortley phase, z = cos(theta)), the Grace Cathedral probe, and the
 // rotation of a light into the support frame by the same least-squares fit at
 // 64 Fibonacci directions, so the page lights points as the C++ client does.

@@ -1,4 +1,4 @@
-// The camera of client/src/camera.cpp: view_projection for known cases
+// The camera of client/scene/src/camera.cpp: view_projection for known cases
 // worked out from its formulas, the scene camera from SceneInfo.camera or
 // framed around x̄, and the orbit camera.
 import { test } from 'node:test';

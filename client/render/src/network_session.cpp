@@ -178,7 +178,7 @@ void NetworkSession::handle(const v1::Frame& frame) {
     reject(e.what());
     return;
   }
-  if (state_ == State::rejecting && rejected_run_ > 1)
+  if (rejected_run_ > 1)  // the run of rejected frames may span a reconnect
     fmt::print(log_, "phasecast-render: rendering again after {} rejected frames\n", rejected_run_);
   rejected_run_ = 0;
   state_ = State::following;

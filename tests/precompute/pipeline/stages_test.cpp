@@ -5,8 +5,8 @@
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/pipeline/report_text.h"
 #include "phasecast/precompute/pipeline/stages.h"
+#include "run_tool.h"  // scratch_dir
 #include "phasecast/precompute/package/package_builder.h"
-#include "run_tool.h"
 #include "scene_files.h"
 #include "synthetic_package.h"
 

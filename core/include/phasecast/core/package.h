@@ -237,7 +237,8 @@ struct ScenePackage {
 void validate_package(const ScenePackage& package, const std::string& source);
 
 // Reads and validates a package. Throws PackageError with a one-line message
-// for anything that is not a valid version-1 package (missing or truncated
+// for anything that is not a valid package of version 2, or of version 1
+// (read into version 2) (missing or truncated
 // file, not HDF5, missing dataset, wrong shape or dtype, a declared size the
 // file does not hold, NaN/Inf, bad index). Nothing is allocated for a
 // dataset before its extent has been checked. The file is read first in a
