@@ -5,6 +5,7 @@
 // reads; indices and finiteness are checked by validate_package() so that the
 // writer enforces the very same rules.
 
+#include "package_fidelity.h"
 #include "package_shapes.h"
 #include "package_upgrade.h"
 #include "phasecast/core/hdf5_file.h"
@@ -143,6 +144,7 @@ PackageShapes declared_shapes(const Reader& r, const std::optional<HeldOutFigure
   } else {
     s["/portrait/q_a"] = {s["/portrait/q_u"][0], 0};
   }
+  add_fidelity_datasets(r, s);
   s.try_emplace("/palette/group", s["/palette/names"]);
   s.try_emplace("/palette/max_in_a_row", s["/palette/names"]);
   return s;
@@ -254,6 +256,7 @@ ScenePackage read_from(const Reader& r) {
   } else {
     pp.q_a.resize(pp.q_u.rows(), 0);
   }
+  pkg.fidelity = read_fidelity(r);
   return pkg;
 }
 
@@ -331,6 +334,7 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
       f.write("/appearance/transfer_sampling",
               std::vector<std::int32_t>{ap->transfer_rays, ap->transfer_bounces});
   }
+  if (pkg.fidelity) write_fidelity(f, *pkg.fidelity);
 }
 
 }  // namespace

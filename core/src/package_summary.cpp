@@ -173,6 +173,41 @@ std::string held_out_curve_text(const std::vector<double>& curve, int rank_a, in
                     : fmt::format("; as low as {} from rank {}", own, 1 + (reached - curve.begin())));
 }
 
+namespace {
+
+std::string fidelity_line(const PlaybackFidelity& f) {
+  std::string out = fmt::format(
+      "fidelity     playback vs the full simulation over {} random schedules of {} entries (seed {:.0f}): median "
+      "NRMSE {:.3f}, 90th percentile {:.3f}; {} of {} moving segments within [0.67, 1.5] of the simulated "
+      "motion, {} of {} switches within 2x the local motion\n",
+      f.schedules, f.items, f.seed, f.median_nrmse, f.p90_nrmse, f.moving_within, f.moving, f.switches_within,
+      f.switches);
+  if (f.target_median_nrmse)
+    out += fmt::format("             sampled adaptively towards median NRMSE {:.3f}: {} after {} IRFs in {} rounds\n",
+                       *f.target_median_nrmse, f.target_met ? "met" : "not met", f.sampled_irfs, f.rounds);
+  return out;
+}
+
+nlohmann::json fidelity_json(const PlaybackFidelity& f) {
+  nlohmann::json j = {{"schedules", f.schedules},
+                      {"items", f.items},
+                      {"seed", f.seed},
+                      {"median_nrmse", double{f.median_nrmse}},
+                      {"p90_nrmse", double{f.p90_nrmse}},
+                      {"moving_segments", f.moving},
+                      {"moving_segments_within", f.moving_within},
+                      {"switches", f.switches},
+                      {"switches_within", f.switches_within}};
+  if (f.target_median_nrmse)
+    j["adaptive"] = {{"target_median_nrmse", double{*f.target_median_nrmse}},
+                     {"target_met", f.target_met},
+                     {"sampled_irfs", f.sampled_irfs},
+                     {"rounds", f.rounds}};
+  return j;
+}
+
+}  // namespace
+
 PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& file, int rank) {
   PackageSummary s;
   s.file = file.string();
@@ -203,6 +238,7 @@ PackageSummary summarize(const ScenePackage& p, const std::filesystem::path& fil
     s.error_a_at_rank = p.appearance->rel_error[s.rank_a - 1];
   }
   if (p.appearance) summarize_appearance(*p.appearance, s);
+  s.fidelity = p.fidelity;
   for (const auto& part : basis_parts(p)) s.client_download_bytes += part.bytes.size();
   s.frame_state_bytes = reduced_state_bytes(p);
   s.full_vertex_frame_bytes = full_vertex_bytes(p);
@@ -246,6 +282,7 @@ std::string to_text(const PackageSummary& s) {
   } else {
     line("appearance   none");
   }
+  if (s.fidelity) out += fidelity_line(*s.fidelity);
   line("thin client  downloads {} once; then {} B per frame (full vertex streaming: {} B, {:.0f}x more)",
        human_bytes(s.client_download_bytes), s.frame_state_bytes, s.full_vertex_frame_bytes,
        static_cast<double>(s.full_vertex_frame_bytes) / static_cast<double>(s.frame_state_bytes));
@@ -287,6 +324,7 @@ nlohmann::json to_json(const PackageSummary& s) {
       {"transfer_rays", s.transfer_rays > 0 ? nlohmann::json(s.transfer_rays) : nlohmann::json()},
       {"transfer_bounces", s.transfer_rays > 0 ? nlohmann::json(s.transfer_bounces) : nlohmann::json()},
       {"held_out", s.held_out ? held_out_json(*s.held_out) : nlohmann::json()},
+      {"fidelity", s.fidelity ? fidelity_json(*s.fidelity) : nlohmann::json()},
       {"client_download_bytes", s.client_download_bytes},
       {"frame_state_bytes", s.frame_state_bytes},
       {"full_vertex_frame_bytes", s.full_vertex_frame_bytes},

@@ -3,6 +3,7 @@
 // then the value rules on an in-memory package.
 // Each failure is one line: "<source>: <dataset>: <expectation>, got <value>".
 
+#include "package_fidelity.h"
 #include "package_shapes.h"
 #include "phasecast/core/kinematics_rows.h"
 #include "phasecast/core/package.h"
@@ -560,8 +561,29 @@ PackageShapes shapes_of(const ScenePackage& p) {
   // A support of no rows is an absent one: write_package() leaves it out.
   if (pp.support.rows() != 0) s["/portrait/support"] = extent(pp.support.rows(), pp.support.cols());
   if (p.appearance) add_appearance_shapes(*p.appearance, s);
+  if (p.fidelity) add_fidelity_shapes(*p.fidelity, s);
   return s;
 }
+
+namespace {
+
+// /fidelity/: every figure one value; the adaptive four together or not at all.
+void check_fidelity_shapes(const ShapeChecker& s) {
+  std::vector<const char*> adaptive{kFidelityTarget, kFidelityTargetMet};
+  adaptive.insert(adaptive.end(), std::begin(kFidelityAdaptiveCounts), std::end(kFidelityAdaptiveCounts));
+  std::vector<const char*> required{kFidelitySeed};
+  required.insert(required.end(), std::begin(kFidelityCounts), std::end(kFidelityCounts));
+  required.insert(required.end(), std::begin(kFidelityNrmse), std::end(kFidelityNrmse));
+  const auto present = [&s](const std::vector<const char*>& names) {
+    return std::count_if(names.begin(), names.end(), [&s](const char* n) { return s.has(n); });
+  };
+  if (present(required) == 0 && present(adaptive) == 0) return;
+  for (const char* name : required) s.length(name, 1, "1 (a figure)");
+  if (present(adaptive) == 0) return;
+  for (const char* name : adaptive) s.length(name, 1, "1 (a figure of adaptive sampling)");
+}
+
+}  // namespace
 
 void check_shapes(const PackageShapes& shapes, const std::string& source) {
   const Checker c(source);
@@ -571,7 +593,34 @@ void check_shapes(const PackageShapes& shapes, const std::string& source) {
   check_reduction_shapes(s);
   check_portrait_shapes(s);
   if (s.has("/appearance/U_a")) check_appearance_shapes(s);
+  check_fidelity_shapes(s);
 }
+
+namespace {
+
+// Counts >= 0 with each "within" at most its whole; NRMSE figures finite, >= 0, median <= 90th.
+void check_fidelity(const Checker& c, const PlaybackFidelity& p) {
+  for (const auto& [name, v] : {std::pair{"/fidelity/schedules", p.schedules}, std::pair{"/fidelity/items", p.items},
+                                std::pair{"/fidelity/sampled_irfs", p.sampled_irfs},
+                                std::pair{"/fidelity/rounds", p.rounds}})
+    if (v < 0) c.fail(name, fmt::format("expected a count >= 0, got {}", v));
+  if (!(p.moving_within >= 0 && p.moving_within <= p.moving))
+    c.fail("/fidelity/moving_within", fmt::format("expected 0..{} (the moving segments), got {}", p.moving,
+                                                   p.moving_within));
+  if (!(p.switches_within >= 0 && p.switches_within <= p.switches))
+    c.fail("/fidelity/switches_within",
+           fmt::format("expected 0..{} (the switches), got {}", p.switches, p.switches_within));
+  if (!(p.median_nrmse >= 0 && std::isfinite(p.median_nrmse)))
+    c.fail("/fidelity/median_nrmse", fmt::format("expected a finite NRMSE >= 0, got {}", p.median_nrmse));
+  if (!(p.p90_nrmse >= p.median_nrmse && std::isfinite(p.p90_nrmse)))
+    c.fail("/fidelity/p90_nrmse", fmt::format("expected a finite NRMSE >= the median, got {}", p.p90_nrmse));
+  if (!(p.seed >= 0 && p.seed == std::floor(p.seed) && p.seed < 9007199254740992.0))
+    c.fail("/fidelity/seed", fmt::format("expected a whole number in [0, 2^53), got {}", p.seed));
+  if (p.target_median_nrmse && !(*p.target_median_nrmse > 0 && std::isfinite(*p.target_median_nrmse)))
+    c.fail("/fidelity/target_median_nrmse", fmt::format("expected a finite NRMSE > 0, got {}", *p.target_median_nrmse));
+}
+
+}  // namespace
 
 void validate_package(const ScenePackage& pkg, const std::string& source) {
   const Checker c(source);
@@ -582,6 +631,7 @@ void validate_package(const ScenePackage& pkg, const std::string& source) {
   check_reduction(c, pkg.reduction, pkg.mesh);
   check_portrait(c, pkg.portrait, pkg.palette.size());
   if (pkg.appearance) check_appearance(c, *pkg.appearance, pkg.portrait.nodes());
+  if (pkg.fidelity) check_fidelity(c, *pkg.fidelity);
 }
 
 }  // namespace phasecast::core

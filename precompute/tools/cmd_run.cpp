@@ -1,12 +1,15 @@
 // phasecast-precompute run: sample -> reduce -> appearance in one command.
 
 #include "commands.h"
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/pipeline/adaptive_sampling.h"
 #include "phasecast/precompute/pipeline/report_text.h"
 #include "stage_options.h"
 
 #include <fmt/format.h>
 
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace phasecast::precompute::tools {
@@ -18,7 +21,70 @@ struct Options {
   SampleStageOptions sample;
   ReduceStageOptions reduce;
   AppearanceChoices appearance;
+  std::optional<double> until_fidelity;  // the median NRMSE target of adaptive sampling
+  AdaptiveOptions adaptive;
+  int held_out_schedules = -1;           // -1: 20 with --until-fidelity, else none
+  std::uint64_t fidelity_seed = 0;       // 0: derived from --seed (below 2^53: the package stores it as a double)
 };
+
+// The held-out schedules' stream: never the sampler's, never the guides'.
+std::uint64_t held_out_seed(const Options& o) {
+  return o.fidelity_seed != 0 ? o.fidelity_seed : 0x74657374ULL + 7919 * o.sample.sampling.seed;  // "test"
+}
+
+void add_fidelity_options(CLI::App* cmd, Options& o) {
+  cmd->add_option("--until-fidelity", o.until_fidelity,
+                  "sample until random guide schedules play at this median NRMSE (90th percentile + 0.1, 95 % "
+                  "of moving segments in range), spending new IRFs where playback departs from the "
+                  "simulation (docs/sampling.md, \"Adaptive sampling\"); needs --budget-irfs or --budget-minutes")
+      ->check(CLI::Range(1e-6, 10.0));
+  cmd->add_option("--budget-irfs", o.adaptive.budget_irfs, "with --until-fidelity: IRFs to sample at most, all rounds")
+      ->check(CLI::Range(1, 1000000));
+  cmd->add_option("--budget-minutes", o.adaptive.budget_minutes,
+                  "with --until-fidelity: start no round after this many minutes")
+      ->check(CLI::Range(0.0, 1e7));
+  cmd->add_option("--guide-schedules", o.adaptive.guide_schedules,
+                  "with --until-fidelity: random schedules each round is judged on")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
+  cmd->add_option("--held-out-schedules", o.held_out_schedules,
+                  "random schedules (their own seed) the finished package is measured on (default: 20 with "
+                  "--until-fidelity, else 0)")
+      ->check(CLI::Range(0, 10000));
+  cmd->add_option("--fidelity-seed", o.fidelity_seed, "seed of the held-out schedules (0: from --seed)")
+      ->check(CLI::Range(std::uint64_t{0}, std::uint64_t{1} << 53));
+}
+
+// Samples at random, or round by round until the fidelity target (then the
+// figures the package stores of it).
+SampleReport sample(const Scene& scene, Options& o, const SampleStageOptions& first,
+                    const std::filesystem::path& orbits, core::PlaybackFidelity& adaptive) {
+  if (!o.until_fidelity) return run_sample_stage(scene, first, orbits);
+  o.adaptive.target = FidelityTarget{*o.until_fidelity, *o.until_fidelity + 0.1, 0.95};
+  const AdaptiveReport a = run_adaptive_sampling(scene, first, o.reduce, o.adaptive, orbits);
+  if (a.writer) fmt::print("{}", adaptive_report_text(a));
+  adaptive.target_median_nrmse = static_cast<float>(*o.until_fidelity);
+  adaptive.target_met = a.met;
+  adaptive.rounds = static_cast<std::int32_t>(a.rounds.size());
+  adaptive.sampled_irfs = a.rounds.empty() ? 0 : a.rounds.back().irfs;
+  return a.sampled;
+}
+
+// The held-out figures, stored in the package beside what adaptive sampling did.
+void store_fidelity(const FidelityFigures& f, core::PlaybackFidelity fidelity, core::ScenePackage package,
+                    const std::filesystem::path& path) {
+  fidelity.schedules = f.schedules;
+  fidelity.items = f.items;
+  fidelity.seed = static_cast<double>(f.seed);
+  fidelity.median_nrmse = static_cast<float>(f.median_nrmse);
+  fidelity.p90_nrmse = static_cast<float>(f.p90_nrmse);
+  fidelity.moving = f.moving;
+  fidelity.moving_within = f.moving_within;
+  fidelity.switches = f.switches;
+  fidelity.switches_within = f.switches_within;
+  package.fidelity = fidelity;
+  core::write_package(package, path);
+}
 
 }  // namespace
 
@@ -32,6 +98,7 @@ void add_run_command(CLI::App& app) {
   add_sample_options(cmd, o->sample);
   add_reduce_options(cmd, o->reduce);
   add_appearance_options(cmd, o->appearance);
+  add_fidelity_options(cmd, *o);
   cmd->callback([o] {
     const auto scene = phasecast::precompute::load_scene_file(o->scene);
     // Bad appearance options fail before the sampling hours, not after.
@@ -40,10 +107,20 @@ void add_run_command(CLI::App& app) {
     if (sample.work_dir.empty()) sample.work_dir = o->output + ".work";
     const std::filesystem::path orbits = sample.work_dir / "orbits.h5";
     check_save_transfers(o->appearance, {orbits, o->output});
-    const auto sampled = run_sample_stage(scene, sample, orbits);
+    if (o->until_fidelity) check_adaptive_options(o->adaptive, sample);
+    core::PlaybackFidelity fidelity;
+    const auto sampled = tools::sample(scene, *o, sample, orbits, fidelity);
     if (sampled.writer) fmt::print("{}", sample_report_text(sampled));
     const auto reduced = run_reduce_stage(scene, o->reduce, o->appearance, orbits, o->output);
     if (reduced.writer) fmt::print("{}", reduce_report_text(reduced));
+    const int held_out = o->held_out_schedules >= 0 ? o->held_out_schedules : (o->until_fidelity ? 20 : 0);
+    if (held_out > 0) {
+      const auto f = measure_fidelity(scene, reduced.package, held_out_seed(*o), held_out, o->adaptive.schedule_items);
+      if (reduced.writer) {
+        fmt::print("{}", fidelity_text(f, "held-out"));
+        store_fidelity(f, fidelity, reduced.package, o->output);
+      }
+    }
   });
 }
 

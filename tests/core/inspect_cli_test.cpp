@@ -104,6 +104,57 @@ TEST_F(InspectCli, AbsentHeldOutFiguresReadAsEqualWeightsAndUnknownVariation) {
   EXPECT_EQ(j["held_out"]["l2_spread"].size(), 4u);
 }
 
+// /fidelity/: written, read back and printed, with adaptive sampling's figures.
+TEST_F(InspectCli, PlaybackFidelityIsStoredAndPrinted) {
+  core::PlaybackFidelity& f = package_.fidelity.emplace();
+  f.schedules = 20;
+  f.items = 4;
+  f.seed = 1952813667;
+  f.median_nrmse = 0.056f;
+  f.p90_nrmse = 0.206f;
+  f.moving = 80;
+  f.moving_within = 79;
+  f.switches = 85;
+  f.switches_within = 76;
+  const auto path = dir_ / "fidelity.h5";
+  core::write_package(package_, path);
+  auto text = testing::run_tool("phasecast-inspect", {path.string()});
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_THAT(text.out, HasSubstr("fidelity     playback vs the full simulation over 20 random schedules of 4 "
+                                  "entries (seed 1952813667): median NRMSE 0.056, 90th percentile 0.206; 79 of 80 "
+                                  "moving segments within [0.67, 1.5] of the simulated motion, 76 of 85 switches"));
+  EXPECT_THAT(text.out, ::testing::Not(HasSubstr("sampled adaptively")));
+  f.target_median_nrmse = 0.1f;
+  f.sampled_irfs = 24;
+  f.rounds = 3;
+  f.target_met = true;
+  core::write_package(package_, path);
+  const auto back = core::read_package(path).fidelity;
+  ASSERT_TRUE(back && back->target_median_nrmse);
+  EXPECT_EQ(back->seed, 1952813667.0);
+  EXPECT_EQ(back->switches_within, 76);
+  EXPECT_EQ(back->sampled_irfs, 24);
+  EXPECT_TRUE(back->target_met);
+  text = testing::run_tool("phasecast-inspect", {path.string()});
+  EXPECT_THAT(text.out, HasSubstr("sampled adaptively towards median NRMSE 0.100: met after 24 IRFs in 3 rounds"));
+  const auto j = nlohmann::json::parse(testing::run_tool("phasecast-inspect", {path.string(), "--json"}).out);
+  EXPECT_EQ(j["fidelity"]["moving_segments_within"], 79);
+  EXPECT_NEAR(j["fidelity"]["p90_nrmse"].get<double>(), 0.206, 1e-7);
+  EXPECT_EQ(j["fidelity"]["adaptive"]["rounds"], 3);
+  // Refused: a share that is no share, a 90th percentile below the median, half the adaptive figures.
+  f.moving_within = 81;
+  EXPECT_THROW(core::write_package(package_, path), core::PackageError);
+  f.moving_within = 79;
+  f.p90_nrmse = 0.05f;
+  EXPECT_THROW(core::write_package(package_, path), core::PackageError);
+  f.p90_nrmse = 0.206f;
+  core::write_package(package_, path);
+  core::h5::File::open_write(path).remove("/fidelity/rounds");
+  EXPECT_THAT(testing::package_rejection(path), HasSubstr("/fidelity/rounds: missing dataset"));
+  // A package without /fidelity says nothing of it (JSON: null).
+  EXPECT_TRUE(nlohmann::json::parse(testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string(), "--json"}).out)["fidelity"].is_null());
+}
+
 // Fig. 12 out of sample, as stored: the text names r_a and the paper's r_a
 // among the powers of two, the whole span, and the first rank that fits the
 // held-out states as well as the clusters fit themselves at r_a.

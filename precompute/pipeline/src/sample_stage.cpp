@@ -11,6 +11,8 @@
 #include <fmt/format.h>
 
 #include <memory>
+#include <stdexcept>
+#include <utility>
 
 namespace phasecast::precompute {
 namespace {
@@ -31,11 +33,11 @@ class SamplingDisplay {
 // The self-contact of every sampled frame: each rank reads its own chains'
 // stores (the merged store holds the same frames), then the counts are
 // summed and the extremes combined over the ranks: exact, for any N.
-ContactSummary sampled_contact(const Scene& scene, const SamplingOptions& o) {
+ContactSummary sampled_contact(const Scene& scene, const std::vector<SamplingOptions>& runs) {
   const auto& ranks = Ranks::world();
   std::vector<std::filesystem::path> mine;
-  for (int k = ranks.rank(); k < o.chains; k += ranks.size())
-    mine.push_back(chain_store_path(o.work_dir, k));
+  for (const auto& o : runs)
+    for (int k = ranks.rank(); k < o.chains; k += ranks.size()) mine.push_back(chain_store_path(o.work_dir, k));
   ContactSummary c = store_contact(scene, mine);
   std::vector<long long> counts{c.frames, c.frames_intersecting, c.frames_close};
   ranks.sum(counts);
@@ -47,57 +49,79 @@ ContactSummary sampled_contact(const Scene& scene, const SamplingOptions& o) {
   return c;
 }
 
-}  // namespace
-
-SampleReport run_sample_stage(const Scene& scene, SampleStageOptions a, const std::filesystem::path& orbits) {
+// The run's options on this rank, checked, its work folder defaulting to <orbits>.work.
+SamplingOptions on_this_rank(const SampleStageOptions& a, const std::filesystem::path& orbits) {
   const auto& ranks = Ranks::world();
-  a.sampling.ranks = ranks.size();
-  a.sampling.rank = ranks.rank();
-  check_sampling_options(a.sampling);
-  a.sampling.work_dir = a.work_dir.empty() ? std::filesystem::path(orbits.string() + ".work") : a.work_dir;
-  const auto rules = make_palette_rules(scene);
+  SamplingOptions o = a.sampling;
+  o.ranks = ranks.size();
+  o.rank = ranks.rank();
+  check_sampling_options(o);
+  o.work_dir = a.work_dir.empty() ? std::filesystem::path(orbits.string() + ".work") : a.work_dir;
+  return o;
+}
+
+// Samples (or resumes) this rank's chains of `o`, with a progress bar and a line per chain.
+void sample_with_progress(const Scene& scene, SamplingOptions o) {
+  const auto& ranks = Ranks::world();
+  const auto rules = make_palette_rules(scene);  // a bad rule fails before anything is printed
   if (ranks.rank() == 0) {
-    fmt::print(stderr, "{}: {} vertices, {} palette entries, {} chains x {} IRFs, seed {}{}{}\n", scene.name,
-               scene.model.vertices(), scene.palette.size(), a.sampling.chains, a.sampling.irfs_per_chain,
-               a.sampling.seed, ranks.distributed() ? fmt::format(", {} MPI ranks", ranks.size()) : "",
-               a.sampling.resume ? " (resuming)" : "");
+    fmt::print(stderr, "{}: {} vertices, {} palette entries, {} chains x {} IRFs{}, seed {}{}{}\n", scene.name,
+               scene.model.vertices(), scene.palette.size(), o.chains, o.irfs_per_chain,
+               o.lead_ins.empty() ? "" : " (directed)", o.seed,
+               ranks.distributed() ? fmt::format(", {} MPI ranks", ranks.size()) : "", o.resume ? " (resuming)" : "");
   }
   auto display = std::make_shared<SamplingDisplay>();
-  a.sampling.progress = [display](const SamplingProgress& p) { (*display)(p); };
-  a.sampling.notice = [](const std::string& line) { fmt::print(stderr, "\n{}\n", line); };
-  a.sampling.chain_sampled = [&ranks](const ChainSampled& c) {
+  o.progress = [display](const SamplingProgress& p) { (*display)(p); };
+  o.notice = [](const std::string& line) { fmt::print(stderr, "\n{}\n", line); };
+  o.chain_sampled = [&ranks](const ChainSampled& c) {
     fmt::print(
         stderr,
         "\n{}chain {}: {} IRFs, {} state nodes in {:.1f} s (settling {:.1f} s, then {:.0f} ms per node)\n",
         ranks.distributed() ? fmt::format("rank {}: ", ranks.rank()) : "", c.chain, c.irfs, c.frames,
         c.seconds, c.settle_seconds, 1e3 * (c.seconds - c.settle_seconds) / static_cast<double>(c.frames));
   };
-  MergedStore merged;
-  SampleReport report;
-  report.writer = ranks.rank() == 0;
-  report.orbits = orbits;
   try {
-    // Each rank's chains stream into their stores in the work folder; rank 0
-    // then merges them in chain order into the orbit store, one IRF at a
-    // time, as one process would (docs/distributed.md).
-    sample_own_chains(scene, rules, a.sampling);
-    ranks.barrier();
-    const Stopwatch merge;
-    if (ranks.rank() == 0) merged = write_chain_stores(scene, a.sampling, orbits);
-    report.merge_seconds = merge.seconds();
+    // Each rank's chains stream into their stores in the work folder (docs/distributed.md).
+    sample_own_chains(scene, rules, o);
   } catch (...) {
     display->finish();
     throw;
   }
   display->finish();
-  report.irfs = merged.irfs;
-  report.frames = merged.frames;
+}
+
+}  // namespace
+
+SampleReport run_sample_rounds(const Scene& scene, const std::vector<SampleStageOptions>& rounds,
+                               const std::filesystem::path& orbits) {
+  if (rounds.empty()) throw std::invalid_argument("run_sample_rounds: no sampling round");
+  const auto& ranks = Ranks::world();
+  std::vector<SamplingOptions> runs;
+  for (const auto& r : rounds) runs.push_back(on_this_rank(r, orbits));
+  sample_with_progress(scene, runs.back());
+  ranks.barrier();
+  SampleReport report;
+  report.writer = ranks.rank() == 0;
+  report.orbits = orbits;
+  const Stopwatch merge;
+  // Rank 0 merges every round's chains, in order, into the orbit store, one
+  // IRF at a time, as one process would.
+  if (report.writer) {
+    const MergedStore merged = write_chain_stores(scene, runs, orbits);
+    report.irfs = merged.irfs;
+    report.frames = merged.frames;
+  }
+  report.merge_seconds = merge.seconds();
   if (scene.model.self_collision) {
-    report.contact = sampled_contact(scene, a.sampling);
+    report.contact = sampled_contact(scene, runs);
     report.close_distance = close_distance(scene);
   }
   ranks.barrier();  // the store is complete before any rank reads it
   return report;
+}
+
+SampleReport run_sample_stage(const Scene& scene, SampleStageOptions options, const std::filesystem::path& orbits) {
+  return run_sample_rounds(scene, {std::move(options)}, orbits);
 }
 
 }  // namespace phasecast::precompute

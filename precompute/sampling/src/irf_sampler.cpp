@@ -146,11 +146,27 @@ struct ChainPosition {
   double at = 0;
 };
 
-ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, int chain,
-                           const IrfList& store, int irfs) {
+// Where a chain's first IRF starts: at rest, or after its lead-in's items
+// but the last (simulated, not recorded).
+ChainPosition lead_in_position(const PaletteRules& rules, const SamplingOptions& o, double frame_dt, int chain) {
   ChainPosition p;
+  const auto k = static_cast<size_t>(chain);
+  if (k >= o.lead_ins.size()) return p;
+  for (size_t i = 0; i + 1 < o.lead_ins[k].size(); ++i) {
+    const ScheduleItem& item = o.lead_ins[k][i];
+    const int frames = std::max(1, std::min(schedule_frames(item.duration, frame_dt),
+                                            rules.reachable_frames(item.entry, p.at)));
+    p.history.push_back(item.entry);
+    p.at = rules.advance(item.entry, p.at, frames);
+  }
+  return p;
+}
+
+ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, double frame_dt, int chain,
+                           const IrfList& store, int irfs) {
+  ChainPosition p = lead_in_position(rules, o, frame_dt, chain);
   for (int i = 0; i < irfs; ++i) {
-    const IrfDraw d = draw_irf(rules, o.seed, chain, i, p.history, p.at);
+    const IrfDraw d = next_irf(rules, o, frame_dt, chain, i, p.history, p.at);
     const auto k = static_cast<size_t>(i);
     if (d.entry != store.palette[k] || d.frames != store.length[k]) {
       throw SamplingError(fmt::format(
@@ -163,6 +179,23 @@ ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, 
     p.at = rules.advance(d.entry, p.at, d.frames);
   }
   return p;
+}
+
+// A directed chain's lead-in but its last item, simulated from rest and not
+// recorded: the chain's first IRF starts where the schedule it comes from
+// stood (the checkpoints then hold the state past it).
+void play_lead_in(Simulator& sim, const Scene& scene, const PaletteRules& rules, const SamplingOptions& o,
+                  int chain, IrfFrames& scratch) {
+  const auto k = static_cast<size_t>(chain);
+  if (k >= o.lead_ins.size()) return;
+  double at = 0;
+  for (size_t i = 0; i + 1 < o.lead_ins[k].size(); ++i) {
+    const ScheduleItem& item = o.lead_ins[k][i];
+    const int frames = std::max(1, std::min(schedule_frames(item.duration, scene.simulation.frame_dt),
+                                            rules.reachable_frames(item.entry, at)));
+    record_irf_frames(sim, scene, item.entry, frames, true, scratch);
+    at = rules.advance(item.entry, at, frames);
+  }
 }
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
@@ -188,13 +221,14 @@ int run_chain(const Scene& scene, const PaletteRules& rules, const SamplingOptio
     sh.progress.nodes += store.frames();
     if (o.progress) o.progress(sh.progress);
   }
-  ChainPosition at = replay_chain(rules, o, chain, store.irf_table(), c.irfs);
+  ChainPosition at = replay_chain(rules, o, scene.simulation.frame_dt, chain, store.irf_table(), c.irfs);
+  IrfFrames irf;  // the only frames a chain holds: the IRF being recorded
+  if (c.irfs == 0) play_lead_in(*sim, scene, rules, o, chain, irf);
   const int resumed_irfs = c.irfs;
   const std::int64_t resumed_frames = store.frames();
-  IrfFrames irf;  // the only frames a chain holds: the IRF being recorded
   for (int i = c.irfs; i < o.irfs_per_chain; ++i) {
     if (sh.stop) break;
-    const IrfDraw draw = draw_irf(rules, o.seed, chain, i, at.history, at.at);
+    const IrfDraw draw = next_irf(rules, o, scene.simulation.frame_dt, chain, i, at.history, at.at);
     if (draw.from_rest) {
       sim->reset(rest);
       at = ChainPosition{};
@@ -258,6 +292,18 @@ IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int i
   const int longest = rules.reachable_frames(d.entry, at);
   const int shortest = std::min(rules.min_frames[e], longest);
   d.frames = shortest + static_cast<int>(word % static_cast<std::uint64_t>(longest - shortest + 1));
+  return d;
+}
+
+IrfDraw next_irf(const PaletteRules& rules, const SamplingOptions& o, double frame_dt, int chain, int irf,
+                 const std::vector<int>& history, double at) {
+  const auto k = static_cast<size_t>(chain);
+  if (k >= o.lead_ins.size() || o.lead_ins[k].empty() || irf > 0)
+    return draw_irf(rules, o.seed, chain, irf, history, at);
+  const ScheduleItem& item = o.lead_ins[k].back();
+  IrfDraw d;
+  d.entry = item.entry;
+  d.frames = std::max(1, std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(d.entry, at)));
   return d;
 }
 
@@ -396,12 +442,17 @@ OrbitStore read_chain_stores(const Scene& scene, const SamplingOptions& o) {
 
 MergedStore write_chain_stores(const Scene& scene, const SamplingOptions& o,
                                const std::filesystem::path& path) {
-  check_chain_stores(scene, o);
+  return write_chain_stores(scene, std::vector<SamplingOptions>{o}, path);
+}
+
+MergedStore write_chain_stores(const Scene& scene, const std::vector<SamplingOptions>& runs,
+                               const std::filesystem::path& path) {
+  for (const auto& o : runs) check_chain_stores(scene, o);
   const std::filesystem::path tmp = fmt::format("{}.merging-{}", path.string(), ::getpid());
   MergedStore merged;
   try {
     OrbitStoreAppender out = OrbitStoreAppender::create(tmp, empty_orbit_store(scene), kMergedChunkBytes);
-    for_each_chain_irf(o, [&out](const IrfFrames& irf) { out.append(irf); });
+    for (const auto& o : runs) for_each_chain_irf(o, [&out](const IrfFrames& irf) { out.append(irf); });
     merged = {out.irfs(), static_cast<long long>(out.frames())};
     out.close();
     std::filesystem::rename(tmp, path);

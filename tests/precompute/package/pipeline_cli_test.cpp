@@ -51,6 +51,45 @@ TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
   EXPECT_EQ(p.portrait.irf_count(), 6);
 }
 
+// --until-fidelity samples in rounds of directed chains within its budget,
+// says why it stopped, and the package stores the held-out figures; the
+// same options give the same package bytes.
+TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
+  const auto dir = scratch_dir("cli_until_fidelity");
+  const std::vector<std::string> adaptive = {"--chains", "2", "--irfs-per-chain", "3", "--seed", "4",
+                                             "--max-rank", "20", "--no-appearance", "--until-fidelity", "0.001",
+                                             "--budget-irfs", "12", "--guide-schedules", "3",
+                                             "--held-out-schedules", "4"};
+  const auto pkg = (dir / "a.h5").string();
+  const auto r = run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}, adaptive));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("adaptive round 0: 6 IRFs; fidelity (guide, 3 random schedules of 4 entries"),
+            std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("adaptive round 1: "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("directed chains added)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("adaptive sampling: IRF budget spent after "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("fidelity (held-out, 4 random schedules of 4 entries"), std::string::npos) << r.out;
+  const auto p = core::read_package(pkg);
+  ASSERT_TRUE(p.fidelity && p.fidelity->target_median_nrmse);
+  EXPECT_EQ(p.fidelity->schedules, 4);
+  EXPECT_FALSE(p.fidelity->target_met);
+  EXPECT_GE(p.fidelity->rounds, 2);
+  EXPECT_GT(p.fidelity->sampled_irfs, 6);
+  EXPECT_LE(p.fidelity->sampled_irfs, 12);
+  EXPECT_LE(p.portrait.irf_count(), p.fidelity->sampled_irfs);  // the filter may drop some
+  const auto again = (dir / "b.h5").string();
+  ASSERT_EQ(run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", again}, adaptive))
+                .exit_code,
+            0);
+  EXPECT_EQ(testing::read_file(pkg), testing::read_file(again));
+  // Without a budget it refuses before sampling.
+  const auto bad = run_tool("phasecast-precompute",
+                            {"run", tiny_scene_path().string(), "-o", (dir / "c.h5").string(), "--until-fidelity", "0.1"});
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("--until-fidelity needs a budget: --budget-irfs N or --budget-minutes M"), std::string::npos)
+      << bad.err;
+}
+
 TEST(PipelineCli, KilledRunResumesToTheSamePackageBytes) {
   const auto dir = scratch_dir("cli_resume");
   const auto straight = (dir / "straight.h5").string(), resumed = (dir / "resumed.h5").string();

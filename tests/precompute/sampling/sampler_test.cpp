@@ -55,6 +55,36 @@ double door_angle(const OrbitStore& s, int f) {
   return std::acos(std::clamp((trace - 1) / 2, -1.0, 1.0));
 }
 
+// A directed chain's first IRF is the lead-in's last item, recorded from the
+// state the items before it (simulated, not recorded) left: bit for bit the
+// frames the schedule's own simulation shows in that segment. A resumed
+// directed chain is the same.
+TEST_F(Sampler, ADirectedChainStartsWhereItsScheduleStood) {
+  const std::vector<ScheduleItem> lead_in = parse_schedule("open 0.4; stop 0.3; close 0.2", scene);
+  SamplingOptions o = small_options(scratch_dir("sampler_directed"));
+  o.chains = 2;
+  o.irfs_per_chain = 3;
+  o.lead_ins = {lead_in};  // chain 1 has none: it starts at rest
+  const OrbitStore s = sample_irfs(scene, rules, o);
+  const OrbitStore truth = simulate_schedule(scene, lead_in);
+  ASSERT_EQ(s.irf_palette[0], lead_in[2].entry);
+  const int frames = schedule_frames(lead_in[2].duration, scene.simulation.frame_dt);
+  ASSERT_EQ(s.irf_length[0], frames);
+  ASSERT_EQ(truth.irf_length[2], frames);
+  EXPECT_TRUE(s.positions.topRows(frames) == truth.positions.middleRows(truth.irf_start[2], frames));
+  EXPECT_TRUE(s.support.topRows(frames) == truth.support.middleRows(truth.irf_start[2], frames));
+  EXPECT_EQ(s.irf_palette.size(), 6u);  // 3 IRFs a chain, the lead-in's last one counted
+  // Stopped after its first IRF and resumed: the same orbits.
+  SamplingOptions stopped = o;
+  stopped.work_dir = scratch_dir("sampler_directed_resumed");
+  stopped.jobs = 1;
+  stopped.stop_after_irfs = 1;
+  EXPECT_THROW(sample_irfs(scene, rules, stopped), SamplingError);
+  stopped.stop_after_irfs = 0;
+  stopped.resume = true;
+  expect_identical(sample_irfs(scene, rules, stopped), s);
+}
+
 TEST_F(Sampler, RecordedChainsObeyThePaletteRules) {
   const auto o = small_options(scratch_dir("sampler_rules"));
   const OrbitStore s = sample_irfs(scene, rules, o);

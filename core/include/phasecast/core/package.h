@@ -220,6 +220,24 @@ inline bool is_affine_interpolant(const std::string& name) {
   return name == "affine-knn" || name == "affine-knn-slope";
 }
 
+// Playback of the package against the full simulation over random schedules
+// of their own seed, as `phasecast-precompute run` measured it when it made
+// the package (docs/validation.md): /fidelity/.
+struct PlaybackFidelity {
+  std::int32_t schedules = 0;  // random schedules played
+  std::int32_t items = 0;      // entries in each
+  double seed = 0;             // of the schedules (whole, below 2^53)
+  float median_nrmse = 0, p90_nrmse = 0;
+  std::int32_t moving = 0, moving_within = 0;      // moving segments; within [0.67, 1.5] of the simulated motion
+  std::int32_t switches = 0, switches_within = 0;  // blend jumps; within 2x the local motion
+  // Adaptive sampling (absent: the IRFs were drawn at random): the median
+  // NRMSE it sampled towards, the IRFs it sampled, its rounds, whether the
+  // guide schedules met the target.
+  std::optional<float> target_median_nrmse;
+  std::int32_t sampled_irfs = 0, rounds = 0;
+  bool target_met = false;
+};
+
 struct ScenePackage {
   PackageAttributes attributes;
   SceneMesh mesh;
@@ -227,6 +245,7 @@ struct ScenePackage {
   Reduction reduction;
   PhasePortrait portrait;
   std::optional<Appearance> appearance;
+  std::optional<PlaybackFidelity> fidelity;
 
   int rank_u() const { return reduction.rank(); }
   int rank_a() const { return appearance ? appearance->rank() : 0; }

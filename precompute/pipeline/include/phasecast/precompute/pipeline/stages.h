@@ -72,6 +72,12 @@ struct SampleReport {
 // Samples IRFs of the scene and writes the merged orbit store to `orbits`.
 SampleReport run_sample_stage(const Scene& scene, SampleStageOptions options, const std::filesystem::path& orbits);
 
+// Several sampling runs, each in its own work folder (an adaptive run's
+// rounds): the last is sampled (or resumed), every earlier one must be
+// complete, and all are merged in order into `orbits`.
+SampleReport run_sample_rounds(const Scene& scene, const std::vector<SampleStageOptions>& rounds,
+                               const std::filesystem::path& orbits);
+
 struct AppearanceReport {
   AppearanceStageReport stage;
   double seconds = 0;

@@ -8,6 +8,7 @@
 // chain's store (OrbitStoreAppender) and dropped, so a chain's memory and the
 // bytes it writes per IRF do not grow with its length.
 
+#include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
 #include "phasecast/precompute/sampling/palette_rules.h"
 #include "phasecast/precompute/simulation/scene.h"
@@ -59,6 +60,12 @@ struct SamplingOptions {
   int rank = 0;
   std::function<void(const SamplingProgress&)> progress;
   std::function<void(const ChainSampled&)> chain_sampled;  // called from the chain's thread
+  // Directed chains (adaptive sampling, docs/sampling.md): chain k plays
+  // lead_ins[k] from rest, simulating but not recording its items but the
+  // last, which is the chain's first IRF; it then draws the rest of its IRFs
+  // as any chain does. Empty, or shorter than `chains`: the chains past it
+  // start at rest.
+  std::vector<std::vector<ScheduleItem>> lead_ins;
 };
 
 // The chain-th chain's decision for its `irf`-th IRF given its history (the
@@ -73,6 +80,11 @@ struct IrfDraw {
 };
 IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
                  const std::vector<int>& history, double at = 0);
+
+// The chain's `irf`-th IRF: its lead-in's last item first (T clipped to the
+// support's range like a drawn one), then draw_irf.
+IrfDraw next_irf(const PaletteRules& rules, const SamplingOptions& options, double frame_dt, int chain, int irf,
+                 const std::vector<int>& history, double at);
 
 // Chain k's orbit store in the work folder (chain-<k>.h5).
 std::filesystem::path chain_store_path(const std::filesystem::path& work_dir, int chain);
@@ -103,6 +115,11 @@ struct MergedStore {
 // one IRF at a time, so that merging holds one IRF rather than every chain.
 // Throws SamplingError as read_chain_stores before writing anything.
 MergedStore write_chain_stores(const Scene& scene, const SamplingOptions& options,
+                               const std::filesystem::path& path);
+
+// The chains of several runs (an adaptive run's rounds, each with its own
+// work folder), concatenated in the order given.
+MergedStore write_chain_stores(const Scene& scene, const std::vector<SamplingOptions>& runs,
                                const std::filesystem::path& path);
 
 }  // namespace phasecast::precompute

@@ -1,0 +1,109 @@
+#pragma once
+// Sampling until the package plays true (§3.5; the paper's §7 asks for
+// "better non-random sampling strategies for IRFs"). After a first round of
+// random chains, each round reduces what was sampled, plays random guide
+// schedules both through the full simulation and through the synthesis
+// engine (validation), finds the segments where served motion departs from
+// the simulated one, and spends its next IRFs there: one directed chain per
+// segment, which plays the guide schedule from rest up to that segment
+// (simulated, not recorded), records the segment's entry as its first IRF
+// from the very state where the served playback went wrong, and then draws
+// on as any chain. Rounds stop when the guide figures meet the target
+// or the budget is spent. Guide schedules are drawn anew each round from
+// their own stream, never the sampler's, and never the held-out schedules
+// that measure the result (measure_fidelity with another seed).
+
+#include "phasecast/core/package.h"
+#include "phasecast/precompute/pipeline/stages.h"
+#include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "phasecast/precompute/validation/playback.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace phasecast::precompute {
+
+// What a package must play at: median and 90th-percentile NRMSE over random
+// schedules, and the share of moving segments whose motion is within
+// [0.67, 1.5] of the simulated motion (docs/validation.md).
+struct FidelityTarget {
+  double median_nrmse = 0.15;
+  double p90_nrmse = 0.25;
+  double moving_in_range = 0.95;
+};
+
+// A package played against the full simulation over random schedules.
+struct FidelityFigures {
+  int schedules = 0;
+  std::uint64_t seed = 0;  // of random_schedule
+  int items = 0;           // entries per schedule
+  double median_nrmse = 0, p90_nrmse = 0;
+  int moving = 0, moving_within = 0;
+  int switches = 0, switches_within = 0;  // blend jumps within 2x the local motion
+
+  double moving_in_range() const { return moving ? static_cast<double>(moving_within) / moving : 1.0; }
+  bool meets(const FidelityTarget& t) const {
+    return median_nrmse <= t.median_nrmse && p90_nrmse <= t.p90_nrmse && moving_in_range() >= t.moving_in_range;
+  }
+};
+
+// Plays `schedules` random schedules of `items` entries (random_schedule with
+// `seed`) both ways. With `segments` non-null, every schedule's segments and
+// items are handed back for the directed chains.
+struct PlayedSchedule {
+  std::vector<ScheduleItem> items;
+  ScheduleFigures figures;
+};
+FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
+                                 int schedules, int items, std::vector<PlayedSchedule>* played = nullptr);
+
+struct AdaptiveOptions {
+  FidelityTarget target;
+  int budget_irfs = 0;         // all IRFs sampled, the first round's included (0: no limit but the time)
+  double budget_minutes = 0;   // wall time of the rounds (0: no limit but the IRFs)
+  int guide_schedules = 10;    // random schedules each round is judged on
+  int schedule_items = 4;      // entries per guide schedule
+  int directed_chains = 0;     // per round at most (0: the first round's chain count)
+  int directed_extra_irfs = 2; // IRFs a directed chain draws after the segment's
+};
+
+// The lead-ins of the next round: the guide schedules' worst moving segments
+// (motion ratio out of [0.67, 1.5] first, by |log ratio|, then by NRMSE above
+// the target), each the schedule's items up to and through the segment; at
+// most `count`, none for a segment that already plays within the target.
+std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
+                                                         const FidelityTarget& target, int count);
+
+struct AdaptiveRound {
+  int irfs = 0;               // sampled in all, this round's included
+  int directed = 0;           // directed chains this round added (0 for the first)
+  FidelityFigures guide;      // the package of all IRFs so far, on this round's guide schedules
+};
+
+struct AdaptiveReport {
+  bool writer = false;  // rank 0: the one that reports
+  std::vector<AdaptiveRound> rounds;
+  bool met = false;
+  std::string stopped;  // why the rounds ended: "target met", "IRF budget spent", ...
+  SampleReport sampled;  // the merged store of every round
+};
+
+// Samples `first` (the first round) into `orbits`, then adds directed rounds
+// as above. The merged store of every round's chains ends in `orbits`; each
+// round's chains and its package go to <work folder>/round-<r>/.
+AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOptions& first,
+                                     const ReduceStageOptions& reduce, const AdaptiveOptions& options,
+                                     const std::filesystem::path& orbits);
+
+// "fidelity (held-out, 20 random schedules of 4 entries, seed S): median NRMSE ..., 90th ..., ..."
+std::string fidelity_text(const FidelityFigures& figures, const char* which);
+
+// One line per round (its IRFs and guide figures), then why the rounds ended.
+std::string adaptive_report_text(const AdaptiveReport& report);
+
+// Throws std::invalid_argument naming the flag of an impossible option.
+void check_adaptive_options(const AdaptiveOptions& options, const SampleStageOptions& first);
+
+}  // namespace phasecast::precompute

@@ -1,0 +1,233 @@
+// Adaptive sampling (adaptive_sampling.h): rounds of directed chains where
+// validation finds the served motion departing from the simulation.
+
+#include "phasecast/precompute/pipeline/adaptive_sampling.h"
+
+#include "phasecast/precompute/distributed/ranks.h"
+#include "phasecast/precompute/validation/playback.h"
+#include "stopwatch.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+
+namespace phasecast::precompute {
+namespace {
+
+// SplitMix64 of the run's seed and a purpose: each round's guide schedules
+// and directed chains get streams of their own.
+std::uint64_t stream(std::uint64_t seed, std::uint64_t purpose) {
+  std::uint64_t x = seed ^ (purpose * 0x9e3779b97f4a7c15ULL);
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+constexpr std::uint64_t kGuide = 0x6775696465ULL;     // "guide"
+constexpr std::uint64_t kDirected = 0x6469726563ULL;  // "direc"
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const double at = p * static_cast<double>(v.size() - 1);
+  const auto lo = static_cast<size_t>(std::floor(at));
+  const size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
+}
+
+// How far a segment plays from the target: out of the motion range first
+// (|log ratio| plus 1, so any such segment ranks above any NRMSE one), then
+// its NRMSE above the median target; 0 when it plays within both.
+double badness(const SegmentFigures& s, double typical, const FidelityTarget& t) {
+  if (!s.refused.empty() || !is_moving(s, typical)) return 0;
+  if (s.motion_ratio < kMotionLow || s.motion_ratio > kMotionHigh)
+    return 1 + std::abs(std::log(std::max(s.motion_ratio, 1e-6)));
+  return s.nrmse > t.median_nrmse ? s.nrmse / t.median_nrmse - 1 : 0;
+}
+
+int irfs_of(const SampleStageOptions& round) {
+  return round.sampling.chains * round.sampling.irfs_per_chain;
+}
+
+// The round after `round_index` judged `played`: its directed chains, at most
+// as many as the budget allows.
+std::optional<SampleStageOptions> next_round(const SampleStageOptions& first, const AdaptiveOptions& o,
+                                             const std::vector<PlayedSchedule>& played, int round_index,
+                                             int irfs_so_far, const std::filesystem::path& work) {
+  const int wanted = o.directed_chains > 0 ? o.directed_chains : first.sampling.chains;
+  auto lead_ins = directed_lead_ins(played, o.target, wanted);
+  // Every chain of a round samples as many IRFs: the segment's, then random
+  // ones (the lead-in before it is simulated, not recorded). What does not
+  // fit the budget goes: random IRFs first, then chains.
+  int extra = o.directed_extra_irfs;
+  const auto cost = [&](size_t n) { return static_cast<int>(n) * (1 + extra); };
+  const auto over = [&] { return o.budget_irfs > 0 && irfs_so_far + cost(lead_ins.size()) > o.budget_irfs; };
+  while (!lead_ins.empty() && over()) {
+    if (extra > 0) {
+      --extra;
+    } else {
+      lead_ins.pop_back();
+      extra = o.directed_extra_irfs;
+    }
+  }
+  if (lead_ins.empty()) return std::nullopt;
+  SampleStageOptions next = first;
+  next.sampling.chains = static_cast<int>(lead_ins.size());
+  next.sampling.irfs_per_chain = cost(lead_ins.size()) / next.sampling.chains;
+  next.sampling.seed = stream(first.sampling.seed, kDirected + static_cast<std::uint64_t>(round_index));
+  next.sampling.lead_ins = std::move(lead_ins);
+  next.work_dir = work / fmt::format("round-{}", round_index + 1);
+  return next;
+}
+
+}  // namespace
+
+FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
+                                 int schedules, int items, std::vector<PlayedSchedule>* played) {
+  const auto rules = make_palette_rules(scene);
+  const auto shared = std::make_shared<const core::ScenePackage>(package);
+  ValidationSummary summary;
+  ValidationOptions options;
+  options.intersections = false;
+  for (int k = 0; k < schedules; ++k) {
+    PlayedSchedule p{random_schedule(rules, scene.simulation.frame_dt, seed, k, items), {}};
+    if (p.items.empty()) continue;
+    p.figures = validate_schedule(scene, shared, p.items, options);
+    summary.add(p.figures);
+    if (played) played->push_back(std::move(p));
+  }
+  FidelityFigures f;
+  f.schedules = static_cast<int>(summary.nrmse.size());
+  f.seed = seed;
+  f.items = items;
+  f.median_nrmse = percentile(summary.nrmse, 0.5);
+  f.p90_nrmse = percentile(summary.nrmse, 0.9);
+  f.moving = summary.moving;
+  f.moving_within = summary.moving_within;
+  f.switches = summary.switches;
+  f.switches_within = summary.switches_within;
+  return f;
+}
+
+std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
+                                                         const FidelityTarget& target, int count) {
+  struct Candidate {
+    double badness;
+    size_t schedule, segment;
+  };
+  std::vector<Candidate> candidates;
+  for (size_t i = 0; i < played.size(); ++i) {
+    const auto& g = played[i].figures;
+    const double typical = typical_motion(g);
+    for (size_t m = 0; m < g.segments.size() && m < played[i].items.size(); ++m) {
+      const double b = badness(g.segments[m], typical, target);
+      if (b > 0) candidates.push_back({b, i, m});
+    }
+  }
+  // The worst first; equals in schedule and segment order (stable), so every rank picks alike.
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& a, const Candidate& b) { return a.badness > b.badness; });
+  std::vector<std::vector<ScheduleItem>> out;
+  for (const auto& c : candidates) {
+    if (static_cast<int>(out.size()) >= count) break;
+    const auto& items = played[c.schedule].items;
+    out.emplace_back(items.begin(), items.begin() + static_cast<std::ptrdiff_t>(c.segment + 1));
+  }
+  return out;
+}
+
+std::string fidelity_text(const FidelityFigures& f, const char* which) {
+  return fmt::format(
+      "fidelity ({}, {} random schedules of {} entries, seed {}): median NRMSE {:.3f}, 90th percentile {:.3f}, "
+      "{} of {} moving segments ({:.0f} %) within [0.67, 1.5] of the simulated motion, {} of {} switches "
+      "within 2x the local motion\n",
+      which, f.schedules, f.items, f.seed, f.median_nrmse, f.p90_nrmse, f.moving_within, f.moving,
+      100 * f.moving_in_range(), f.switches_within, f.switches);
+}
+
+std::string adaptive_report_text(const AdaptiveReport& a) {
+  std::string out;
+  for (size_t r = 0; r < a.rounds.size(); ++r) {
+    const auto& round = a.rounds[r];
+    out += fmt::format("adaptive round {}: {} IRFs{}; ", r, round.irfs,
+                       round.directed ? fmt::format(" ({} directed chains added)", round.directed) : "");
+    out += fidelity_text(round.guide, "guide");
+  }
+  out += fmt::format("adaptive sampling: {} after {} rounds, {} IRFs\n", a.stopped, a.rounds.size(),
+                     a.rounds.empty() ? 0 : a.rounds.back().irfs);
+  return out;
+}
+
+void check_adaptive_options(const AdaptiveOptions& o, const SampleStageOptions& first) {
+  const FidelityTarget& t = o.target;
+  if (!(t.median_nrmse > 0) || !(t.p90_nrmse >= t.median_nrmse) || !(t.moving_in_range >= 0) ||
+      !(t.moving_in_range <= 1))
+    throw std::invalid_argument(fmt::format(
+        "--until-fidelity {}: expected a median NRMSE > 0 (the 90th percentile {} at least that, the share "
+        "in range {} in [0, 1])",
+        t.median_nrmse, t.p90_nrmse, t.moving_in_range));
+  if (o.budget_irfs <= 0 && !(o.budget_minutes > 0))
+    throw std::invalid_argument("--until-fidelity needs a budget: --budget-irfs N or --budget-minutes M");
+  if (o.budget_irfs > 0 && o.budget_irfs < irfs_of(first))
+    throw std::invalid_argument(fmt::format(
+        "--budget-irfs {}: expected at least the first round's {} IRFs (--chains x --irfs-per-chain)",
+        o.budget_irfs, irfs_of(first)));
+  if (o.guide_schedules < 1 || o.schedule_items < 1 || o.directed_chains < 0 || o.directed_extra_irfs < 0)
+    throw std::invalid_argument(
+        "adaptive sampling: expected guide schedules and items >= 1, directed chains and extra IRFs >= 0");
+}
+
+AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOptions& first,
+                                     const ReduceStageOptions& reduce, const AdaptiveOptions& o,
+                                     const std::filesystem::path& orbits) {
+  check_adaptive_options(o, first);
+  const Stopwatch clock;
+  const std::filesystem::path work =
+      first.work_dir.empty() ? std::filesystem::path(orbits.string() + ".work") : first.work_dir;
+  std::vector<SampleStageOptions> rounds{first};
+  rounds.front().work_dir = work;
+  AdaptiveReport report;
+  report.writer = Ranks::world().rank() == 0;
+  AppearanceChoices no_appearance;
+  no_appearance.skip = true;
+  for (int r = 0;; ++r) {
+    report.sampled = run_sample_rounds(scene, rounds, orbits);
+    const auto round_package = work / fmt::format("round-{}.h5", r);
+    const ReduceReport reduced = run_reduce_stage(scene, reduce, no_appearance, orbits, round_package);
+    std::vector<PlayedSchedule> played;
+    AdaptiveRound round;
+    for (const auto& k : rounds) round.irfs += irfs_of(k);
+    round.directed = r == 0 ? 0 : rounds.back().sampling.chains;
+    round.guide = measure_fidelity(scene, reduced.package, stream(first.sampling.seed, kGuide + r),
+                                   o.guide_schedules, o.schedule_items, &played);
+    report.rounds.push_back(round);
+    if (report.writer)
+      fmt::print(stderr, "adaptive round {}: {} IRFs, guide schedules median NRMSE {:.3f}, 90th {:.3f}, {:.0f} % "
+                 "of moving segments in range\n", r, round.irfs, round.guide.median_nrmse, round.guide.p90_nrmse,
+                 100 * round.guide.moving_in_range());
+    if (round.guide.meets(o.target)) {
+      report.met = true;
+      report.stopped = "target met on the guide schedules";
+      break;
+    }
+    if (o.budget_minutes > 0 && clock.seconds() >= 60 * o.budget_minutes) {
+      report.stopped = "time budget spent";
+      break;
+    }
+    auto next = next_round(first, o, played, r, round.irfs, work);
+    if (!next) {
+      report.stopped = directed_lead_ins(played, o.target, 1).empty()
+                           ? "no guide segment left that plays out of the target"
+                           : "IRF budget spent";
+      break;
+    }
+    rounds.push_back(std::move(*next));
+  }
+  return report;
+}
+
+}  // namespace phasecast::precompute
