@@ -31,6 +31,12 @@ using Reader = h5::Reader;
 
 // The version the file was written in: today's, or one package_upgrade.h reads.
 int stored_format_version(const Reader& r) {
+  // Orbit stores and transfer files name their format; packages do not.
+  if (r.file().has_attribute("format")) {
+    r.fail("/@format", fmt::format("a '{}' file, not a scene package (expected the output of phasecast-precompute "
+                                   "run or reduce)",
+                                   r.text("format")));
+  }
   const double version = r.number("format_version");
   if (version != kFormatVersion && version != kOldestFormatVersion) {
     r.fail("/@format_version", fmt::format("unknown format_version {} (this build reads {} to {})", version,

@@ -137,6 +137,13 @@ TEST_F(PackageFileRejection, UnknownFormatVersion) {
               HasSubstr("/@format_version: unknown format_version 3 (this build reads 1 to 2)"));
 }
 
+TEST_F(PackageFileRejection, AnotherPhasecastFileIsNamed) {
+  core::h5::File::open_write(path_).write_attribute("format", std::string("phasecast-orbits"));
+  EXPECT_THAT(package_rejection(path_),
+              HasSubstr("/@format: a 'phasecast-orbits' file, not a scene package (expected the output of "
+                        "phasecast-precompute run or reduce)"));
+}
+
 TEST_F(PackageFileRejection, MissingAttribute) {
   core::h5::File::open_write(path_).remove_attribute("dt");
   EXPECT_THAT(package_rejection(path_), HasSubstr("/@dt: missing root attribute"));
