@@ -6,6 +6,7 @@
 #include "phasecast/precompute/distributed/ranks.h"
 #include "phasecast/precompute/sampling/obj_frames.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "phasecast/precompute/sampling/palette_rules.h"
 #include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "tet_report.h"
@@ -29,6 +30,7 @@ struct SimulateOptions {
 void run_simulate(const SimulateOptions& o) {
   using namespace phasecast::precompute;
   const Scene scene = load_scene_file(o.scene);
+  make_palette_rules(scene);  // the palette's rules are checked as run checks them, before any simulation
   const auto schedule = parse_schedule(o.schedule, scene);
   fmt::print(stderr, "{}: {} vertices, {} surface triangles, {} tetrahedra, {} palette entries, {} IRFs\n",
              scene.name, scene.model.vertices(), scene.model.surface.rows(), scene.model.tets.size(),

@@ -10,21 +10,22 @@
 namespace phasecast::precompute {
 namespace {
 
-std::string known_names(const Scene& scene, bool with_rest) {
-  std::string s = with_rest ? "rest" : "";
+// `words`: what the field takes besides entry names ("rest" in after, "rest, hold" in on_end).
+std::string known_names(const Scene& scene, const std::string& words) {
+  std::string s = words;
   for (const auto& e : scene.palette) s += (s.empty() ? "" : ", ") + e.name;
   return s;
 }
 
 int entry_named(const Scene& scene, const PaletteEntry& entry, const std::string& field,
-                const std::string& name, bool with_rest) {
+                const std::string& name, bool with_rest, const std::string& words = "") {
   for (size_t i = 0; i < scene.palette.size(); ++i) {
     if (scene.palette[i].name == name) return static_cast<int>(i);
   }
   if (with_rest && name == "rest") return -1;
   throw SceneError(fmt::format("{}: palette entry '{}': field '{}': unknown name '{}' (expected {})",
                                scene.source.string(), entry.name, field, name,
-                               known_names(scene, with_rest)));
+                               known_names(scene, words.empty() && with_rest ? "rest" : words)));
 }
 
 }  // namespace
@@ -98,7 +99,7 @@ PaletteRules make_palette_rules(const Scene& scene) {
     } else if (e.on_end == "hold") {
       rules.on_end.push_back(core::kEndHold);
     } else {
-      const int next = entry_named(scene, e, "on_end", e.on_end, false);
+      const int next = entry_named(scene, e, "on_end", e.on_end, false, "rest, hold");
       if (!rules.allowed(d, next)) {
         throw SceneError(
             fmt::format("{}: palette entry '{}': field 'on_end': follow-up '{}' must list '{}' in "

@@ -2,8 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <vector>
 
 namespace phasecast::precompute::detail {
 namespace {
@@ -33,18 +35,47 @@ std::optional<double> as_number(const toml::node& n) {
   return std::nullopt;
 }
 
+// Levenshtein distance: how many single-character edits make `a` into `b`.
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// A misspelling is at most two edits away (and shorter keys need closer ones).
+bool close_enough(const std::string& a, const std::string& b) {
+  const size_t d = edit_distance(a, b);
+  return d > 0 && d <= std::min<size_t>(2, std::max(a.size(), b.size()) / 3);
+}
+
 }  // namespace
 
 Fields::Fields(const toml::table& table, std::string file, std::string prefix)
     : table_(&table), file_(std::move(file)), prefix_(std::move(prefix)) {}
 
 bool Fields::has(const std::string& key) const {
+  known_.insert(key);
   return table_->contains(key);
 }
 
 std::string Fields::got(const std::string& key) const {
-  const toml::node* n = table_->get(key);
-  return n ? describe(*n) : "nothing (missing)";
+  if (const toml::node* n = table_->get(key)) return describe(*n);
+  // A key of the file nobody asked for, a typo away: the likely cause.
+  for (const auto& [other, value] : *table_) {
+    const std::string name(other.str());
+    if (!known_.count(name) && close_enough(name, key))
+      return fmt::format("nothing (missing; the file has '{}', misspelt?)", path(name));
+  }
+  return "nothing (missing)";
 }
 
 void Fields::fail(const std::string& key, const std::string& expected) const {
@@ -53,6 +84,7 @@ void Fields::fail(const std::string& key, const std::string& expected) const {
 
 const toml::node* Fields::node(const std::string& key) {
   used_.insert(key);
+  known_.insert(key);
   return table_->get(key);
 }
 
@@ -190,10 +222,14 @@ std::vector<Fields> Fields::tables(const std::string& key) {
 
 void Fields::finish() const {
   for (const auto& [key, value] : *table_) {
-    if (!used_.count(std::string(key.str()))) {
-      throw SceneError(
-          fmt::format("{}: field '{}': unknown field (misspelt?)", file_, path(std::string(key.str()))));
-    }
+    const std::string name(key.str());
+    if (used_.count(name)) continue;
+    std::string nearest;
+    for (const auto& k : known_)
+      if (close_enough(name, k) && (nearest.empty() || edit_distance(name, k) < edit_distance(name, nearest)))
+        nearest = k;
+    throw SceneError(fmt::format("{}: field '{}': unknown field ({})", file_, path(name),
+                                 nearest.empty() ? "misspelt?" : fmt::format("did you mean '{}'?", path(nearest))));
   }
 }
 

@@ -206,6 +206,13 @@ TEST(PipelineCli, BadRuleInSceneIsOneLine) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_TRUE(one_line(r.err)) << r.err;
   EXPECT_NE(r.err.find("field 'on_end': unknown name 'halt'"), std::string::npos) << r.err;
+  // simulate reads the same rules, with the same line.
+  const auto sim = run_tool("phasecast-precompute", {"simulate", scene, "--schedule", "open 0.1", "-o",
+                                                     (dir / "sim.h5").string()});
+  EXPECT_EQ(sim.exit_code, 1);
+  EXPECT_NE(sim.err.find("field 'on_end': unknown name 'halt' (expected rest, hold, close, stop, open)"),
+            std::string::npos)
+      << sim.err;
 }
 
 TEST(PipelineCli, BadNumbersAreOneLine) {

@@ -344,6 +344,16 @@ TEST(SceneErrors, MisspeltField) {
             ": field 'body[0].young_modulus': unknown field (misspelt?)");
 }
 
+// A key a typo away from a known one is named with it, whether the known key
+// is required (its error names the typo) or optional (the typo's names it).
+TEST(SceneErrors, AMisspeltKeyIsNamedWithTheKnownOne) {
+  EXPECT_EQ(rejection("typo_required", edited(kValid, "frame_dt = 0.02", "frame_dtt = 0.02")),
+            ": field 'simulation.frame_dt': expected a positive number, got nothing (missing; the file has "
+            "'simulation.frame_dtt', misspelt?)");
+  EXPECT_EQ(rejection("typo_optional", edited(kValid, "young = 100", "young = 100\ndensty = 3")),
+            ": field 'body[0].densty': unknown field (did you mean 'body[0].density'?)");
+}
+
 TEST(SceneErrors, TomlSyntaxErrorNamesLineAndColumn) {
   EXPECT_NE(rejection("syntax", edited(kValid, "frame_dt = 0.02", "frame_dt = = 0.02")).find(":3:"),
             std::string::npos);

@@ -41,7 +41,7 @@ class Fields {
   Fields table(const std::string& key);
   std::vector<Fields> tables(const std::string& key);  // array of tables; empty when absent
 
-  void mark_used(const std::string& key) { used_.insert(key); }
+  void mark_used(const std::string& key) { used_.insert(key), known_.insert(key); }
   void finish() const;
   const std::string& file() const { return file_; }
   const std::string& prefix() const { return prefix_; }
@@ -53,6 +53,8 @@ class Fields {
   std::string file_;
   std::string prefix_;
   std::set<std::string> used_;
+  // Every key asked for, present or not: what a misspelt key is compared with.
+  mutable std::set<std::string> known_;
 };
 
 }  // namespace phasecast::precompute::detail
