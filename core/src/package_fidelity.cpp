@@ -61,7 +61,8 @@ std::optional<PlaybackFidelity> read_fidelity(const h5::Reader& r) {
 
 void write_fidelity(h5::File& f, const PlaybackFidelity& p) {
   const auto counts = counts_of(p);
-  for (size_t i = 0; i < counts.size(); ++i) f.write(kFidelityCounts[i], std::vector<std::int32_t>{counts[i]});
+  for (size_t i = 0; i < counts.size(); ++i)
+    f.write(kFidelityCounts[i], std::vector<std::int32_t>{counts[i]});
   f.write(kFidelitySeed, std::vector<double>{p.seed});
   f.write(kFidelityNrmse[0], std::vector<float>{p.median_nrmse});
   f.write(kFidelityNrmse[1], std::vector<float>{p.p90_nrmse});

@@ -12,9 +12,9 @@ namespace phasecast::core {
 
 inline constexpr const char* kFidelityGroup = "/fidelity";
 // Required in the group: the counts (i32), the seed (f64), the NRMSE figures (f32).
-inline constexpr const char* kFidelityCounts[] = {"/fidelity/schedules", "/fidelity/items", "/fidelity/moving",
-                                                  "/fidelity/moving_within", "/fidelity/switches",
-                                                  "/fidelity/switches_within"};
+inline constexpr const char* kFidelityCounts[] = {"/fidelity/schedules", "/fidelity/items",
+                                                  "/fidelity/moving",    "/fidelity/moving_within",
+                                                  "/fidelity/switches",  "/fidelity/switches_within"};
 inline constexpr const char* kFidelitySeed = "/fidelity/seed";
 inline constexpr const char* kFidelityNrmse[] = {"/fidelity/median_nrmse", "/fidelity/p90_nrmse"};
 // Together or not at all: adaptive sampling's target (f32), IRFs and rounds (i32), whether it was met (u8).

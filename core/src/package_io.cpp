@@ -33,9 +33,10 @@ using Reader = h5::Reader;
 int stored_format_version(const Reader& r) {
   // Orbit stores and transfer files name their format; packages do not.
   if (r.file().has_attribute("format")) {
-    r.fail("/@format", fmt::format("a '{}' file, not a scene package (expected the output of phasecast-precompute "
-                                   "run or reduce)",
-                                   r.text("format")));
+    r.fail("/@format",
+           fmt::format("a '{}' file, not a scene package (expected the output of phasecast-precompute "
+                       "run or reduce)",
+                       r.text("format")));
   }
   const double version = r.number("format_version");
   if (version != kFormatVersion && version != kOldestFormatVersion) {

@@ -73,7 +73,9 @@ std::string curve_text(const PackageSummary& s) {
   return fmt::format("{}", fmt::join(points, ", "));
 }
 
-double nan_if_absent(const std::optional<float>& v) { return v ? *v : std::nan(""); }
+double nan_if_absent(const std::optional<float>& v) {
+  return v ? *v : std::nan("");
+}
 
 // The held-out truth's lines of to_text().
 std::string held_out_text(const PackageSummary& s, const HeldOutFigures& h) {
@@ -82,12 +84,15 @@ std::string held_out_text(const PackageSummary& s, const HeldOutFigures& h) {
     out += "             " + fmt::format(f, std::forward<Args>(args)...) + "\n";
   };
   const auto nodes = static_cast<int>(h.nodes.size());
-  line("held-out truth ({} other nodes): error {:.3g}% = truncation {:.3g}% + interpolation {:.3g}% "
-       "(in quadrature, of |M - M-bar|); {:.3g}% of |M|",
-       nodes, 100 * h.total, 100 * h.truncation, 100 * h.interpolation, 100 * h.of_transfer);
+  line(
+      "held-out truth ({} other nodes): error {:.3g}% = truncation {:.3g}% + interpolation {:.3g}% "
+      "(in quadrature, of |M - M-bar|); {:.3g}% of |M|",
+      nodes, 100 * h.total, 100 * h.truncation, 100 * h.interpolation, 100 * h.of_transfer);
   if (h.l2_total && h.l2_truncation)
-    line("held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, of which truncation {:.3g}%",
-         100 * *h.l2_total, 100 * *h.l2_truncation);
+    line(
+        "held-out in the paper's relErr (relative l2 norm over those nodes): {:.3g}%, of which truncation "
+        "{:.3g}%",
+        100 * *h.l2_total, 100 * *h.l2_truncation);
   if (h.l2_total_spread && h.l2_truncation_spread)
     line("over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%, truncation {:.3g}-{:.3g}%",
          100 * h.l2_total_spread->p10, 100 * h.l2_total_spread->p90, 100 * h.l2_truncation_spread->p10,
@@ -99,20 +104,22 @@ std::string held_out_text(const PackageSummary& s, const HeldOutFigures& h) {
                                           s.transfer_weighting == "equal" ? ": sigma_{r+1}/sigma_1" : ""),
          100 * *h.clusters_l2_truncation);
   if (h.l2_floor)
-    line("the least any rank-{} model about M-bar reaches at those nodes (sigma_{{r+1}}/sigma_1 of their "
-         "M - M-bar): {:.3g}%",
-         s.rank_a, 100 * *h.l2_floor);
+    line(
+        "the least any rank-{} model about M-bar reaches at those nodes (sigma_{{r+1}}/sigma_1 of their "
+        "M - M-bar): {:.3g}%",
+        s.rank_a, 100 * *h.l2_floor);
   if (h.of_variation && h.l2_of_variation && h.l2_floor_of_variation)
-    line("of the nodes' own variation |M - their mean| (moves with no model): error {:.3g}%, relative l2 "
-         "{:.3g}%; the least any rank-{} model reaches there, whatever its mean, {:.3g}%",
-         100 * *h.of_variation, 100 * *h.l2_of_variation, s.rank_a, 100 * *h.l2_floor_of_variation);
+    line(
+        "of the nodes' own variation |M - their mean| (moves with no model): error {:.3g}%, relative l2 "
+        "{:.3g}%; the least any rank-{} model reaches there, whatever its mean, {:.3g}%",
+        100 * *h.of_variation, 100 * *h.l2_of_variation, s.rank_a, 100 * *h.l2_floor_of_variation);
   if (h.l2_of_variation_spread)
     line("of their own variation over resampled nodes (10th-90th percentile): relative l2 {:.3g}-{:.3g}%",
          100 * h.l2_of_variation_spread->p10, 100 * h.l2_of_variation_spread->p90);
   if (h.truncation_curve.size() > 0)
     line("held-out truncation by rank (Fig. 12 out of sample, relative l2): {}",
-         held_out_curve_text(std::vector<double>(h.truncation_curve.begin(), h.truncation_curve.end()), s.rank_a,
-                             s.paper_rank_a, nan_if_absent(h.clusters_l2_truncation)));
+         held_out_curve_text(std::vector<double>(h.truncation_curve.begin(), h.truncation_curve.end()),
+                             s.rank_a, s.paper_rank_a, nan_if_absent(h.clusters_l2_truncation)));
   return out;
 }
 
@@ -177,14 +184,16 @@ namespace {
 
 std::string fidelity_line(const PlaybackFidelity& f) {
   std::string out = fmt::format(
-      "fidelity     playback vs the full simulation over {} random schedules of {} entries (seed {:.0f}): median "
+      "fidelity     playback vs the full simulation over {} random schedules of {} entries (seed {:.0f}): "
+      "median "
       "NRMSE {:.3f}, 90th percentile {:.3f}; {} of {} moving segments within [0.67, 1.5] of the simulated "
       "motion, {} of {} switches within 2x the local motion\n",
       f.schedules, f.items, f.seed, f.median_nrmse, f.p90_nrmse, f.moving_within, f.moving, f.switches_within,
       f.switches);
   if (f.target_median_nrmse)
-    out += fmt::format("             sampled adaptively towards median NRMSE {:.3f}: {} after {} IRFs in {} rounds\n",
-                       *f.target_median_nrmse, f.target_met ? "met" : "not met", f.sampled_irfs, f.rounds);
+    out += fmt::format(
+        "             sampled adaptively towards median NRMSE {:.3f}: {} after {} IRFs in {} rounds\n",
+        *f.target_median_nrmse, f.target_met ? "met" : "not met", f.sampled_irfs, f.rounds);
   return out;
 }
 

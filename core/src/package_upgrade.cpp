@@ -67,8 +67,8 @@ void check_v1_curve_length(const h5::Reader& r, std::uint64_t K) {
   const auto r_a = std::max<std::uint64_t>(r.require("/appearance/U_a", Dtype::f32, 2).dims[1], 1);
   const auto Na = r.require("/appearance/cluster_nodes", Dtype::i32, 1).dims[0];
   if (K < r_a || K + 1 > Na)
-    r.fail(kV1Curve, fmt::format("expected at least r_a = {} and at most N_a - 1 = {} values, got {}", r_a,
-                                 Na - 1, K));
+    r.fail(kV1Curve,
+           fmt::format("expected at least r_a = {} and at most N_a - 1 = {} values, got {}", r_a, Na - 1, K));
 }
 
 std::optional<HeldOutFigures> upgrade_v1_held_out(const h5::Reader& r) {

@@ -186,7 +186,8 @@ void check_held_out_shapes(const ShapeChecker& s, std::uint64_t r_a, std::uint64
     return s.has(kHeldOutCurve);
   };
   if (!s.has(kHeldOutNodes)) {
-    if (any_figure()) s.checker().fail(kHeldOutNodes, "expected the nodes of the held-out figures beside them");
+    if (any_figure())
+      s.checker().fail(kHeldOutNodes, "expected the nodes of the held-out figures beside them");
     return;
   }
   for (const auto& f : kHeldOutFigures) s.length(f.name, 1, "1 (a figure)");
@@ -199,8 +200,9 @@ void check_held_out_shapes(const ShapeChecker& s, std::uint64_t r_a, std::uint64
     // at most N_a - 1 (the centred fields sum to 0 under any weighting).
     const std::uint64_t K = s.dim(kHeldOutCurve, 0);
     if (K < std::max<std::uint64_t>(r_a, 1) || K + 1 > Na)
-      s.checker().fail(kHeldOutCurve, fmt::format("expected at least r_a = {} and at most N_a - 1 = {} values, got {}",
-                                                  std::max<std::uint64_t>(r_a, 1), Na - 1, K));
+      s.checker().fail(kHeldOutCurve,
+                       fmt::format("expected at least r_a = {} and at most N_a - 1 = {} values, got {}",
+                                   std::max<std::uint64_t>(r_a, 1), Na - 1, K));
   }
 }
 
@@ -386,12 +388,14 @@ void check_held_out_truncation_curve(const Checker& c, const HeldOutFigures& h, 
   constexpr float kRoundOff = 1e-3f;
   for (Eigen::Index i = 0; i < curve.size(); ++i) {
     if (!(curve[i] >= 0 && curve[i] <= 1 + kRoundOff))
-      c.fail(kHeldOutCurve, fmt::format("expected relative errors in [0, 1], got {} at rank {}", curve[i], i + 1));
+      c.fail(kHeldOutCurve,
+             fmt::format("expected relative errors in [0, 1], got {} at rank {}", curve[i], i + 1));
     if (i > 0 && curve[i] > curve[i - 1] + kRoundOff)
-      c.fail(kHeldOutCurve, fmt::format("expected no rise with the rank, got {} at rank {} after {}", curve[i],
-                                        i + 1, curve[i - 1]));
+      c.fail(kHeldOutCurve, fmt::format("expected no rise with the rank, got {} at rank {} after {}",
+                                        curve[i], i + 1, curve[i - 1]));
   }
-  if (curve.size() > 0 && r_a > 0 && h.l2_truncation && std::abs(curve[r_a - 1] - *h.l2_truncation) > kRoundOff)
+  if (curve.size() > 0 && r_a > 0 && h.l2_truncation &&
+      std::abs(curve[r_a - 1] - *h.l2_truncation) > kRoundOff)
     c.fail(kHeldOutCurve, fmt::format("expected {} at r_a = {} (the held-out l2_truncation), got {}",
                                       *h.l2_truncation, r_a, curve[r_a - 1]));
 }
@@ -600,13 +604,13 @@ namespace {
 
 // Counts >= 0 with each "within" at most its whole; NRMSE figures finite, >= 0, median <= 90th.
 void check_fidelity(const Checker& c, const PlaybackFidelity& p) {
-  for (const auto& [name, v] : {std::pair{"/fidelity/schedules", p.schedules}, std::pair{"/fidelity/items", p.items},
-                                std::pair{"/fidelity/sampled_irfs", p.sampled_irfs},
-                                std::pair{"/fidelity/rounds", p.rounds}})
+  for (const auto& [name, v] :
+       {std::pair{"/fidelity/schedules", p.schedules}, std::pair{"/fidelity/items", p.items},
+        std::pair{"/fidelity/sampled_irfs", p.sampled_irfs}, std::pair{"/fidelity/rounds", p.rounds}})
     if (v < 0) c.fail(name, fmt::format("expected a count >= 0, got {}", v));
   if (!(p.moving_within >= 0 && p.moving_within <= p.moving))
-    c.fail("/fidelity/moving_within", fmt::format("expected 0..{} (the moving segments), got {}", p.moving,
-                                                   p.moving_within));
+    c.fail("/fidelity/moving_within",
+           fmt::format("expected 0..{} (the moving segments), got {}", p.moving, p.moving_within));
   if (!(p.switches_within >= 0 && p.switches_within <= p.switches))
     c.fail("/fidelity/switches_within",
            fmt::format("expected 0..{} (the switches), got {}", p.switches, p.switches_within));
@@ -617,7 +621,8 @@ void check_fidelity(const Checker& c, const PlaybackFidelity& p) {
   if (!(p.seed >= 0 && p.seed == std::floor(p.seed) && p.seed < 9007199254740992.0))
     c.fail("/fidelity/seed", fmt::format("expected a whole number in [0, 2^53), got {}", p.seed));
   if (p.target_median_nrmse && !(*p.target_median_nrmse > 0 && std::isfinite(*p.target_median_nrmse)))
-    c.fail("/fidelity/target_median_nrmse", fmt::format("expected a finite NRMSE > 0, got {}", *p.target_median_nrmse));
+    c.fail("/fidelity/target_median_nrmse",
+           fmt::format("expected a finite NRMSE > 0, got {}", *p.target_median_nrmse));
 }
 
 }  // namespace

@@ -23,8 +23,8 @@ struct Options {
   AppearanceChoices appearance;
   std::optional<double> until_fidelity;  // the median NRMSE target of adaptive sampling
   AdaptiveOptions adaptive;
-  int held_out_schedules = -1;           // -1: 20 with --until-fidelity, else none
-  std::uint64_t fidelity_seed = 0;       // 0: derived from --seed (below 2^53: the package stores it as a double)
+  int held_out_schedules = -1;      // -1: 20 with --until-fidelity, else none
+  std::uint64_t fidelity_seed = 0;  // 0: derived from --seed (below 2^53: the package stores it as a double)
 };
 
 // The held-out schedules' stream: never the sampler's, never the guides'.
@@ -33,12 +33,14 @@ std::uint64_t held_out_seed(const Options& o) {
 }
 
 void add_fidelity_options(CLI::App* cmd, Options& o) {
-  cmd->add_option("--until-fidelity", o.until_fidelity,
-                  "sample until random guide schedules play at this median NRMSE (90th percentile + 0.1, 95 % "
-                  "of moving segments in range), spending new IRFs where playback departs from the "
-                  "simulation (docs/sampling.md, \"Adaptive sampling\"); needs --budget-irfs or --budget-minutes")
+  cmd->add_option(
+         "--until-fidelity", o.until_fidelity,
+         "sample until random guide schedules play at this median NRMSE (90th percentile + 0.1, 95 % "
+         "of moving segments in range), spending new IRFs where playback departs from the "
+         "simulation (docs/sampling.md, \"Adaptive sampling\"); needs --budget-irfs or --budget-minutes")
       ->check(CLI::Range(1e-6, 10.0));
-  cmd->add_option("--budget-irfs", o.adaptive.budget_irfs, "with --until-fidelity: IRFs to sample at most, all rounds")
+  cmd->add_option("--budget-irfs", o.adaptive.budget_irfs,
+                  "with --until-fidelity: IRFs to sample at most, all rounds")
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--budget-minutes", o.adaptive.budget_minutes,
                   "with --until-fidelity: start no round after this many minutes")
@@ -115,7 +117,8 @@ void add_run_command(CLI::App& app) {
     if (reduced.writer) fmt::print("{}", reduce_report_text(reduced));
     const int held_out = o->held_out_schedules >= 0 ? o->held_out_schedules : (o->until_fidelity ? 20 : 0);
     if (held_out > 0) {
-      const auto f = measure_fidelity(scene, reduced.package, held_out_seed(*o), held_out, o->adaptive.schedule_items);
+      const auto f =
+          measure_fidelity(scene, reduced.package, held_out_seed(*o), held_out, o->adaptive.schedule_items);
       if (reduced.writer) {
         fmt::print("{}", fidelity_text(f, "held-out"));
         store_fidelity(f, fidelity, reduced.package, o->output);

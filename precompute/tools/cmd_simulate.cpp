@@ -1,9 +1,9 @@
 // phasecast-precompute simulate: run a scene through a schedule of palette entries.
 
 #include "commands.h"
-#include "phasecast/precompute/pipeline/contact_report.h"
 #include "phasecast/core/progress.h"
 #include "phasecast/precompute/distributed/ranks.h"
+#include "phasecast/precompute/pipeline/contact_report.h"
 #include "phasecast/precompute/sampling/obj_frames.h"
 #include "phasecast/precompute/sampling/orbit_recorder.h"
 #include "phasecast/precompute/sampling/palette_rules.h"

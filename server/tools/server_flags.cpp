@@ -20,7 +20,9 @@ void add_server_options(CLI::App& app, ServerFlags& f) {
                    ? std::string()
                    : "expected a ZeroMQ endpoint such as tcp://host:port, got '" + e + "'";
       });
-  app.add_option("--rate", f.options.rate_hz, "tick rate, Hz")->check(CLI::Range(1e-3, 1e4))->capture_default_str();
+  app.add_option("--rate", f.options.rate_hz, "tick rate, Hz")
+      ->check(CLI::Range(1e-3, 1e4))
+      ->capture_default_str();
   app.add_option("--instances", f.options.instances_per_scene, "instances created per scene at start")
       ->check(CLI::Range(0, 1000000))
       ->capture_default_str();
@@ -35,7 +37,8 @@ void add_server_options(CLI::App& app, ServerFlags& f) {
       ->capture_default_str();
   app.add_option("--blend-lambda", f.lambda, "override the packages' eq. 12 blend rate lambda, 1/s")
       ->check(CLI::Range(0.0, 1e9));
-  app.add_option("--hwm", f.options.pub_high_water_mark, "frames queued per subscriber before it loses frames")
+  app.add_option("--hwm", f.options.pub_high_water_mark,
+                 "frames queued per subscriber before it loses frames")
       ->check(CLI::Range(1, 10000000))
       ->capture_default_str();
   app.add_option("--max-instances", f.options.limits.max_instances,

@@ -120,9 +120,10 @@ TEST_F(InspectCli, PlaybackFidelityIsStoredAndPrinted) {
   core::write_package(package_, path);
   auto text = testing::run_tool("phasecast-inspect", {path.string()});
   ASSERT_EQ(text.exit_code, 0) << text.err;
-  EXPECT_THAT(text.out, HasSubstr("fidelity     playback vs the full simulation over 20 random schedules of 4 "
-                                  "entries (seed 1952813667): median NRMSE 0.056, 90th percentile 0.206; 79 of 80 "
-                                  "moving segments within [0.67, 1.5] of the simulated motion, 76 of 85 switches"));
+  EXPECT_THAT(text.out,
+              HasSubstr("fidelity     playback vs the full simulation over 20 random schedules of 4 "
+                        "entries (seed 1952813667): median NRMSE 0.056, 90th percentile 0.206; 79 of 80 "
+                        "moving segments within [0.67, 1.5] of the simulated motion, 76 of 85 switches"));
   EXPECT_THAT(text.out, ::testing::Not(HasSubstr("sampled adaptively")));
   f.target_median_nrmse = 0.1f;
   f.sampled_irfs = 24;
@@ -136,7 +137,8 @@ TEST_F(InspectCli, PlaybackFidelityIsStoredAndPrinted) {
   EXPECT_EQ(back->sampled_irfs, 24);
   EXPECT_TRUE(back->target_met);
   text = testing::run_tool("phasecast-inspect", {path.string()});
-  EXPECT_THAT(text.out, HasSubstr("sampled adaptively towards median NRMSE 0.100: met after 24 IRFs in 3 rounds"));
+  EXPECT_THAT(text.out,
+              HasSubstr("sampled adaptively towards median NRMSE 0.100: met after 24 IRFs in 3 rounds"));
   const auto j = nlohmann::json::parse(testing::run_tool("phasecast-inspect", {path.string(), "--json"}).out);
   EXPECT_EQ(j["fidelity"]["moving_segments_within"], 79);
   EXPECT_NEAR(j["fidelity"]["p90_nrmse"].get<double>(), 0.206, 1e-7);
@@ -152,7 +154,10 @@ TEST_F(InspectCli, PlaybackFidelityIsStoredAndPrinted) {
   core::h5::File::open_write(path).remove("/fidelity/rounds");
   EXPECT_THAT(testing::package_rejection(path), HasSubstr("/fidelity/rounds: missing dataset"));
   // A package without /fidelity says nothing of it (JSON: null).
-  EXPECT_TRUE(nlohmann::json::parse(testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string(), "--json"}).out)["fidelity"].is_null());
+  EXPECT_TRUE(
+      nlohmann::json::parse(
+          testing::run_tool("phasecast-inspect", {(dir_ / "plate.h5").string(), "--json"}).out)["fidelity"]
+          .is_null());
 }
 
 // Fig. 12 out of sample, as stored: the text names r_a and the paper's r_a

@@ -116,8 +116,9 @@ TEST_F(PackageUpgrade, LengthsNoVersionOneWriterMadeAreOneLineErrors) {
   }
   SetUp();
   write_v1(11, 3, 0);
-  EXPECT_THAT(testing::package_rejection(path_),
-              HasSubstr("/appearance/held_out_spread: expected 4 or 6 percentiles (format_version 1), got 3"));
+  EXPECT_THAT(
+      testing::package_rejection(path_),
+      HasSubstr("/appearance/held_out_spread: expected 4 or 6 percentiles (format_version 1), got 3"));
   SetUp();
   core::h5::File::open_write(path_).write("/appearance/held_out_spread", counting(4, 1000));
   EXPECT_THAT(testing::package_rejection(path_),

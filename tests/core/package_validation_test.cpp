@@ -167,8 +167,9 @@ TEST_F(PackageFileRejection, OptionalAppearanceFiguresOfTheWrongLength) {
     core::h5::File::open_write(path_).write("/appearance/held_out/" + name, values);
   };
   figure("l2_total_spread", {0.1f, 0.1f, 0.1f});
-  EXPECT_THAT(package_rejection(path_),
-              HasSubstr("/appearance/held_out/nodes: expected the nodes of the held-out figures beside them"));
+  EXPECT_THAT(
+      package_rejection(path_),
+      HasSubstr("/appearance/held_out/nodes: expected the nodes of the held-out figures beside them"));
   core::h5::File::open_write(path_).write("/appearance/held_out/nodes", std::vector<std::int32_t>{1, 2});
   EXPECT_THAT(package_rejection(path_), HasSubstr("/appearance/held_out/total: missing dataset"));
   for (const char* name : {"total", "truncation", "interpolation", "of_transfer"}) figure(name, {0.1f});
@@ -355,15 +356,17 @@ TEST_F(PackageRule, HeldOutFiguresAreFiniteErrorsAndOrderedPercentiles) {
   h.l2_of_variation_spread = core::Percentiles{0.2f, 0.3f};
   EXPECT_EQ(invalid(p), "");
   h.l2_of_variation_spread = core::Percentiles{0.4f, 0.3f};
-  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out/l2_of_variation_spread: expected the 10th percentile "
-                                    "<= the 90th"));
+  EXPECT_THAT(invalid(p),
+              HasSubstr("/appearance/held_out/l2_of_variation_spread: expected the 10th percentile "
+                        "<= the 90th"));
   h.l2_of_variation_spread.reset();
   h.l2_total_spread->p10 = std::nanf("");
   EXPECT_THAT(invalid(p),
               HasSubstr("/appearance/held_out/l2_total_spread: expected a finite error >= 0, got nan"));
   h.l2_total_spread.reset();
   h.interpolation = -0.1f;
-  EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out/interpolation: expected a finite error >= 0, got -0.1"));
+  EXPECT_THAT(invalid(p),
+              HasSubstr("/appearance/held_out/interpolation: expected a finite error >= 0, got -0.1"));
   h.interpolation = 0.1f;
   h.l2_floor = std::numeric_limits<float>::infinity();
   EXPECT_THAT(invalid(p), HasSubstr("/appearance/held_out/l2_floor: expected a finite error >= 0, got inf"));

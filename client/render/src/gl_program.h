@@ -33,7 +33,8 @@ class GlProgram {
 // A vertex program with radiance.frag; `capture`: record world_position and
 // radiance by transform feedback. Throws RenderError naming the shader whose
 // compile or link failed, with the first line of GL's log.
-GlProgram link_vertex_program(const GlFunctions& gl, std::string_view vertex, const char* vertex_name, bool capture);
+GlProgram link_vertex_program(const GlFunctions& gl, std::string_view vertex, const char* vertex_name,
+                              bool capture);
 
 // A vertex and a fragment shader of their own.
 GlProgram link_program(const GlFunctions& gl, std::string_view vertex, const char* vertex_name,

@@ -26,12 +26,14 @@ float srgb_encode(double linear) {
 GroundPlane::GroundPlane(const GlFunctions& gl, const ClientBasis& basis, float scene_radius)
     : gl_(gl),
       radius_(scene_radius),
-      program_(link_program(gl, shaders::backdrop_vert, "backdrop.vert", shaders::backdrop_frag, "backdrop.frag")),
+      program_(
+          link_program(gl, shaders::backdrop_vert, "backdrop.vert", shaders::backdrop_frag, "backdrop.frag")),
       vao_(gl) {
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
   Eigen::Vector3f hi = -lo;
   for (std::size_t v = 0; v < static_cast<std::size_t>(basis.points); ++v) {
-    const Eigen::Vector3f x(basis.mean_shape[3 * v], basis.mean_shape[3 * v + 1], basis.mean_shape[3 * v + 2]);
+    const Eigen::Vector3f x(basis.mean_shape[3 * v], basis.mean_shape[3 * v + 1],
+                            basis.mean_shape[3 * v + 2]);
     lo = lo.cwiseMin(x);
     hi = hi.cwiseMax(x);
   }
@@ -39,7 +41,8 @@ GroundPlane::GroundPlane(const GlFunctions& gl, const ClientBasis& basis, float 
   centre_ = {0.5f * (lo.x() + hi.x()), 0.5f * (lo.z() + hi.z())};
 }
 
-void GroundPlane::draw(const Camera& camera, int width, int height, const ShLight& light, float exposure) const {
+void GroundPlane::draw(const Camera& camera, int width, int height, const ShLight& light,
+                       float exposure) const {
   if (!(camera.eye.y() > height_)) return;
   // The square's corners bound its view depths: near and far planes around them.
   const float extent = kGroundExtent * radius_;

@@ -132,12 +132,11 @@ void NetworkSession::run() {
   while (keep_going()) {
     check_give_up();
     const auto left = milliseconds_of(o_.give_up_after_s - seconds_since(last_rendered_));
-    auto frame =
-        subscriber_->receive(std::max(std::chrono::milliseconds(1), std::min(left, frame_timeout_)));
+    auto frame = subscriber_->receive(std::max(std::chrono::milliseconds(1), std::min(left, frame_timeout_)));
     if (subscriber_->take_reconnected()) {
       ++reconnects_;
-      const bool resubscribed = recheck(
-          fmt::format("the frame connection to {} was lost and made again", sub_.pub_endpoint), true);
+      const bool resubscribed =
+          recheck(fmt::format("the frame connection to {} was lost and made again", sub_.pub_endpoint), true);
       if (resubscribed) continue;  // `frame` came through the old subscription
       restart_explained_ = true;   // the new server's first frame steps back: already checked
     }
@@ -271,8 +270,7 @@ void NetworkSession::reconnect(const std::string& why) {
 
 // Takes `next` as the subscription, with new bases if their hash changed.
 bool NetworkSession::adopt(const Subscription& next, bool resubscribe, bool announce) {
-  const bool changed =
-      next.scene.content_hash() != basis_.content_hash || next.scene.name() != basis_.scene;
+  const bool changed = next.scene.content_hash() != basis_.content_hash || next.scene.name() != basis_.scene;
   if (changed) {
     fmt::print(log_, "phasecast-render: bases changed (hash {:016x} -> {:016x}); downloading again\n",
                basis_.content_hash, next.scene.content_hash());
@@ -281,8 +279,7 @@ bool NetworkSession::adopt(const Subscription& next, bool resubscribe, bool anno
     keep_sizes_only(fresh);
     basis_ = std::move(fresh);
   } else if (announce) {
-    fmt::print(log_, "phasecast-render: reconnected; bases unchanged (hash {:016x})\n",
-               basis_.content_hash);
+    fmt::print(log_, "phasecast-render: reconnected; bases unchanged (hash {:016x})\n", basis_.content_hash);
   }
   log_.flush();
   resubscribe =

@@ -275,8 +275,10 @@ core::HeldOutFigures held_out_figures(const TruthError& e, const HeldOutTruth& t
   }
   if (!spread) return h;
   h.l2_total_spread = core::Percentiles{single(spread->l2_total[0]), single(spread->l2_total[1])};
-  h.l2_truncation_spread = core::Percentiles{single(spread->l2_truncation[0]), single(spread->l2_truncation[1])};
-  if (const auto& own = spread->l2_of_variation) h.l2_of_variation_spread = core::Percentiles{single((*own)[0]), single((*own)[1])};
+  h.l2_truncation_spread =
+      core::Percentiles{single(spread->l2_truncation[0]), single(spread->l2_truncation[1])};
+  if (const auto& own = spread->l2_of_variation)
+    h.l2_of_variation_spread = core::Percentiles{single((*own)[0]), single((*own)[1])};
   return h;
 }
 

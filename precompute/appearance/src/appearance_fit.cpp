@@ -52,9 +52,9 @@ MatrixXfR cluster_centers(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansRe
   return centers;
 }
 
-std::vector<Interpolant> tune_interpolants(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
-                                           const MatrixXfR& centers, const MatrixXfR& samples,
-                                           InterpolantChoice choice,
+std::vector<Interpolant> tune_interpolants(const Eigen::Ref<const MatrixXfR>& q_u,
+                                           const KMeansResult& clusters, const MatrixXfR& centers,
+                                           const MatrixXfR& samples, InterpolantChoice choice,
                                            const std::function<void(const char*, long, long)>& progress) {
   std::vector<Interpolant> out;
   const bool all = choice == InterpolantChoice::best;

@@ -90,8 +90,9 @@ std::optional<PairedGain> keep_equal_within_noise(std::vector<CandidateReport>& 
 
 // A candidate with its errors at the picking half (which chooses) and the
 // reported half (which never does).
-CandidateReport measured(CandidateReport c, const TransferReduction& reduction, const Eigen::Ref<const MatrixXfR>& q_u,
-                         const HeldOutTruth& selection, const HeldOutTruth& test) {
+CandidateReport measured(CandidateReport c, const TransferReduction& reduction,
+                         const Eigen::Ref<const MatrixXfR>& q_u, const HeldOutTruth& selection,
+                         const HeldOutTruth& test) {
   if (!selection.nodes.empty())
     c.selection =
         truth_error(reduction, selection, evaluate_interpolant(c.interpolant, rows_of(q_u, selection.nodes)));

@@ -142,7 +142,8 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
 
 std::string fidelity_text(const FidelityFigures& f, const char* which) {
   return fmt::format(
-      "fidelity ({}, {} random schedules of {} entries, seed {}): median NRMSE {:.3f}, 90th percentile {:.3f}, "
+      "fidelity ({}, {} random schedules of {} entries, seed {}): median NRMSE {:.3f}, 90th percentile "
+      "{:.3f}, "
       "{} of {} moving segments ({:.0f} %) within [0.67, 1.5] of the simulated motion, {} of {} switches "
       "within 2x the local motion\n",
       which, f.schedules, f.items, f.seed, f.median_nrmse, f.p90_nrmse, f.moving_within, f.moving,
@@ -206,8 +207,10 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
                                    o.guide_schedules, o.schedule_items, &played);
     report.rounds.push_back(round);
     if (report.writer)
-      fmt::print(stderr, "adaptive round {}: {} IRFs, guide schedules median NRMSE {:.3f}, 90th {:.3f}, {:.0f} % "
-                 "of moving segments in range\n", r, round.irfs, round.guide.median_nrmse, round.guide.p90_nrmse,
+      fmt::print(stderr,
+                 "adaptive round {}: {} IRFs, guide schedules median NRMSE {:.3f}, 90th {:.3f}, {:.0f} % "
+                 "of moving segments in range\n",
+                 r, round.irfs, round.guide.median_nrmse, round.guide.p90_nrmse,
                  100 * round.guide.moving_in_range());
     if (round.guide.meets(o.target)) {
       report.met = true;

@@ -58,26 +58,24 @@ void check_save_transfers(const AppearanceChoices& a,
   }
 }
 
-AppearanceStageOptions appearance_stage_options(const Scene& scene,
-                                                            const AppearanceChoices& a) {
+AppearanceStageOptions appearance_stage_options(const Scene& scene, const AppearanceChoices& a) {
   auto s = a.stage;
   const auto& d = scene.appearance;
   s.clusters = a.clusters.value_or(d.clusters > 0 ? d.clusters : kDefaultClusters);
   s.held_out = a.held_out.value_or(d.held_out > 0 ? d.held_out : kDefaultHeldOut);
   s.transfer.rays = a.rays.value_or(d.rays > 0 ? d.rays : kDefaultRays);
   s.appearance.reduction.eps_a = a.eps_a.value_or(d.eps_a > 0 ? d.eps_a : kDefaultEpsA);
-  s.appearance.interpolant = named_choice<InterpolantChoice>(
-      "--interpolant", a.interpolant,
-      {{"best", InterpolantChoice::best},
-       {"nrbf", InterpolantChoice::nrbf},
-       {"knn", InterpolantChoice::knn},
-       {"affine-knn", InterpolantChoice::affine_knn},
-       {"affine-knn-slope", InterpolantChoice::affine_knn_slope}});
-  s.appearance.weighting = named_choice<WeightingChoice>(
-      "--transfer-weighting", a.weighting,
-      {{"best", WeightingChoice::best},
-       {"equal", WeightingChoice::equal},
-       {"cluster-size", WeightingChoice::cluster_size}});
+  s.appearance.interpolant =
+      named_choice<InterpolantChoice>("--interpolant", a.interpolant,
+                                      {{"best", InterpolantChoice::best},
+                                       {"nrbf", InterpolantChoice::nrbf},
+                                       {"knn", InterpolantChoice::knn},
+                                       {"affine-knn", InterpolantChoice::affine_knn},
+                                       {"affine-knn-slope", InterpolantChoice::affine_knn_slope}});
+  s.appearance.weighting = named_choice<WeightingChoice>("--transfer-weighting", a.weighting,
+                                                         {{"best", WeightingChoice::best},
+                                                          {"equal", WeightingChoice::equal},
+                                                          {"cluster-size", WeightingChoice::cluster_size}});
   s.paper_rank = d.paper_rank_a;
   s.transfer.point_albedo = scene_point_albedo(scene);
   check_appearance_stage_options(s);

@@ -32,8 +32,9 @@ DisplacementBasis reduce_with_progress(const OrbitDisplacementSource& A, const R
 }
 
 // The appearance stage (§4) on the package, its transfers split over the ranks.
-AppearanceReport run_appearance(const Scene& scene, AppearanceStageOptions stage, const OrbitDisplacementSource& A,
-                                const OrbitIndex& index, const PackageBuild& built, core::ScenePackage& p) {
+AppearanceReport run_appearance(const Scene& scene, AppearanceStageOptions stage,
+                                const OrbitDisplacementSource& A, const OrbitIndex& index,
+                                const PackageBuild& built, core::ScenePackage& p) {
   const Stopwatch appearance_time;
   core::ProgressBar transfer_bar("appearance transfer");
   const auto& ranks = Ranks::world();
@@ -60,8 +61,9 @@ AppearanceReport run_appearance(const Scene& scene, AppearanceStageOptions stage
 
 }  // namespace
 
-ReduceReport run_reduce_stage(const Scene& scene, const ReduceStageOptions& a, const AppearanceChoices& appearance,
-                              const std::filesystem::path& orbits, const std::filesystem::path& package) {
+ReduceReport run_reduce_stage(const Scene& scene, const ReduceStageOptions& a,
+                              const AppearanceChoices& appearance, const std::filesystem::path& orbits,
+                              const std::filesystem::path& package) {
   check_reduction_options(a.reduction);
   check_package_options(a.package);
   check_save_transfers(appearance, {orbits, package});
@@ -83,7 +85,8 @@ ReduceReport run_reduce_stage(const Scene& scene, const ReduceStageOptions& a, c
   report.dropped = built.filter.messages;
   if (report.writer)
     for (const auto& line : report.dropped) fmt::print(stderr, "dropped {}\n", line);
-  if (!appearance.skip) report.appearance = run_appearance(scene, stage_options, A, index, built, built.package);
+  if (!appearance.skip)
+    report.appearance = run_appearance(scene, stage_options, A, index, built, built.package);
   if (report.writer) core::write_package(built.package, package);  // every rank computed it; one writes it
   report.package = std::move(built.package);
   return report;

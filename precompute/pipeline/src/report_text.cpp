@@ -37,7 +37,8 @@ void append_residual_parts(std::string& out, const AppearanceStageReport& report
 
 // The served basis against one of the picking half's own fields, with the
 // paired verdict (a single draw's figures alone would call any difference).
-void append_basis_comparison(std::string& out, const BasisComparison& b, Eigen::Index clusters, Eigen::Index r) {
+void append_basis_comparison(std::string& out, const BasisComparison& b, Eigen::Index clusters,
+                             Eigen::Index r) {
   const auto& g = b.drawn_gain;
   const std::string verdict =
       g.beyond_noise()    ? "the drawn basis is the better one: other states would give a better basis"
@@ -93,20 +94,22 @@ void append_held_out(std::string& out, const core::HeldOutFigures& h, Eigen::Ind
     out += fmt::format(
         "appearance: over resampled held-out nodes (10th-90th percentile) relative l2 {:.4f}-{:.4f}, "
         "truncation alone {:.4f}-{:.4f}{}\n",
-        h.l2_total_spread->p10, h.l2_total_spread->p90, h.l2_truncation_spread->p10, h.l2_truncation_spread->p90,
+        h.l2_total_spread->p10, h.l2_total_spread->p90, h.l2_truncation_spread->p10,
+        h.l2_truncation_spread->p90,
         h.l2_of_variation_spread ? fmt::format("; relative l2 of their own variation {:.4f}-{:.4f}",
                                                h.l2_of_variation_spread->p10, h.l2_of_variation_spread->p90)
                                  : std::string());
   }
   if (const auto& curve = h.truncation_curve; curve.size() > 0) {
     out += fmt::format("appearance: held-out truncation by rank (Fig. 12 out of sample, relative l2): {}\n",
-               core::held_out_curve_text(std::vector<double>(curve.begin(), curve.end()), static_cast<int>(r),
-                                         paper_rank,
-                                         h.clusters_l2_truncation ? *h.clusters_l2_truncation : std::nan("")));
+                       core::held_out_curve_text(
+                           std::vector<double>(curve.begin(), curve.end()), static_cast<int>(r), paper_rank,
+                           h.clusters_l2_truncation ? *h.clusters_l2_truncation : std::nan("")));
   }
 }
 
-void append_appearance_report(std::string& out, const core::Appearance& a, const AppearanceStageReport& report) {
+void append_appearance_report(std::string& out, const core::Appearance& a,
+                              const AppearanceStageReport& report) {
   const int r = a.rank();
   const bool has_next = r > 0 && r < a.singular_values.size() && a.singular_values[0] > 0;
   out += fmt::format(
@@ -123,12 +126,10 @@ void append_appearance_report(std::string& out, const core::Appearance& a, const
     const std::string params =
         f.kind == InterpolantKind::nrbf
             ? fmt::format("width scale {}, lambda {:g}", f.width_scale, f.nrbf.regularization)
-        : has_affine_map(f.kind)
-            ? fmt::format("k = {}, ridge {:g}", f.neighbours, f.nrbf.regularization)
-            : fmt::format("k = {}", f.neighbours);
-    out += fmt::format("  {} weights, interpolant {} ({}): leave-one-out {:.4f}",
-               weighting_name(c.weighting), interpolant_name(f.kind), params,
-               f.leave_one_out);
+        : has_affine_map(f.kind) ? fmt::format("k = {}, ridge {:g}", f.neighbours, f.nrbf.regularization)
+                                 : fmt::format("k = {}", f.neighbours);
+    out += fmt::format("  {} weights, interpolant {} ({}): leave-one-out {:.4f}", weighting_name(c.weighting),
+                       interpolant_name(f.kind), params, f.leave_one_out);
     if (a.held_out)
       out += fmt::format(
           ", held-out error of |M| {:.4f} (picking half) / {:.4f} (reported half), of the nodes' own "
@@ -173,8 +174,9 @@ std::string reduce_report_text(const ReduceReport& r) {
   out += fmt::format(
       "wrote {}: N = {} state nodes, {} IRFs ({} short and {} dead ends dropped), r_u = {} (error {:.4f}), "
       "r_a = {}, beta = {:.4g}\n",
-      r.package_path.string(), p.portrait.nodes(), p.portrait.irf_count(), r.dropped_short, r.dropped_dead_end,
-      p.rank_u(), core::displacement_error_at_rank(p, p.rank_u()), p.rank_a(), p.attributes.beta);
+      r.package_path.string(), p.portrait.nodes(), p.portrait.irf_count(), r.dropped_short,
+      r.dropped_dead_end, p.rank_u(), core::displacement_error_at_rank(p, p.rank_u()), p.rank_a(),
+      p.attributes.beta);
   return out;
 }
 

@@ -37,7 +37,8 @@ ContactSummary sampled_contact(const Scene& scene, const std::vector<SamplingOpt
   const auto& ranks = Ranks::world();
   std::vector<std::filesystem::path> mine;
   for (const auto& o : runs)
-    for (int k = ranks.rank(); k < o.chains; k += ranks.size()) mine.push_back(chain_store_path(o.work_dir, k));
+    for (int k = ranks.rank(); k < o.chains; k += ranks.size())
+      mine.push_back(chain_store_path(o.work_dir, k));
   ContactSummary c = store_contact(scene, mine);
   std::vector<long long> counts{c.frames, c.frames_intersecting, c.frames_close};
   ranks.sum(counts);
@@ -65,10 +66,11 @@ void sample_with_progress(const Scene& scene, SamplingOptions o) {
   const auto& ranks = Ranks::world();
   const auto rules = make_palette_rules(scene);  // a bad rule fails before anything is printed
   if (ranks.rank() == 0) {
-    fmt::print(stderr, "{}: {} vertices, {} palette entries, {} chains x {} IRFs{}, seed {}{}{}\n", scene.name,
-               scene.model.vertices(), scene.palette.size(), o.chains, o.irfs_per_chain,
+    fmt::print(stderr, "{}: {} vertices, {} palette entries, {} chains x {} IRFs{}, seed {}{}{}\n",
+               scene.name, scene.model.vertices(), scene.palette.size(), o.chains, o.irfs_per_chain,
                o.lead_ins.empty() ? "" : " (directed)", o.seed,
-               ranks.distributed() ? fmt::format(", {} MPI ranks", ranks.size()) : "", o.resume ? " (resuming)" : "");
+               ranks.distributed() ? fmt::format(", {} MPI ranks", ranks.size()) : "",
+               o.resume ? " (resuming)" : "");
   }
   auto display = std::make_shared<SamplingDisplay>();
   o.progress = [display](const SamplingProgress& p) { (*display)(p); };
@@ -120,7 +122,8 @@ SampleReport run_sample_rounds(const Scene& scene, const std::vector<SampleStage
   return report;
 }
 
-SampleReport run_sample_stage(const Scene& scene, SampleStageOptions options, const std::filesystem::path& orbits) {
+SampleReport run_sample_stage(const Scene& scene, SampleStageOptions options,
+                              const std::filesystem::path& orbits) {
   return run_sample_rounds(scene, {std::move(options)}, orbits);
 }
 

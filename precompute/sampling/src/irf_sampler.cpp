@@ -148,14 +148,15 @@ struct ChainPosition {
 
 // Where a chain's first IRF starts: at rest, or after its lead-in's items
 // but the last (simulated, not recorded).
-ChainPosition lead_in_position(const PaletteRules& rules, const SamplingOptions& o, double frame_dt, int chain) {
+ChainPosition lead_in_position(const PaletteRules& rules, const SamplingOptions& o, double frame_dt,
+                               int chain) {
   ChainPosition p;
   const auto k = static_cast<size_t>(chain);
   if (k >= o.lead_ins.size()) return p;
   for (size_t i = 0; i + 1 < o.lead_ins[k].size(); ++i) {
     const ScheduleItem& item = o.lead_ins[k][i];
-    const int frames = std::max(1, std::min(schedule_frames(item.duration, frame_dt),
-                                            rules.reachable_frames(item.entry, p.at)));
+    const int frames = std::max(
+        1, std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(item.entry, p.at)));
     p.history.push_back(item.entry);
     p.at = rules.advance(item.entry, p.at, frames);
   }
@@ -303,7 +304,8 @@ IrfDraw next_irf(const PaletteRules& rules, const SamplingOptions& o, double fra
   const ScheduleItem& item = o.lead_ins[k].back();
   IrfDraw d;
   d.entry = item.entry;
-  d.frames = std::max(1, std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(d.entry, at)));
+  d.frames =
+      std::max(1, std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(d.entry, at)));
   return d;
 }
 

@@ -228,8 +228,9 @@ void Fields::finish() const {
     for (const auto& k : known_)
       if (close_enough(name, k) && (nearest.empty() || edit_distance(name, k) < edit_distance(name, nearest)))
         nearest = k;
-    throw SceneError(fmt::format("{}: field '{}': unknown field ({})", file_, path(name),
-                                 nearest.empty() ? "misspelt?" : fmt::format("did you mean '{}'?", path(nearest))));
+    throw SceneError(
+        fmt::format("{}: field '{}': unknown field ({})", file_, path(name),
+                    nearest.empty() ? "misspelt?" : fmt::format("did you mean '{}'?", path(nearest))));
   }
 }
 

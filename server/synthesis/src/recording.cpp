@@ -1,7 +1,7 @@
 #include "phasecast/server/recording.h"
 
-#include "phasecast/server/wire.h"
 #include "phasecast/server/thread_priority.h"
+#include "phasecast/server/wire.h"
 
 #include <fcntl.h>
 #include <unistd.h>

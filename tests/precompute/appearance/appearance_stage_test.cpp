@@ -124,16 +124,15 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   ASSERT_TRUE(p.appearance->held_out);
   const core::HeldOutFigures& h = *p.appearance->held_out;
   ASSERT_TRUE(h.l2_floor_of_variation && h.l2_of_variation_spread);  // every figure measured
-  EXPECT_GT(h.total, 0.0f);                                           // nodes the model never saw
-  EXPECT_NE(inspect.out.find(
-                fmt::format("of their own variation over resampled nodes (10th-90th percentile): "
-                            "relative l2 {:.3g}-{:.3g}%",
-                            100 * h.l2_of_variation_spread->p10, 100 * h.l2_of_variation_spread->p90)),
-            std::string::npos)
+  EXPECT_GT(h.total, 0.0f);                                          // nodes the model never saw
+  EXPECT_NE(
+      inspect.out.find(fmt::format("of their own variation over resampled nodes (10th-90th percentile): "
+                                   "relative l2 {:.3g}-{:.3g}%",
+                                   100 * h.l2_of_variation_spread->p10, 100 * h.l2_of_variation_spread->p90)),
+      std::string::npos)
       << inspect.out;
   EXPECT_NE(inspect.out.find(fmt::format("over resampled nodes (10th-90th percentile): {:.3g}-{:.3g}%",
-                                         100 * h.l2_total_spread->p10,
-                                         100 * h.l2_total_spread->p90)),
+                                         100 * h.l2_total_spread->p10, 100 * h.l2_total_spread->p90)),
             std::string::npos)
       << inspect.out;
   // The paper's-metric figures reach the JSON that bench/paper_tables.py reads.
@@ -176,11 +175,11 @@ TEST(AppearanceStage, RunWritesAnAppearanceThatInspectShows) {
   EXPECT_NEAR(held_out["of_variation"].get<double>(), *h.of_variation, 1e-6);
   EXPECT_NEAR(held_out["l2_of_variation"].get<double>(), *h.l2_of_variation, 1e-6);
   EXPECT_NEAR(held_out["l2_floor_of_variation"].get<double>(), *h.l2_floor_of_variation, 1e-6);
-  EXPECT_NE(inspect.out.find(
-                fmt::format("of the nodes' own variation |M - their mean| (moves with no model): "
-                            "error {:.3g}%, relative l2 {:.3g}%",
-                            100 * *h.of_variation, 100 * *h.l2_of_variation)),
-            std::string::npos)
+  EXPECT_NE(
+      inspect.out.find(fmt::format("of the nodes' own variation |M - their mean| (moves with no model): "
+                                   "error {:.3g}%, relative l2 {:.3g}%",
+                                   100 * *h.of_variation, 100 * *h.l2_of_variation)),
+      std::string::npos)
       << inspect.out;
   EXPECT_EQ(nlohmann::json::parse(json.out)["transfer_weighting"], p.appearance->transfer_weighting);
   // The run printed the paired comparison of the two weightings; its verdict is the stored one.

@@ -253,11 +253,14 @@ TEST(Appearance, HeldOutErrorIsTheServedTransferAgainstTheTruth) {
   const Eigen::VectorXd sigma_v = core::singular_values(V);
   EXPECT_NEAR(*a.held_out->l2_floor_of_variation, sigma_v[3] / sigma_v[0], 1e-4);
   EXPECT_GT(*a.held_out->l2_floor_of_variation, 1e-3);  // five independent columns, rank 3: not vacuous
-  EXPECT_LE(*a.held_out->l2_floor_of_variation, *a.held_out->l2_of_variation + 1e-6);  // |E|_2 >= |E J|_2 >= sigma_4(M J)
-  EXPECT_GE(*a.held_out->l2_of_variation, *a.held_out->l2_total - 1e-6);   // |D J|_2 <= |D|_2
-  EXPECT_GT(a.held_out->total, 1e-3);                         // not vacuous: these nodes are not samples
-  EXPECT_NEAR(a.held_out->total * a.held_out->total,
-              a.held_out->truncation * a.held_out->truncation + a.held_out->interpolation * a.held_out->interpolation, 1e-5);
+  EXPECT_LE(*a.held_out->l2_floor_of_variation,
+            *a.held_out->l2_of_variation + 1e-6);                         // |E|_2 >= |E J|_2 >= sigma_4(M J)
+  EXPECT_GE(*a.held_out->l2_of_variation, *a.held_out->l2_total - 1e-6);  // |D J|_2 <= |D|_2
+  EXPECT_GT(a.held_out->total, 1e-3);  // not vacuous: these nodes are not samples
+  EXPECT_NEAR(
+      a.held_out->total * a.held_out->total,
+      a.held_out->truncation * a.held_out->truncation + a.held_out->interpolation * a.held_out->interpolation,
+      1e-5);
   // The kept interpolant is the one the picking half preferred.
   ASSERT_EQ(model.candidates.size(), 4u);
   for (size_t i = 1; i < 4; ++i)

@@ -56,15 +56,30 @@ TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
 // same options give the same package bytes.
 TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
   const auto dir = scratch_dir("cli_until_fidelity");
-  const std::vector<std::string> adaptive = {"--chains", "2", "--irfs-per-chain", "3", "--seed", "4",
-                                             "--max-rank", "20", "--no-appearance", "--until-fidelity", "0.001",
-                                             "--budget-irfs", "12", "--guide-schedules", "3",
-                                             "--held-out-schedules", "4"};
+  const std::vector<std::string> adaptive = {"--chains",
+                                             "2",
+                                             "--irfs-per-chain",
+                                             "3",
+                                             "--seed",
+                                             "4",
+                                             "--max-rank",
+                                             "20",
+                                             "--no-appearance",
+                                             "--until-fidelity",
+                                             "0.001",
+                                             "--budget-irfs",
+                                             "12",
+                                             "--guide-schedules",
+                                             "3",
+                                             "--held-out-schedules",
+                                             "4"};
   const auto pkg = (dir / "a.h5").string();
-  const auto r = run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}, adaptive));
+  const auto r =
+      run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}, adaptive));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("adaptive round 0: 6 IRFs; fidelity (guide, 3 random schedules of 4 entries"),
-            std::string::npos) << r.out;
+            std::string::npos)
+      << r.out;
   EXPECT_NE(r.out.find("adaptive round 1: "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("directed chains added)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("adaptive sampling: IRF budget spent after "), std::string::npos) << r.out;
@@ -83,10 +98,11 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
             0);
   EXPECT_EQ(testing::read_file(pkg), testing::read_file(again));
   // Without a budget it refuses before sampling.
-  const auto bad = run_tool("phasecast-precompute",
-                            {"run", tiny_scene_path().string(), "-o", (dir / "c.h5").string(), "--until-fidelity", "0.1"});
+  const auto bad = run_tool("phasecast-precompute", {"run", tiny_scene_path().string(), "-o",
+                                                     (dir / "c.h5").string(), "--until-fidelity", "0.1"});
   EXPECT_EQ(bad.exit_code, 1);
-  EXPECT_NE(bad.err.find("--until-fidelity needs a budget: --budget-irfs N or --budget-minutes M"), std::string::npos)
+  EXPECT_NE(bad.err.find("--until-fidelity needs a budget: --budget-irfs N or --budget-minutes M"),
+            std::string::npos)
       << bad.err;
 }
 
@@ -207,8 +223,8 @@ TEST(PipelineCli, BadRuleInSceneIsOneLine) {
   EXPECT_TRUE(one_line(r.err)) << r.err;
   EXPECT_NE(r.err.find("field 'on_end': unknown name 'halt'"), std::string::npos) << r.err;
   // simulate reads the same rules, with the same line.
-  const auto sim = run_tool("phasecast-precompute", {"simulate", scene, "--schedule", "open 0.1", "-o",
-                                                     (dir / "sim.h5").string()});
+  const auto sim = run_tool("phasecast-precompute",
+                            {"simulate", scene, "--schedule", "open 0.1", "-o", (dir / "sim.h5").string()});
   EXPECT_EQ(sim.exit_code, 1);
   EXPECT_NE(sim.err.find("field 'on_end': unknown name 'halt' (expected rest, hold, close, stop, open)"),
             std::string::npos)

@@ -2,11 +2,11 @@
 // they return describe the store and the package they wrote, and the report
 // text says what the tool prints, with no tool run.
 
-#include "phasecast/core/package.h"
-#include "phasecast/precompute/pipeline/report_text.h"
 #include "phasecast/precompute/pipeline/stages.h"
-#include "run_tool.h"  // scratch_dir
+#include "phasecast/core/package.h"
 #include "phasecast/precompute/package/package_builder.h"
+#include "phasecast/precompute/pipeline/report_text.h"
+#include "run_tool.h"  // scratch_dir
 #include "scene_files.h"
 #include "synthetic_package.h"
 
@@ -34,8 +34,8 @@ TEST(PipelineStages, ReportsDescribeWhatTheStagesWrote) {
   ASSERT_TRUE(sampled.contact);  // the tiny cloth collides with itself
   EXPECT_EQ(sampled.contact->frames, sampled.frames);
   EXPECT_THAT(sample_report_text(sampled),
-              HasSubstr(fmt::format("wrote {} (6 IRFs, {} state nodes; chain stores merged in ", orbits.string(),
-                                    sampled.frames)));
+              HasSubstr(fmt::format("wrote {} (6 IRFs, {} state nodes; chain stores merged in ",
+                                    orbits.string(), sampled.frames)));
   EXPECT_THAT(sample_report_text(sampled), HasSubstr("\ncontact: "));
 
   ReduceStageOptions reduce;
@@ -99,11 +99,12 @@ TEST(PipelineStages, AppearanceTextPrintsTheNamedHeldOutFigures) {
   h.l2_total_spread = core::Percentiles{0.4f, 0.6f};
   h.l2_truncation_spread = core::Percentiles{0.2f, 0.3f};
   const std::string text = appearance_report_text(*p.appearance, {});
-  EXPECT_THAT(text, HasSubstr("appearance: held-out error over 3 nodes 0.5000 = truncation 0.3000 + "
-                              "interpolation 0.4000 (in quadrature, relative to |M - M-bar|); 0.0500 of |M|; "
-                              "relative l2 norm (the paper's relErr) 0.4500, truncation alone 0.2500, the "
-                              "clusters' own truncation over as many of them (all, if fewer) 0.2000, the least "
-                              "any rank-"));
+  EXPECT_THAT(text,
+              HasSubstr("appearance: held-out error over 3 nodes 0.5000 = truncation 0.3000 + "
+                        "interpolation 0.4000 (in quadrature, relative to |M - M-bar|); 0.0500 of |M|; "
+                        "relative l2 norm (the paper's relErr) 0.4500, truncation alone 0.2500, the "
+                        "clusters' own truncation over as many of them (all, if fewer) 0.2000, the least "
+                        "any rank-"));
   EXPECT_THAT(text, HasSubstr("relative l2 0.4000-0.6000, truncation alone 0.2000-0.3000\n"));
   EXPECT_THAT(text, ::testing::Not(HasSubstr("own variation |M - their mean|")));  // not measured
 }

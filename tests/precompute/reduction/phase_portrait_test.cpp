@@ -93,8 +93,9 @@ TEST(IrfCache, MatchesBruteForceEq9) {
 
 // The brute force the cache must equal: eq. 9 with each difference in
 // double, the lowest index among equals.
-int brute_force_nearest(const MatrixXfR& q, const MatrixXfR& v, double beta, const std::vector<std::int32_t>& start,
-                        const std::vector<std::int32_t>& palette, int node, int d) {
+int brute_force_nearest(const MatrixXfR& q, const MatrixXfR& v, double beta,
+                        const std::vector<std::int32_t>& start, const std::vector<std::int32_t>& palette,
+                        int node, int d) {
   int best = -1;
   double best_dist = INFINITY;
   for (size_t i = 0; i < start.size(); ++i) {
@@ -130,7 +131,8 @@ TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
   int checked = 0;
   for (int j = 0; j < N; ++j) {
     for (int d = 0; d < D; ++d) {
-      ASSERT_EQ(cache(j, d), brute_force_nearest(q, v, beta, start, palette, j, d)) << "node " << j << " entry " << d;
+      ASSERT_EQ(cache(j, d), brute_force_nearest(q, v, beta, start, palette, j, d))
+          << "node " << j << " entry " << d;
       ++checked;
     }
   }
@@ -142,8 +144,9 @@ TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
     float least = INFINITY;
     int pick = -1;
     for (int i = 0; i < n_irf; i += D) {
-      const float score = q.row(start[i]).squaredNorm() + beta * v.row(start[i]).squaredNorm() -
-                          2 * (q.row(j).dot(q.row(start[i])) + static_cast<float>(beta) * v.row(j).dot(v.row(start[i])));
+      const float score =
+          q.row(start[i]).squaredNorm() + beta * v.row(start[i]).squaredNorm() -
+          2 * (q.row(j).dot(q.row(start[i])) + static_cast<float>(beta) * v.row(j).dot(v.row(start[i])));
       if (score < least) least = score, pick = i;
     }
     float_misses += pick != cache(j, 0);

@@ -76,9 +76,9 @@ TEST(PaletteRules, FollowUpMustBeAllowedAfterItsEntry) {
 TEST(PaletteRules, UnknownFollowUpIsRejected) {
   const auto dir = scratch_dir("rules_unknown_on_end");
   const auto msg = error_of(edited_tiny_scene(dir, "on_end = \"rest\"", "on_end = \"halt\""));
-  EXPECT_NE(
-      msg.find("palette entry 'stop': field 'on_end': unknown name 'halt' (expected rest, hold, close, stop, open)"),
-      std::string::npos)
+  EXPECT_NE(msg.find("palette entry 'stop': field 'on_end': unknown name 'halt' (expected rest, hold, close, "
+                     "stop, open)"),
+            std::string::npos)
       << msg;
 }
 

@@ -121,7 +121,8 @@ TEST(Scene, DemoSectionNamesTheScriptAndTheSeed) {
     const Scene s = load_scene_file(kScenes / (std::string(scene) + ".toml"));
     ASSERT_TRUE(s.demo) << scene;
     EXPECT_TRUE(std::filesystem::is_regular_file(s.demo->script)) << s.demo->script;
-    EXPECT_EQ(s.demo->script.parent_path(), std::filesystem::absolute(kScenes / "scripts").lexically_normal());
+    EXPECT_EQ(s.demo->script.parent_path(),
+              std::filesystem::absolute(kScenes / "scripts").lexically_normal());
   }
   EXPECT_EQ(load_scene_file(kScenes / "toy_dashboard.toml").demo->seed, 2);
   EXPECT_FALSE(load_scene_file(write_scene("no_demo", kValid)).demo);

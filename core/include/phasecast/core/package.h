@@ -228,7 +228,7 @@ struct PlaybackFidelity {
   std::int32_t items = 0;      // entries in each
   double seed = 0;             // of the schedules (whole, below 2^53)
   float median_nrmse = 0, p90_nrmse = 0;
-  std::int32_t moving = 0, moving_within = 0;      // moving segments; within [0.67, 1.5] of the simulated motion
+  std::int32_t moving = 0, moving_within = 0;  // moving segments; within [0.67, 1.5] of the simulated motion
   std::int32_t switches = 0, switches_within = 0;  // blend jumps; within 2x the local motion
   // Adaptive sampling (absent: the IRFs were drawn at random): the median
   // NRMSE it sampled towards, the IRFs it sampled, its rounds, whether the

@@ -39,11 +39,11 @@ struct PackageSummary {
   std::string interpolant;                // its name ("nrbf", "knn", "affine-knn(-slope)") and parameters
   std::string transfer_weighting;         // "equal" or "cluster size"
   int transfer_rays = 0, transfer_bounces = 0;  // how the transfer was sampled (0 rays: unrecorded)
-  std::optional<HeldOutFigures> held_out;     // absent: no held-out truth in the package
-  std::optional<PlaybackFidelity> fidelity;   // absent: playback not measured when it was made
-  std::uint64_t client_download_bytes = 0;    // sum of basis parts
-  std::uint64_t frame_state_bytes = 0;        // q_u + q_a + support per frame
-  std::uint64_t full_vertex_frame_bytes = 0;  // streaming vertices instead
+  std::optional<HeldOutFigures> held_out;       // absent: no held-out truth in the package
+  std::optional<PlaybackFidelity> fidelity;     // absent: playback not measured when it was made
+  std::uint64_t client_download_bytes = 0;      // sum of basis parts
+  std::uint64_t frame_state_bytes = 0;          // q_u + q_a + support per frame
+  std::uint64_t full_vertex_frame_bytes = 0;    // streaming vertices instead
 };
 
 // `rank` <= 0 reports the error at the package's r_u.

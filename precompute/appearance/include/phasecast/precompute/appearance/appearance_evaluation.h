@@ -142,8 +142,8 @@ struct HeldOutRankChoice {
 // is at most `target`, by the paper's equal-weight SVD of `fields`; all the
 // resolved directions when none is. Throws std::invalid_argument without
 // picking nodes.
-HeldOutRankChoice rank_for_held_out_target(const Eigen::Ref<const MatrixXfR>& fields, const HeldOutTruth& picking,
-                                           double target);
+HeldOutRankChoice rank_for_held_out_target(const Eigen::Ref<const MatrixXfR>& fields,
+                                           const HeldOutTruth& picking, double target);
 
 // The package's held-out figures (/appearance/held_out/) of the served model
 // at the reported nodes `test`: its errors there, the clusters' own

@@ -40,15 +40,15 @@ MatrixXfR cluster_centers(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansRe
 
 // The interpolants `choice` names (all four for best), each tuned by
 // leave-one-out on the N_a samples (q_a^j at centre j, N_a x r_a).
-std::vector<Interpolant> tune_interpolants(const Eigen::Ref<const MatrixXfR>& q_u, const KMeansResult& clusters,
-                                           const MatrixXfR& centers, const MatrixXfR& samples,
-                                           InterpolantChoice choice,
+std::vector<Interpolant> tune_interpolants(const Eigen::Ref<const MatrixXfR>& q_u,
+                                           const KMeansResult& clusters, const MatrixXfR& centers,
+                                           const MatrixXfR& samples, InterpolantChoice choice,
                                            const std::function<void(const char*, long, long)>& progress);
 
 // /appearance of a package from its basis (M-bar, U_a), the weighting that
 // made it, its interpolant and the cluster nodes; the spectrum and the
 // held-out figures are set apart.
-void store_model(core::Appearance& appearance, const TransferReduction& reduction, TransferWeighting weighting,
-                 const Interpolant& interpolant, const KMeansResult& clusters);
+void store_model(core::Appearance& appearance, const TransferReduction& reduction,
+                 TransferWeighting weighting, const Interpolant& interpolant, const KMeansResult& clusters);
 
 }  // namespace phasecast::precompute

@@ -45,7 +45,8 @@ struct FidelityFigures {
 
   double moving_in_range() const { return moving ? static_cast<double>(moving_within) / moving : 1.0; }
   bool meets(const FidelityTarget& t) const {
-    return median_nrmse <= t.median_nrmse && p90_nrmse <= t.p90_nrmse && moving_in_range() >= t.moving_in_range;
+    return median_nrmse <= t.median_nrmse && p90_nrmse <= t.p90_nrmse &&
+           moving_in_range() >= t.moving_in_range;
   }
 };
 
@@ -61,12 +62,12 @@ FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& p
 
 struct AdaptiveOptions {
   FidelityTarget target;
-  int budget_irfs = 0;         // all IRFs sampled, the first round's included (0: no limit but the time)
-  double budget_minutes = 0;   // wall time of the rounds (0: no limit but the IRFs)
-  int guide_schedules = 10;    // random schedules each round is judged on
-  int schedule_items = 4;      // entries per guide schedule
-  int directed_chains = 0;     // per round at most (0: the first round's chain count)
-  int directed_extra_irfs = 2; // IRFs a directed chain draws after the segment's
+  int budget_irfs = 0;          // all IRFs sampled, the first round's included (0: no limit but the time)
+  double budget_minutes = 0;    // wall time of the rounds (0: no limit but the IRFs)
+  int guide_schedules = 10;     // random schedules each round is judged on
+  int schedule_items = 4;       // entries per guide schedule
+  int directed_chains = 0;      // per round at most (0: the first round's chain count)
+  int directed_extra_irfs = 2;  // IRFs a directed chain draws after the segment's
 };
 
 // The lead-ins of the next round: the guide schedules' worst moving segments
@@ -77,16 +78,16 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
                                                          const FidelityTarget& target, int count);
 
 struct AdaptiveRound {
-  int irfs = 0;               // sampled in all, this round's included
-  int directed = 0;           // directed chains this round added (0 for the first)
-  FidelityFigures guide;      // the package of all IRFs so far, on this round's guide schedules
+  int irfs = 0;           // sampled in all, this round's included
+  int directed = 0;       // directed chains this round added (0 for the first)
+  FidelityFigures guide;  // the package of all IRFs so far, on this round's guide schedules
 };
 
 struct AdaptiveReport {
   bool writer = false;  // rank 0: the one that reports
   std::vector<AdaptiveRound> rounds;
   bool met = false;
-  std::string stopped;  // why the rounds ended: "target met", "IRF budget spent", ...
+  std::string stopped;   // why the rounds ended: "target met", "IRF budget spent", ...
   SampleReport sampled;  // the merged store of every round
 };
 

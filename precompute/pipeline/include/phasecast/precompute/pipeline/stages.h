@@ -36,9 +36,9 @@ struct AppearanceChoices {
   AppearanceStageOptions stage;
   std::optional<int> clusters, held_out, rays;  // absent: the scene's, else the default below
   std::optional<double> eps_a;
-  std::string interpolant = "best";  // best, nrbf, knn, affine-knn, affine-knn-slope
-  std::string weighting = "best";    // best, equal, cluster-size
-  bool skip = false;                 // no appearance stage: the package has no /appearance (r_a = 0)
+  std::string interpolant = "best";      // best, nrbf, knn, affine-knn, affine-knn-slope
+  std::string weighting = "best";        // best, equal, cluster-size
+  bool skip = false;                     // no appearance stage: the package has no /appearance (r_a = 0)
   std::filesystem::path save_transfers;  // where every true transfer of the stage goes (empty: nowhere)
 };
 
@@ -63,14 +63,15 @@ void check_save_transfers(const AppearanceChoices& choices,
 struct SampleReport {
   bool writer = false;  // this rank wrote the store (rank 0): the one that reports
   std::filesystem::path orbits;
-  long irfs = 0, frames = 0;  // in the merged store
-  double merge_seconds = 0;   // merging the chain stores
+  long irfs = 0, frames = 0;              // in the merged store
+  double merge_seconds = 0;               // merging the chain stores
   std::optional<ContactSummary> contact;  // every sampled frame (scenes with self-collision)
   double close_distance = 0;              // what counts as close in `contact`
 };
 
 // Samples IRFs of the scene and writes the merged orbit store to `orbits`.
-SampleReport run_sample_stage(const Scene& scene, SampleStageOptions options, const std::filesystem::path& orbits);
+SampleReport run_sample_stage(const Scene& scene, SampleStageOptions options,
+                              const std::filesystem::path& orbits);
 
 // Several sampling runs, each in its own work folder (an adaptive run's
 // rounds): the last is sampled (or resumed), every earlier one must be

@@ -83,8 +83,8 @@ IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int i
 
 // The chain's `irf`-th IRF: its lead-in's last item first (T clipped to the
 // support's range like a drawn one), then draw_irf.
-IrfDraw next_irf(const PaletteRules& rules, const SamplingOptions& options, double frame_dt, int chain, int irf,
-                 const std::vector<int>& history, double at);
+IrfDraw next_irf(const PaletteRules& rules, const SamplingOptions& options, double frame_dt, int chain,
+                 int irf, const std::vector<int>& history, double at);
 
 // Chain k's orbit store in the work folder (chain-<k>.h5).
 std::filesystem::path chain_store_path(const std::filesystem::path& work_dir, int chain);
