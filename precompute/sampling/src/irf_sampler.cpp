@@ -146,17 +146,26 @@ struct ChainPosition {
   double at = 0;
 };
 
-// Where a chain's first IRF starts: at rest, or after its lead-in's items
-// but the last (simulated, not recorded).
-ChainPosition lead_in_position(const PaletteRules& rules, const SamplingOptions& o, double frame_dt,
-                               int chain) {
+// Frames of a lead-in item started at support coordinate `at`: its
+// duration, clipped to the support's range like a drawn IRF's.
+int lead_in_frames(const PaletteRules& rules, const ScheduleItem& item, double frame_dt, double at) {
+  return std::max(1,
+                  std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(item.entry, at)));
+}
+
+// Walks chain `chain`'s lead-in but its last item (simulated, not recorded),
+// calling visit(item, frames) for each; returns where the chain's first IRF
+// starts (at rest when it has no lead-in).
+template <class Visit>
+ChainPosition walk_lead_in(const PaletteRules& rules, const SamplingOptions& o, double frame_dt, int chain,
+                           Visit visit) {
   ChainPosition p;
   const auto k = static_cast<size_t>(chain);
   if (k >= o.lead_ins.size()) return p;
   for (size_t i = 0; i + 1 < o.lead_ins[k].size(); ++i) {
     const ScheduleItem& item = o.lead_ins[k][i];
-    const int frames = std::max(
-        1, std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(item.entry, p.at)));
+    const int frames = lead_in_frames(rules, item, frame_dt, p.at);
+    visit(item, frames);
     p.history.push_back(item.entry);
     p.at = rules.advance(item.entry, p.at, frames);
   }
@@ -165,7 +174,7 @@ ChainPosition lead_in_position(const PaletteRules& rules, const SamplingOptions&
 
 ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, double frame_dt, int chain,
                            const IrfList& store, int irfs) {
-  ChainPosition p = lead_in_position(rules, o, frame_dt, chain);
+  ChainPosition p = walk_lead_in(rules, o, frame_dt, chain, [](const ScheduleItem&, int) {});
   for (int i = 0; i < irfs; ++i) {
     const IrfDraw d = next_irf(rules, o, frame_dt, chain, i, p.history, p.at);
     const auto k = static_cast<size_t>(i);
@@ -187,16 +196,9 @@ ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, 
 // stood (the checkpoints then hold the state past it).
 void play_lead_in(Simulator& sim, const Scene& scene, const PaletteRules& rules, const SamplingOptions& o,
                   int chain, IrfFrames& scratch) {
-  const auto k = static_cast<size_t>(chain);
-  if (k >= o.lead_ins.size()) return;
-  double at = 0;
-  for (size_t i = 0; i + 1 < o.lead_ins[k].size(); ++i) {
-    const ScheduleItem& item = o.lead_ins[k][i];
-    const int frames = std::max(1, std::min(schedule_frames(item.duration, scene.simulation.frame_dt),
-                                            rules.reachable_frames(item.entry, at)));
+  walk_lead_in(rules, o, scene.simulation.frame_dt, chain, [&](const ScheduleItem& item, int frames) {
     record_irf_frames(sim, scene, item.entry, frames, true, scratch);
-    at = rules.advance(item.entry, at, frames);
-  }
+  });
 }
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
@@ -301,11 +303,9 @@ IrfDraw next_irf(const PaletteRules& rules, const SamplingOptions& o, double fra
   const auto k = static_cast<size_t>(chain);
   if (k >= o.lead_ins.size() || o.lead_ins[k].empty() || irf > 0)
     return draw_irf(rules, o.seed, chain, irf, history, at);
-  const ScheduleItem& item = o.lead_ins[k].back();
   IrfDraw d;
-  d.entry = item.entry;
-  d.frames =
-      std::max(1, std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(d.entry, at)));
+  d.entry = o.lead_ins[k].back().entry;
+  d.frames = lead_in_frames(rules, o.lead_ins[k].back(), frame_dt, at);
   return d;
 }
 
