@@ -113,7 +113,13 @@ struct Shared {
 OrbitStoreAppender open_chain(const Scene& scene, const SamplingOptions& o, int chain, Checkpoint& c,
                               Simulator& sim, Shared& sh) {
   const auto store_path = chain_store(o.work_dir, chain), state_path = chain_state(o.work_dir, chain);
-  if (o.resume && std::filesystem::exists(store_path) && std::filesystem::exists(state_path)) {
+  const bool checkpointed = std::filesystem::exists(store_path) && std::filesystem::exists(state_path);
+  if (o.resume && checkpointed && !sim.restores_any_state()) {
+    std::lock_guard lock(sh.mutex);
+    if (o.notice)
+      o.notice(fmt::format("chain {}: its simulator cannot continue a checkpoint; sampling the chain again",
+                           chain));
+  } else if (o.resume && checkpointed) {
     const Checkpoint saved =
         read_checkpoint(state_path, o, chain, 3 * static_cast<Eigen::Index>(sim.vertices()));
     if (saved.irfs > o.irfs_per_chain) {

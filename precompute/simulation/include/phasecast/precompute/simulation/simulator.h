@@ -44,6 +44,11 @@ class Simulator {
   virtual void step(const Eigen::VectorXd& alpha_forcing) = 0;
   // Support-to-world transform (3x4) of the current state.
   virtual Eigen::Matrix<double, 3, 4> support_transform() const = 0;
+
+  // Whether reset() takes any state, a checkpoint of another process's
+  // included. A black box returns only to states it reached itself, so a
+  // resumed chain is simulated again from its start.
+  virtual bool restores_any_state() const { return true; }
 };
 
 // The sparse Cholesky of the implicit step: Eigen's simplicial LDL^T, fastest
