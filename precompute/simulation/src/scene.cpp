@@ -4,6 +4,7 @@
 #include "phasecast/precompute/simulation/scene_fields.h"
 #include "phasecast/precompute/simulation/tet_mesh.h"
 #include "render_mesh.h"
+#include "scene_blender.h"
 
 #include <fmt/format.h>
 
@@ -515,6 +516,55 @@ DemoDefaults read_demo(Fields d, const std::filesystem::path& folder) {
   return demo;
 }
 
+// [simulation], [support], [contact], bodies, braces and obstacles: the
+// model the built-in simulator integrates.
+void read_builtin_model(Fields& top, Scene& scene) {
+  scene.simulation = read_simulation(top.table("simulation"));
+  scene.support = read_support(top.table("support"));
+  if (top.has("contact")) {
+    Fields contact = top.table("contact");
+    scene.model.thickness = contact.positive("thickness", scene.model.thickness);
+    scene.model.self_collision = contact.flag("self_collision", scene.model.self_collision);
+    scene.model.self_friction = contact.number("friction", scene.model.self_friction);
+    if (!(scene.model.self_friction >= 0)) contact.fail("friction", "a Coulomb coefficient >= 0");
+    if (scene.model.self_friction > 0 && !scene.model.self_collision)
+      contact.fail("friction", "0 without self_collision = true (it acts between surfaces in self-contact)");
+    scene.model.incremental_ccd = contact.flag("incremental_ccd", scene.model.incremental_ccd);
+    contact.finish();
+  }
+  auto bodies = top.tables("body");
+  if (bodies.empty()) top.fail("body", "at least one [[body]]");
+  for (auto& b : bodies) add_body(scene, b, scene.source.parent_path());
+  for (auto& b : top.tables("brace")) add_braces(scene.model, b);
+  for (auto& o : top.tables("obstacle")) {
+    BoxObstacle box{o.string("name"), o.vec3("min"), o.vec3("max")};
+    if (!(box.min.array() < box.max.array()).all()) o.fail("max", "a corner above min on every axis");
+    PropLook look{o.albedo("albedo", kDefaultAlbedo), o.number("cell", 0)};
+    if (!(look.cell >= 0)) o.fail("cell", "a tessellation edge length >= 0 (m)");
+    if (look.cell > 0 && (box.max - box.min).maxCoeff() / look.cell > kMaxPropCells)
+      o.fail("cell", fmt::format("at most {} cells along an edge of the box", kMaxPropCells));
+    look.drawn = o.flag("drawn", look.drawn);
+    o.finish();
+    scene.model.obstacles.push_back(box);
+    scene.props.push_back(look);
+  }
+  for (int v = 0; v < scene.model.vertices(); ++v) {
+    if (!(scene.model.mass[v] > 0)) {
+      throw SceneError(fmt::format(
+          "{}: vertex {} belongs to no element and has no mass (unused mesh vertex?)", top.file(), v));
+    }
+  }
+}
+
+std::string simulator_kind(Fields& top) {
+  if (!top.has("simulator")) return "builtin";
+  Fields sim = top.table("simulator");
+  const std::string kind = sim.optional_string("kind").value_or("builtin");
+  if (kind != "builtin" && kind != "blender") sim.fail("kind", "\"builtin\" or \"blender\"");
+  if (kind == "builtin") sim.finish();
+  return kind;
+}
+
 }  // namespace
 
 int Scene::palette_index(const std::string& entry) const {
@@ -539,34 +589,12 @@ Scene load_scene_file(const std::filesystem::path& path) {
   Scene scene;
   scene.source = path;
   scene.name = top.string("name");
-  scene.simulation = read_simulation(top.table("simulation"));
-  scene.support = read_support(top.table("support"));
-  if (top.has("contact")) {
-    Fields contact = top.table("contact");
-    scene.model.thickness = contact.positive("thickness", scene.model.thickness);
-    scene.model.self_collision = contact.flag("self_collision", scene.model.self_collision);
-    scene.model.self_friction = contact.number("friction", scene.model.self_friction);
-    if (!(scene.model.self_friction >= 0)) contact.fail("friction", "a Coulomb coefficient >= 0");
-    if (scene.model.self_friction > 0 && !scene.model.self_collision)
-      contact.fail("friction", "0 without self_collision = true (it acts between surfaces in self-contact)");
-    scene.model.incremental_ccd = contact.flag("incremental_ccd", scene.model.incremental_ccd);
-    contact.finish();
-  }
-  auto bodies = top.tables("body");
-  if (bodies.empty()) top.fail("body", "at least one [[body]]");
-  for (auto& b : bodies) add_body(scene, b, path.parent_path());
-  for (auto& b : top.tables("brace")) add_braces(scene.model, b);
-  for (auto& o : top.tables("obstacle")) {
-    BoxObstacle box{o.string("name"), o.vec3("min"), o.vec3("max")};
-    if (!(box.min.array() < box.max.array()).all()) o.fail("max", "a corner above min on every axis");
-    PropLook look{o.albedo("albedo", kDefaultAlbedo), o.number("cell", 0)};
-    if (!(look.cell >= 0)) o.fail("cell", "a tessellation edge length >= 0 (m)");
-    if (look.cell > 0 && (box.max - box.min).maxCoeff() / look.cell > kMaxPropCells)
-      o.fail("cell", fmt::format("at most {} cells along an edge of the box", kMaxPropCells));
-    look.drawn = o.flag("drawn", look.drawn);
-    o.finish();
-    scene.model.obstacles.push_back(box);
-    scene.props.push_back(look);
+  if (simulator_kind(top) == "blender") {
+    scene.simulation = detail::read_blender_simulation(top.table("simulation"), kDefaultSettle);
+    scene.support = read_support(top.table("support"));
+    detail::read_blender_model(top, scene);
+  } else {
+    read_builtin_model(top, scene);
   }
   auto entries = top.tables("palette");
   if (entries.empty()) top.fail("palette", "at least one [[palette]] entry");
@@ -579,12 +607,6 @@ Scene load_scene_file(const std::filesystem::path& path) {
   }
   if (top.has("demo")) scene.demo = read_demo(top.table("demo"), path.parent_path());
   top.finish();
-  for (int v = 0; v < scene.model.vertices(); ++v) {
-    if (!(scene.model.mass[v] > 0)) {
-      throw SceneError(fmt::format(
-          "{}: vertex {} belongs to no element and has no mass (unused mesh vertex?)", path.string(), v));
-    }
-  }
   return scene;
 }
 
@@ -612,6 +634,8 @@ core::SupportKinematics entry_kinematics(const Scene& scene, int entry) {
 }
 
 std::unique_ptr<Simulator> make_simulator(const Scene& scene) {
+  if (scene.blender)
+    return make_blender_simulator(*scene.blender, scene.simulation.frame_dt, scene.support, scene.model.rest);
   return make_implicit_simulator(scene.model, scene.simulation, scene.support);
 }
 

@@ -4,6 +4,7 @@
 // impulse palette (§3.3) with the support kinematics each entry implies.
 
 #include "phasecast/core/package.h"
+#include "phasecast/precompute/simulation/blender_simulator.h"
 #include "phasecast/precompute/simulation/deformable_model.h"
 #include "phasecast/precompute/simulation/embedding.h"
 #include "phasecast/precompute/simulation/simulator.h"
@@ -93,6 +94,9 @@ struct Scene {
   // plays by default ("open 0.8; stop 1.5; ..."); parsed where it is used.
   std::string standard_schedule;
   std::optional<DemoDefaults> demo;
+  // [simulator] kind = "blender": Blender steps the .blend (the model then
+  // holds only what Blender described: points, triangles, drawn boxes).
+  std::optional<BlenderSettings> blender;
 
   // Index of the palette entry `name`; throws SceneError listing the known names.
   int palette_index(const std::string& entry) const;

@@ -1,0 +1,102 @@
+"""Builds the Blender example scene: a towel pinned over a rail on a door that swings about its hinge.
+
+    blender -b --factory-startup --python scripts/blender/make-example.py -- OUT.blend [--cells NX NZ]
+
+The layout is scenes/tiny/cloth_door.toml's in Blender's Z-up world (Phasecast's (x, y, z) is
+Blender's (x, -z, y)): the hinge line is Blender's Z axis through the origin, the door board
+spans x in [0.02, 0.82], z in [0, 2], y in [0, 0.04], and the towel hangs on the board's -y face.
+Objects: "Hinge" (an empty, the support), "Door" (collision, a child of the hinge) and "Towel"
+(cloth with self-collision, pinned along its top edge, a child of the hinge). Nothing binary is
+committed: scenes/blender/*.toml name the file this writes (docs/simulator.md, "Blender").
+"""
+
+import argparse
+import os
+import sys
+
+import bmesh
+import bpy
+
+
+def parse_arguments():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    parser = argparse.ArgumentParser(prog="make-example.py", description=__doc__.splitlines()[0])
+    parser.add_argument("output", help="the .blend to write")
+    parser.add_argument("--cells", type=int, nargs=2, default=[10, 14], metavar=("NX", "NZ"),
+                        help="towel cells across and down (default 10 14)")
+    return parser.parse_args(argv)
+
+
+def material(name, colour):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*colour, 1.0)
+    mat.diffuse_color = (*colour, 1.0)
+    return mat
+
+
+def mesh_object(name, vertices, faces, parent, colour):
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(vertices, [], faces)
+    mesh.validate()
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.parent = parent
+    obj.data.materials.append(material(name, colour))
+    return obj
+
+
+def door(parent):
+    lo, hi = (0.02, 0.0, 0.0), (0.82, 0.04, 2.0)
+    v = [(x, y, z) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    obj = mesh_object("Door", v, faces, parent, (0.62, 0.42, 0.24))
+    # Collisions push cloth out along the face normals: they must point out of the board.
+    mesh = bmesh.new()
+    mesh.from_mesh(obj.data)
+    bmesh.ops.recalc_face_normals(mesh, faces=mesh.faces)
+    mesh.to_mesh(obj.data)
+    mesh.free()
+    collision = obj.modifiers.new("Collision", "COLLISION")
+    collision.settings.thickness_outer = 0.02
+    collision.settings.damping = 0.5
+    collision.settings.use_normal = True  # push along the normals: a rotating board otherwise lets the towel in
+    return obj
+
+
+def towel(parent, nx, nz):
+    # Over the rail: 0.5 m wide, 0.7 m long, 12 mm in front of the board's -y face.
+    x0, width, top, length, y = 0.2, 0.5, 1.85, 0.7, -0.08
+    vertices = [(x0 + width * i / nx, y, top - length * k / nz) for k in range(nz + 1) for i in range(nx + 1)]
+    faces = [(k * (nx + 1) + i, k * (nx + 1) + i + 1, (k + 1) * (nx + 1) + i + 1, (k + 1) * (nx + 1) + i)
+             for k in range(nz) for i in range(nx)]
+    obj = mesh_object("Towel", vertices, faces, parent, (0.12, 0.3, 0.75))
+    rail = obj.vertex_groups.new(name="rail")
+    rail.add(list(range(nx + 1)), 1.0, "REPLACE")
+    cloth = obj.modifiers.new("Cloth", "CLOTH")
+    cloth.settings.vertex_group_mass = "rail"
+    cloth.settings.mass = 0.3  # kg per vertex, Blender's cotton
+    cloth.settings.quality = 12
+    cloth.settings.air_damping = 1.0
+    cloth.collision_settings.collision_quality = 10  # fewer passes let the towel slip into the board
+    cloth.collision_settings.use_self_collision = True
+    cloth.collision_settings.distance_min = 0.004
+    cloth.collision_settings.self_distance_min = 0.004
+    return obj
+
+
+def main():
+    args = parse_arguments()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.frame_start = 1
+    scene.render.fps = 50
+    hinge = bpy.data.objects.new("Hinge", None)
+    scene.collection.objects.link(hinge)
+    door(hinge)
+    towel(hinge, *args.cells)
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.output))
+    print(f"wrote {args.output}")
+
+
+main()
