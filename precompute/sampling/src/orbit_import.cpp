@@ -6,10 +6,14 @@
 #include "phasecast/precompute/simulation/scene.h"
 #include "phasecast/precompute/simulation/scene_fields.h"
 
+#include <Eigen/LU>
+
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <vector>
 
 namespace phasecast::precompute {
@@ -61,13 +65,51 @@ MatrixXfR positions_row(const ObjMesh& m) {
   return row;
 }
 
+using Transform = Eigen::Matrix<double, 3, 4, Eigen::RowMajor>;
+
 // One [[irf]] of the manifest: its palette entry, whether it continues the
-// previous IRF's motion (eq. 8 needs it), and its frames in order.
+// previous IRF's motion (eq. 8 needs it), its frames in order and, when the
+// other tool moved the support, the support-to-world transform of each.
 struct ImportedIrf {
   int entry = 0;
   std::uint8_t continues = 0;
   std::vector<std::filesystem::path> files;
+  std::vector<Transform> support;  // empty: the identity throughout
 };
+
+// `support = "FILE"`: one line per frame, the 12 numbers of [R | t] row by
+// row; R must be a rotation (a rigid support).
+std::vector<Transform> read_support_file(Fields& irf, const std::filesystem::path& dir, size_t frames) {
+  const auto path = dir / irf.string("support");
+  std::ifstream in(path);
+  if (!in) irf.fail("support", "a text file of support transforms (relative to the manifest)");
+  std::vector<Transform> out;
+  int line_number = 0;
+  for (std::string line; std::getline(in, line);) {
+    ++line_number;
+    if (line.find_first_not_of(" \t\r") == std::string::npos || line[line.find_first_not_of(" \t")] == '#')
+      continue;
+    std::istringstream words(line);
+    Transform T;
+    for (int k = 0; k < 12; ++k) {
+      if (!(words >> T(k / 4, k % 4)))
+        throw SceneError(fmt::format("{}:{}: expected 12 numbers (the 3x4 [R | t], row by row)",
+                                     path.string(), line_number));
+    }
+    const Eigen::Matrix3d R = T.leftCols<3>();
+    if (!T.allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-4 ||
+        R.determinant() < 0) {
+      throw SceneError(fmt::format("{}:{}: expected a rotation in the first 3 columns (a rigid support)",
+                                   path.string(), line_number));
+    }
+    out.push_back(T);
+  }
+  if (out.size() != frames) {
+    throw SceneError(fmt::format("{}: {} transforms for the {} OBJ frames of {}", path.string(), out.size(),
+                                 frames, (dir / irf.string("frames")).string()));
+  }
+  return out;
+}
 
 toml::table parse_manifest(const std::filesystem::path& manifest) {
   try {
@@ -116,6 +158,7 @@ std::vector<ImportedIrf> plan_irfs(Fields& top, const OrbitStore& s, const std::
     if (p.continues && plan.empty())
       irf.fail("continues", "false for the first [[irf]] (nothing precedes it)");
     p.files = obj_frames(irf, dir);
+    if (irf.has("support")) p.support = read_support_file(irf, dir, p.files.size());
     plan.push_back(std::move(p));
     irf.finish();
   }
@@ -136,8 +179,9 @@ std::vector<int> read_pinned(Fields& top, const toml::table& root, Eigen::Index 
 }
 
 // Reads every frame of the plan into the store; each must have the rest mesh's topology.
+// World positions (`positions = "world"`) are taken into the support's frame.
 void read_frames(const std::vector<ImportedIrf>& plan, const ObjMesh& rest,
-                 const std::filesystem::path& rest_path, OrbitStore& s,
+                 const std::filesystem::path& rest_path, bool world, OrbitStore& s,
                  const std::function<void(int, int)>& progress) {
   int total = 0;
   for (const auto& p : plan) total += static_cast<int>(p.files.size());
@@ -150,8 +194,9 @@ void read_frames(const std::vector<ImportedIrf>& plan, const ObjMesh& rest,
     s.irf_length.push_back(static_cast<std::int32_t>(p.files.size()));
     s.irf_palette.push_back(p.entry);
     s.irf_continues.push_back(p.continues);
-    for (const auto& file : p.files) {
-      const ObjMesh m = read_obj(file);
+    for (size_t f = 0; f < p.files.size(); ++f) {
+      const auto& file = p.files[f];
+      ObjMesh m = read_obj(file);
       if (m.vertices.rows() != V || m.triangles != rest.triangles) {
         throw SceneError(
             fmt::format("{}: expected the topology of {} ({} vertices, {} triangles), got {} vertices, {} "
@@ -159,9 +204,11 @@ void read_frames(const std::vector<ImportedIrf>& plan, const ObjMesh& rest,
                         file.string(), rest_path.string(), V, rest.triangles.rows(), m.vertices.rows(),
                         m.triangles.rows()));
       }
+      const Transform T = p.support.empty() ? Transform::Identity() : p.support[f];
+      if (world) m.vertices = ((m.vertices.rowwise() - T.col(3).transpose()) * T.leftCols<3>()).eval();
       s.positions.row(n) = positions_row(m);
       s.frame_palette.push_back(p.entry);
-      s.support(n, 0) = s.support(n, 5) = s.support(n, 10) = 1;  // identity 3x4
+      s.support.row(n) = Eigen::Map<const Eigen::Matrix<double, 1, 12>>(T.data()).cast<float>();
       ++n;
       if (progress) progress(n, total);
     }
@@ -184,6 +231,8 @@ OrbitStore import_orbits(const std::filesystem::path& manifest,
   const auto rest_path = top.has("rest") ? dir / top.string("rest") : plan.front().files.front();
   const ObjMesh rest = read_obj(rest_path);
   const std::vector<int> pinned = read_pinned(top, root, rest.vertices.rows());
+  const std::string positions = top.optional_string("positions").value_or("support");
+  if (positions != "support" && positions != "world") top.fail("positions", "\"support\" or \"world\"");
   top.finish();
 
   const auto V = rest.vertices.rows();
@@ -191,7 +240,7 @@ OrbitStore import_orbits(const std::filesystem::path& manifest,
   s.triangles = rest.triangles.cast<std::uint32_t>();
   s.pinned.assign(static_cast<size_t>(V), 0);
   for (int p : pinned) s.pinned[static_cast<size_t>(p)] = 1;
-  read_frames(plan, rest, rest_path, s, progress);
+  read_frames(plan, rest, rest_path, positions == "world", s, progress);
   s.velocities = core::orbit_velocities(s.positions, s.irf_start, s.irf_length, s.irf_continues, s.dt);
   validate_orbit_store(s, manifest.string());
   return s;

@@ -8,6 +8,9 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
+#include <cmath>
 #include <fstream>
 
 namespace phasecast::precompute {
@@ -149,6 +152,57 @@ TEST(Import, ImportedOrbitsReduceIntoAServablePackage) {
                         {"reduce", (dir / "other.toml").string(), orbits, "-o", package});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("does not belong to scene 'other' (9 vertices"), std::string::npos) << r.err;
+}
+
+// The other tool moved the support: frame k turned the sheet by 0.1 k rad about
+// y, written in world coordinates with the turn in open_0/support.txt.
+std::filesystem::path make_turning_fixture(const std::string& name, const std::string& extra_line = "") {
+  std::string manifest = kManifest;
+  manifest.replace(manifest.find("pinned = [0]"), 12, "pinned = [0]\npositions = \"world\"");
+  manifest.replace(manifest.find("frames = \"open_0\""), 17,
+                   "frames = \"open_0\"\nsupport = \"open_0/support.txt\"");
+  const auto path = make_fixture(name, manifest);
+  std::ofstream support(path.parent_path() / "open_0" / "support.txt");
+  support << "# [R | t] of the support, one frame a line\n";
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.1 * k, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const Eigen::Vector3d t(0.5 * k, 0, 0);
+    write_obj(path.parent_path() / "open_0" / ("f" + std::to_string(k) + ".obj"),
+              ((square(0) * R.transpose()).rowwise() + t.transpose()).eval(), square_triangles());
+    for (int r = 0; r < 3; ++r) support << R(r, 0) << ' ' << R(r, 1) << ' ' << R(r, 2) << ' ' << t(r) << ' ';
+    support << '\n';
+  }
+  support << extra_line;
+  return path;
+}
+
+TEST(Import, SupportTransformsPerFrameMoveTheSupport) {
+  const OrbitStore s = import_orbits(make_turning_fixture("import_support"));
+  ASSERT_EQ(s.frames(), 6);
+  for (int f = 0; f < 4; ++f) {
+    // In the support's frame the sheet never moved; the store keeps the turn.
+    for (int c = 0; c < 12; ++c) EXPECT_NEAR(s.positions(f, c), square(0)(c / 3, c % 3), 1e-5) << f;
+    EXPECT_NEAR(s.support(f, 0), std::cos(0.1 * f), 1e-6);
+    EXPECT_NEAR(s.support(f, 2), std::sin(0.1 * f), 1e-6);
+    EXPECT_NEAR(s.support(f, 3), 0.5 * f, 1e-6);
+  }
+  EXPECT_FLOAT_EQ(s.support(4, 0), 1.0f);  // stop_0 names no transforms: the identity
+  EXPECT_FLOAT_EQ(s.support(4, 3), 0.0f);
+  EXPECT_NEAR(s.velocities(2, 0), 0.0f, 1e-4);
+}
+
+TEST(ImportErrors, SupportTransformsMustMatchTheFramesAndBeRigid) {
+  const auto extra = make_turning_fixture("import_support_count", "1 0 0 0 0 1 0 0 0 0 1 0\n");
+  const auto dir = extra.parent_path();
+  EXPECT_EQ(error_of([&] { import_orbits(extra); }), (dir / "open_0/support.txt").string() +
+                                                         ": 5 transforms for the 4 OBJ frames of " +
+                                                         (dir / "open_0").string());
+  const auto sheared = make_turning_fixture("import_support_shear");
+  std::ofstream(sheared.parent_path() / "open_0/support.txt")
+      << "1 0 0 0 0 1 0 0 0 0 1 0\n1 0.5 0 0 0 1 0 0 0 0 1 0\n";
+  EXPECT_EQ(error_of([&] { import_orbits(sheared); }),
+            (sheared.parent_path() / "open_0/support.txt").string() +
+                ":2: expected a rotation in the first 3 columns (a rigid support)");
 }
 
 TEST(ImportErrors, TopologyMismatch) {
