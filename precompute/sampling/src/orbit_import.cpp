@@ -179,6 +179,11 @@ std::vector<int> read_pinned(Fields& top, const toml::table& root, Eigen::Index 
 }
 
 // Reads every frame of the plan into the store; each must have the rest mesh's topology.
+// x = R^T (x_world - t), row by row.
+Eigen::MatrixX3d to_support_frame(const Eigen::MatrixX3d& world, const Transform& T) {
+  return (world.rowwise() - T.col(3).transpose()) * T.leftCols<3>();
+}
+
 // World positions (`positions = "world"`) are taken into the support's frame.
 void read_frames(const std::vector<ImportedIrf>& plan, const ObjMesh& rest,
                  const std::filesystem::path& rest_path, bool world, OrbitStore& s,
@@ -205,7 +210,7 @@ void read_frames(const std::vector<ImportedIrf>& plan, const ObjMesh& rest,
                         m.triangles.rows()));
       }
       const Transform T = p.support.empty() ? Transform::Identity() : p.support[f];
-      if (world) m.vertices = ((m.vertices.rowwise() - T.col(3).transpose()) * T.leftCols<3>()).eval();
+      if (world) m.vertices = to_support_frame(m.vertices, T);
       s.positions.row(n) = positions_row(m);
       s.frame_palette.push_back(p.entry);
       s.support.row(n) = Eigen::Map<const Eigen::Matrix<double, 1, 12>>(T.data()).cast<float>();
@@ -229,11 +234,14 @@ OrbitStore import_orbits(const std::filesystem::path& manifest,
   read_palette(top, s);
   const std::vector<ImportedIrf> plan = plan_irfs(top, s, dir);
   const auto rest_path = top.has("rest") ? dir / top.string("rest") : plan.front().files.front();
-  const ObjMesh rest = read_obj(rest_path);
+  ObjMesh rest = read_obj(rest_path);
   const std::vector<int> pinned = read_pinned(top, root, rest.vertices.rows());
   const std::string positions = top.optional_string("positions").value_or("support");
   if (positions != "support" && positions != "world") top.fail("positions", "\"support\" or \"world\"");
   top.finish();
+  // A rest taken from the first frame is in that frame's coordinates; a named one is in the support's.
+  if (positions == "world" && !top.has("rest") && !plan.front().support.empty())
+    rest.vertices = to_support_frame(rest.vertices, plan.front().support.front());
 
   const auto V = rest.vertices.rows();
   s.rest_positions = positions_row(rest).reshaped<Eigen::RowMajor>(V, 3);

@@ -154,8 +154,9 @@ TEST(Import, ImportedOrbitsReduceIntoAServablePackage) {
   EXPECT_NE(r.err.find("does not belong to scene 'other' (9 vertices"), std::string::npos) << r.err;
 }
 
-// The other tool moved the support: frame k turned the sheet by 0.1 k rad about
-// y, written in world coordinates with the turn in open_0/support.txt.
+// The other tool moved the support: frame k turned the sheet by 0.1 (k + 1) rad
+// about y and shifted it, written in world coordinates with the motion in
+// open_0/support.txt (the first frame, the rest mesh, is not the identity).
 std::filesystem::path make_turning_fixture(const std::string& name, const std::string& extra_line = "") {
   std::string manifest = kManifest;
   manifest.replace(manifest.find("pinned = [0]"), 12, "pinned = [0]\npositions = \"world\"");
@@ -165,8 +166,8 @@ std::filesystem::path make_turning_fixture(const std::string& name, const std::s
   std::ofstream support(path.parent_path() / "open_0" / "support.txt");
   support << "# [R | t] of the support, one frame a line\n";
   for (int k = 0; k < 4; ++k) {
-    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.1 * k, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    const Eigen::Vector3d t(0.5 * k, 0, 0);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.1 * (k + 1), Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const Eigen::Vector3d t(0.5 * (k + 1), 0, 0);
     write_obj(path.parent_path() / "open_0" / ("f" + std::to_string(k) + ".obj"),
               ((square(0) * R.transpose()).rowwise() + t.transpose()).eval(), square_triangles());
     for (int r = 0; r < 3; ++r) support << R(r, 0) << ' ' << R(r, 1) << ' ' << R(r, 2) << ' ' << t(r) << ' ';
@@ -182,10 +183,11 @@ TEST(Import, SupportTransformsPerFrameMoveTheSupport) {
   for (int f = 0; f < 4; ++f) {
     // In the support's frame the sheet never moved; the store keeps the turn.
     for (int c = 0; c < 12; ++c) EXPECT_NEAR(s.positions(f, c), square(0)(c / 3, c % 3), 1e-5) << f;
-    EXPECT_NEAR(s.support(f, 0), std::cos(0.1 * f), 1e-6);
-    EXPECT_NEAR(s.support(f, 2), std::sin(0.1 * f), 1e-6);
-    EXPECT_NEAR(s.support(f, 3), 0.5 * f, 1e-6);
+    EXPECT_NEAR(s.support(f, 0), std::cos(0.1 * (f + 1)), 1e-6);
+    EXPECT_NEAR(s.support(f, 2), std::sin(0.1 * (f + 1)), 1e-6);
+    EXPECT_NEAR(s.support(f, 3), 0.5 * (f + 1), 1e-6);
   }
+  for (int c = 0; c < 12; ++c) EXPECT_NEAR(s.rest_positions(c / 3, c % 3), square(0)(c / 3, c % 3), 1e-5);
   EXPECT_FLOAT_EQ(s.support(4, 0), 1.0f);  // stop_0 names no transforms: the identity
   EXPECT_FLOAT_EQ(s.support(4, 3), 0.0f);
   EXPECT_NEAR(s.velocities(2, 0), 0.0f, 1e-4);
