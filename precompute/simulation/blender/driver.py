@@ -8,8 +8,8 @@
 #             world boxes, the pinned vertices.
 #   simulate  one JSON line {"vertices": V}; then per line "step m00 .. m23" (the
 #             support's motion, a 3x4 in Blender's world) it moves the support,
-#             advances one frame and answers 3V little-endian doubles: the
-#             deformable vertices in Blender's world.
+#             advances one frame and answers "ok" and 3V little-endian
+#             doubles: the deformable vertices in Blender's world.
 #
 # Any failure answers {"error": "..."} and exits.
 
@@ -194,7 +194,7 @@ def simulate(config):
                 fail(f"'{obj.name}' has {len(world) // 3} vertices at frame {frame} but {count} at the "
                      f"first frame (a modifier that changes the topology?)")
             out.extend(world)
-        STREAM.write(struct.pack(f"<{len(out)}d", *out))
+        STREAM.write(b"ok\n" + struct.pack(f"<{len(out)}d", *out))
         STREAM.flush()
 
 

@@ -26,8 +26,7 @@ std::string driver_config(const BlenderSettings& s, double frame_dt) {
       .dump();
 }
 
-nlohmann::json read_json(BlenderProcess& process, const BlenderSettings& s) {
-  const std::string line = process.read_line();
+nlohmann::json parse_answer(const std::string& line, const BlenderSettings& s) {
   nlohmann::json answer;
   try {
     answer = nlohmann::json::parse(line);
@@ -38,6 +37,10 @@ nlohmann::json read_json(BlenderProcess& process, const BlenderSettings& s) {
   if (answer.contains("error"))
     throw SimulationError(fmt::format("{}: {}", s.blend.string(), answer["error"].get<std::string>()));
   return answer;
+}
+
+nlohmann::json read_json(BlenderProcess& process, const BlenderSettings& s) {
+  return parse_answer(process.read_line(), s);
 }
 
 Eigen::Vector3d phasecast_point(const nlohmann::json& xyz) {
@@ -134,6 +137,11 @@ class BlenderSimulator final : public Simulator {
       request += fmt::format(" {:.17g}", t(r));
     }
     process_->write(request + "\n");
+    if (const std::string line = process_->read_line(); line != "ok") {
+      parse_answer(line, settings_);  // the driver's error
+      throw SimulationError(fmt::format("Blender on {}: the driver answered '{}' to a step",
+                                        settings_.blend.string(), line.substr(0, 80)));
+    }
     Eigen::VectorXd world(rest_.x.size());
     process_->read_exact(world.data(), sizeof(double) * static_cast<size_t>(world.size()));
     const Eigen::Matrix3d Rt = T.leftCols<3>().transpose();

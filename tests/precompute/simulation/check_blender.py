@@ -75,7 +75,24 @@ def check_run(precompute, scene, d):
     assert "NRMSE" in r.stdout, r.stdout
 
 
+def edited_blend(d, name, edit):
+    """door.blend with `edit` (Python run inside Blender) applied, saved as NAME."""
+    code = f"import bpy\n{edit}\nbpy.ops.wm.save_as_mainfile(filepath={os.path.join(d, name)!r})\n"
+    subprocess.run(["blender", "-b", os.path.join(d, "door.blend"), "--factory-startup", "--python-expr", code],
+                   check=True, capture_output=True, timeout=300)
+    return name
+
+
 def check_failures(precompute, d):
+    shrinking = edited_blend(d, "shrinking.blend", "b = bpy.data.objects['Towel'].modifiers.new('Build', 'BUILD')\n"
+                             "b.frame_start, b.frame_duration, b.use_reverse = 20, 10, True")
+    r = tool(precompute, "simulate", write(d, "shrinking.toml", scene_text(blend=shrinking)), "--schedule",
+             "open 0.6", "-o", f"{d}/shrinking.h5", expect=1)
+    assert "'Towel' has 32 vertices at frame 21 but 35 at the first frame (a modifier that changes the " \
+           "topology?)" in r.stderr, r.stderr
+    loose = edited_blend(d, "loose.blend", "bpy.data.objects['Door'].parent = None")
+    fails_with(precompute, write(d, "loose.toml", scene_text(blend=loose)),
+               "'Door' is not a child of the support 'Hinge': parent it so it moves with the support")
     fails_with(precompute, write(d, "missing.toml", scene_text()),
                "is not installed", env={**os.environ, "PATH": "/nonexistent"})
     fails_with(precompute, write(d, "env.toml", scene_text()), "is not an executable file",
