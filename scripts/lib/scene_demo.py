@@ -2,8 +2,13 @@
 """Prints a scene file's [demo] section as two lines: the example Lua script
 (resolved against the scene file's folder) and the seed of the demo's small
 sample. scripts/demo reads it; phasecast-precompute checks the same section
-(docs/scenes.md, "[demo]")."""
+(docs/scenes.md, "[demo]").
+
+With --make-blend it instead writes a Blender scene's missing .blend by running
+its [simulator] make script in Blender (docs/simulator.md), and prints the
+.blend's path (nothing for a scene of the built-in simulator)."""
 import os
+import subprocess
 import sys
 import tomllib
 
@@ -25,5 +30,28 @@ def main(scene_file):
     print(seed)
 
 
+def make_blend(scene_file):
+    with open(scene_file, "rb") as f:
+        simulator = tomllib.load(f).get("simulator", {})
+    if simulator.get("kind") != "blender":
+        return
+    folder = os.path.dirname(os.path.abspath(scene_file))
+    blend = os.path.join(folder, simulator.get("blend", ""))
+    make = simulator.get("make")
+    print(blend)
+    if os.path.exists(blend) or not make:
+        return  # phasecast-precompute names a missing .blend that has no maker
+    command = ["blender", "-b", "--factory-startup", "--python", os.path.join(folder, make[0]), "--", blend,
+               *make[1:]]
+    print(f"demo: making {blend}", file=sys.stderr)
+    done = subprocess.run(command, capture_output=True, text=True)
+    if done.returncode != 0 or not os.path.exists(blend):
+        tail = " | ".join(done.stdout.strip().splitlines()[-3:] + done.stderr.strip().splitlines()[-3:])
+        sys.exit(f"{scene_file}: [simulator] make: {' '.join(command)} failed: {tail}")
+
+
 if __name__ == "__main__":
-    main(sys.argv[1])
+    if sys.argv[1] == "--make-blend":
+        make_blend(sys.argv[2])
+    else:
+        main(sys.argv[1])

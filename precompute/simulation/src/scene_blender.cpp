@@ -12,10 +12,18 @@ BlenderSettings read_simulator(Fields sim, const std::filesystem::path& folder) 
   BlenderSettings s;
   sim.string("kind");
   s.blend = folder / sim.string("blend");
+  // make = ["maker.py", args...]: the Python that writes the .blend (scripts/demo runs it when missing).
+  std::vector<std::string> make;
+  if (sim.has("make")) make = sim.strings("make");
   if (!std::filesystem::exists(s.blend)) {
-    sim.fail("blend", fmt::format("an existing .blend file ({} does not exist; the example's is made by "
-                                  "scripts/blender/make-example.py)",
-                                  s.blend.string()));
+    std::string how = "a .blend made in Blender";
+    if (!make.empty()) {
+      how = fmt::format("blender -b --factory-startup --python {} -- {}", (folder / make[0]).string(),
+                        s.blend.string());
+      for (size_t i = 1; i < make.size(); ++i) how += " " + make[i];
+    }
+    sim.fail("blend", fmt::format("an existing .blend file ({} does not exist; make it with: {})",
+                                  s.blend.string(), how));
   }
   s.deformable = sim.strings("deformable");
   if (s.deformable.empty()) sim.fail("deformable", "a list of at least one object name");
