@@ -79,6 +79,21 @@ def pictures(out):
     return lines
 
 
+def fidelity_row(f):
+    """The package's own held-out figures (/fidelity/, stored by run --held-out-schedules)."""
+    label = "held-out fidelity stored in the package"
+    if not f:
+        return (label, "none (run --held-out-schedules K or --until-fidelity X stores it)")
+    text = (f"median NRMSE {f['median_nrmse']:.3f}, 90th percentile {f['p90_nrmse']:.3f} over {f['schedules']} "
+            f"random schedules (seed {int(f['seed'])}); moving segments in [0.67, 1.5]: "
+            f"{f['moving_segments_within']}/{f['moving_segments']}")
+    if "adaptive" in f:
+        a = f["adaptive"]
+        text += (f"; sampled towards median {a['target_median_nrmse']:.3f}: "
+                 f"{'met' if a['target_met'] else 'not met'} after {a['rounds']} rounds, {a['sampled_irfs']} IRFs")
+    return (label, text)
+
+
 def main():
     out, package, rate = sys.argv[1], sys.argv[2], float(sys.argv[3])
     s = json.load(open(os.path.join(out, "inspect.json")))
@@ -115,6 +130,7 @@ def main():
     check_lines = open(check_log).read().strip().splitlines() if os.path.exists(check_log) else []
     rows.append(("recording `session.phcrec` replay check", check_lines[-1] if check_lines else "not run"))
     rows += validation_rows(os.path.join(out, "validation.json"))
+    rows.append(fidelity_row(s.get("fidelity")))
     rows.append(("renderers a / b: frames, common frames, byte-identical PNGs",
                  f"{na} / {nb}, {len(common)}, {same}"))
     glb = os.path.join(out, "session.glb")

@@ -68,6 +68,35 @@ TEST(Service, ServesSeveralScenesWithTheirOwnRanks) {
   EXPECT_EQ(b.q_u_size(), 4);
 }
 
+// The package's held-out playback figures (/fidelity/) reach clients in the scene list.
+TEST(Service, SceneListCarriesThePackagesFidelity) {
+  const auto dir = testing::scratch_dir("server_svc_fidelity");
+  auto p = testing::make_plate_package();
+  core::PlaybackFidelity& f = p.fidelity.emplace();
+  f.schedules = 20, f.items = 4, f.seed = 99;
+  f.median_nrmse = 0.11f, f.p90_nrmse = 0.21f;
+  f.moving = 40, f.moving_within = 37, f.switches = 60, f.switches_within = 58;
+  core::write_package(p, dir / "fidelity.h5");
+  const TwoScenes plain("fidelity_plain");
+  SynthesisService s(60);
+  s.load_package(dir / "fidelity.h5");
+  s.load_package(plain.tall);
+  v1::Request list;
+  list.mutable_list_scenes();
+  const auto scenes = s.handle(list).scenes();
+  ASSERT_EQ(scenes.scenes_size(), 2);
+  ASSERT_TRUE(scenes.scenes(0).has_fidelity());
+  const auto& got = scenes.scenes(0).fidelity();
+  EXPECT_EQ(got.schedules(), 20u);
+  EXPECT_EQ(got.seed(), 99);
+  EXPECT_FLOAT_EQ(got.median_nrmse(), 0.11f);
+  EXPECT_FLOAT_EQ(got.p90_nrmse(), 0.21f);
+  EXPECT_EQ(got.moving_within(), 37u);
+  EXPECT_EQ(got.switches_within(), 58u);
+  EXPECT_FALSE(got.adaptive());
+  EXPECT_FALSE(scenes.scenes(1).has_fidelity()) << "a package without /fidelity/ has none";
+}
+
 TEST(Service, CreateInstanceIsBounded) {
   const TwoScenes f("bounded");
   SynthesisService s(60);

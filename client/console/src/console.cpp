@@ -259,6 +259,17 @@ int l_scenes(lua_State* L) {
         lua_rawseti(L, -2, k + 1);
       }
       lua_setfield(L, -2, "palette");
+      if (s.has_fidelity()) {
+        const auto& f = s.fidelity();
+        lua_createtable(L, 0, 6);
+        set_field(L, "schedules", static_cast<lua_Integer>(f.schedules()));
+        set_field(L, "median_nrmse", static_cast<double>(f.median_nrmse()));
+        set_field(L, "p90_nrmse", static_cast<double>(f.p90_nrmse()));
+        set_field(L, "moving", static_cast<lua_Integer>(f.moving()));
+        set_field(L, "moving_within", static_cast<lua_Integer>(f.moving_within()));
+        set_field(L, "adaptive", f.adaptive());
+        lua_setfield(L, -2, "fidelity");
+      }
       lua_rawseti(L, -2, i + 1);
     }
     return 1;

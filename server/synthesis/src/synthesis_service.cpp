@@ -259,6 +259,30 @@ void SynthesisService::impulse(const v1::Impulse& r, v1::ImpulseAccepted& out) {
   out.set_at_frame(engine_.schedule_impulse(r.instance(), d, at));
 }
 
+namespace {
+
+void describe_fidelity(const core::PlaybackFidelity& f, v1::Fidelity& out) {
+  const auto count = [](std::int32_t n) { return static_cast<std::uint32_t>(std::max(n, 0)); };
+  out.set_schedules(count(f.schedules));
+  out.set_items(count(f.items));
+  out.set_seed(f.seed);
+  out.set_median_nrmse(f.median_nrmse);
+  out.set_p90_nrmse(f.p90_nrmse);
+  out.set_moving(count(f.moving));
+  out.set_moving_within(count(f.moving_within));
+  out.set_switches(count(f.switches));
+  out.set_switches_within(count(f.switches_within));
+  if (f.target_median_nrmse) {
+    out.set_adaptive(true);
+    out.set_target_median_nrmse(*f.target_median_nrmse);
+    out.set_sampled_irfs(count(f.sampled_irfs));
+    out.set_rounds(count(f.rounds));
+    out.set_target_met(f.target_met);
+  }
+}
+
+}  // namespace
+
 void SynthesisService::list_scenes(v1::SceneList& out) const {
   out.set_pub_endpoint(pub_endpoint_);
   for (const auto& s : engine_.scenes()) {
@@ -275,6 +299,7 @@ void SynthesisService::list_scenes(v1::SceneList& out) const {
     info.set_dt(p.attributes.dt);
     if (p.attributes.camera)
       info.mutable_camera()->Assign(p.attributes.camera->begin(), p.attributes.camera->end());
+    if (p.fidelity) describe_fidelity(*p.fidelity, *info.mutable_fidelity());
     const auto& pal = p.palette;
     for (int d = 0; d < pal.size(); ++d) {
       const auto i = static_cast<std::size_t>(d);
