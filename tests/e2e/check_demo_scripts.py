@@ -87,6 +87,9 @@ if r.returncode == 0:
           "the console did not run door_open_close.lua")
     check(re.search(r"\| glTF export `session.glb` \(phasecast-export, docs/gltf.md\) \| [1-9]\d* bytes \|", summary),
           "summary: no glTF export row with its size")
+    check(re.search(r"\| held-out fidelity stored in the package \| median NRMSE \d\.\d{3}, 90th percentile "
+                    r"\d\.\d{3} over 6 random schedules \(seed \d+\); moving segments in \[0\.67, 1\.5\]: \d+/\d+ \|",
+                    summary), "summary: no held-out fidelity row with the package's figures")
     check("demo: outputs in " + work in r.stderr, "the demo did not say where its outputs are")
     # The MP4 and the contact sheet: 4 x 3 tiles of half the frame size (48x36) with a 2-pixel border.
     sheet = os.path.join(work, "contact_sheet.png")
