@@ -25,7 +25,24 @@ struct Options {
   AdaptiveOptions adaptive;
   int held_out_schedules = -1;      // -1: 20 with --until-fidelity, else none
   std::uint64_t fidelity_seed = 0;  // 0: derived from --seed (below 2^53: the package stores it as a double)
+  bool allow_missing_entries = false;  // accept a package in which an entry has no IRF
 };
+
+// A palette entry without an IRF cannot be played: the server refuses it.
+// The package stays written (nothing computed is lost); run fails naming them.
+void check_every_entry_sampled(const core::ScenePackage& p, const Options& o) {
+  std::vector<int> irfs(static_cast<size_t>(p.palette.size()), 0);
+  for (const auto e : p.portrait.irf_palette) ++irfs[static_cast<size_t>(e)];
+  std::string missing;
+  for (size_t e = 0; e < irfs.size(); ++e)
+    if (irfs[e] == 0) missing += (missing.empty() ? "'" : ", '") + p.palette.names[e] + "'";
+  if (missing.empty() || o.allow_missing_entries) return;
+  throw std::runtime_error(fmt::format(
+      "{}: no IRF of palette entry {} (the server would refuse it): sample more (--irfs-per-chain, "
+      "--chains) or let it follow more entries (its 'after'); the package is written, "
+      "--allow-missing-entries accepts it",
+      o.output, missing));
+}
 
 // The held-out schedules' stream: never the sampler's, never the guides'.
 std::uint64_t held_out_seed(const Options& o) {
@@ -33,6 +50,8 @@ std::uint64_t held_out_seed(const Options& o) {
 }
 
 void add_fidelity_options(CLI::App* cmd, Options& o) {
+  cmd->add_flag("--allow-missing-entries", o.allow_missing_entries,
+                "exit 0 even when a palette entry got no IRF (the server refuses such an entry)");
   cmd->add_option(
          "--until-fidelity", o.until_fidelity,
          "sample until random guide schedules play at this median NRMSE (90th percentile + 0.1, 95 % "
@@ -115,6 +134,7 @@ void add_run_command(CLI::App& app) {
     if (sampled.writer) fmt::print("{}", sample_report_text(sampled));
     const auto reduced = run_reduce_stage(scene, o->reduce, o->appearance, orbits, o->output);
     if (reduced.writer) fmt::print("{}", reduce_report_text(reduced));
+    check_every_entry_sampled(reduced.package, *o);
     const int held_out = o->held_out_schedules >= 0 ? o->held_out_schedules : (o->until_fidelity ? 20 : 0);
     if (held_out > 0) {
       const auto f =

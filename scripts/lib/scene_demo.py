@@ -8,6 +8,7 @@ With --make-blend it instead writes a Blender scene's missing .blend by running
 its [simulator] make script in Blender (docs/simulator.md), and prints the
 .blend's path (nothing for a scene of the built-in simulator)."""
 import os
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -41,7 +42,11 @@ def make_blend(scene_file):
     print(blend)
     if os.path.exists(blend) or not make:
         return  # phasecast-precompute names a missing .blend that has no maker
-    command = ["blender", "-b", "--factory-startup", "--python", os.path.join(folder, make[0]), "--", blend,
+    blender = os.environ.get("PHASECAST_BLENDER") or shutil.which("blender")
+    if not blender:
+        sys.exit(f"{scene_file}: [simulator] make needs Blender: install Debian's package 'blender' "
+                 "(scripts/install-deps does) or set PHASECAST_BLENDER")
+    command = [blender, "-b", "--factory-startup", "--python", os.path.join(folder, make[0]), "--", blend,
                *make[1:]]
     print(f"demo: making {blend}", file=sys.stderr)
     done = subprocess.run(command, capture_output=True, text=True)

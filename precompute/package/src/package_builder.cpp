@@ -266,7 +266,9 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
   const MatrixXfR qdot_all = core::orbit_velocities(basis.q_u, orbits.irfs.start, orbits.irfs.length,
                                                     orbits.irfs.continues, orbits.dt);
   const double beta_all = o.beta > 0 ? o.beta : default_beta(basis.q_u, qdot_all);
-  out.filter = filter_orbits(basis.q_u, qdot_all, beta_all, orbits.irfs, o.filter);
+  OrbitFilterOptions filter = o.filter;
+  for (const auto& e : scene.palette) filter.entry_names.push_back(e.name);
+  out.filter = filter_orbits(basis.q_u, qdot_all, beta_all, orbits.irfs, filter);
   // Kept IRFs, renumbered: their nodes become consecutive rows.
   auto& p = pkg.portrait;
   Eigen::Index nodes = 0;

@@ -115,6 +115,17 @@ OrbitStoreAppender open_chain(const Scene& scene, const SamplingOptions& o, int 
   const auto store_path = chain_store(o.work_dir, chain), state_path = chain_state(o.work_dir, chain);
   const bool checkpointed = std::filesystem::exists(store_path) && std::filesystem::exists(state_path);
   if (o.resume && checkpointed && !sim.restores_any_state()) {
+    // A finished chain is kept; an unfinished one cannot be continued by its simulator.
+    const Checkpoint saved =
+        read_checkpoint(state_path, o, chain, 3 * static_cast<Eigen::Index>(sim.vertices()));
+    if (saved.irfs == o.irfs_per_chain) {
+      try {
+        OrbitStoreAppender store = OrbitStoreAppender::reopen(store_path, saved.irfs);
+        c = saved;
+        return store;
+      } catch (const OrbitStoreError&) {  // a torn store: the chain is sampled again below
+      }
+    }
     std::lock_guard lock(sh.mutex);
     if (o.notice)
       o.notice(fmt::format("chain {}: its simulator cannot continue a checkpoint; sampling the chain again",

@@ -28,6 +28,11 @@ bool last_of_its_entry(const IrfList& irfs, const std::vector<char>& alive, size
   return true;
 }
 
+std::string entry_of(const OrbitFilterOptions& o, int entry) {
+  const auto k = static_cast<size_t>(entry);
+  return k < o.entry_names.size() ? fmt::format("'{}'", o.entry_names[k]) : fmt::format("entry {}", entry);
+}
+
 }  // namespace
 
 OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
@@ -43,8 +48,8 @@ OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, d
     if (irfs.length[i] < o.min_frames && !last_of_its_entry(irfs, alive, i)) {
       alive[i] = 0;
       ++r.dropped_short;
-      r.messages.push_back(fmt::format("IRF {} (entry {}): {} nodes, shorter than the minimum {}", i,
-                                       irfs.palette[i], irfs.length[i], o.min_frames));
+      r.messages.push_back(fmt::format("IRF {} ({}): {} nodes, shorter than the minimum {}", i,
+                                       entry_of(o, irfs.palette[i]), irfs.length[i], o.min_frames));
     }
   }
   if (o.dead_end_fraction > 0) {
@@ -66,9 +71,9 @@ OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, d
           changed = true;
           ++r.dropped_dead_end;
           r.messages.push_back(
-              fmt::format("IRF {} (entry {}): dead end, last node {:.4g} from the nearest IRF start "
+              fmt::format("IRF {} ({}): dead end, last node {:.4g} from the nearest IRF start "
                           "(threshold {:.4g}, eq. 9)",
-                          i, irfs.palette[i], std::sqrt(nearest), threshold));
+                          i, entry_of(o, irfs.palette[i]), std::sqrt(nearest), threshold));
         }
       }
     }

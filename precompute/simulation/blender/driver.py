@@ -25,9 +25,10 @@ import mathutils
 
 try:
     import numpy
-except ImportError:  # Blender without numpy: slower, the same numbers
+except ImportError:  # Blender without numpy: slower, and mathutils rounds to float32 first
     numpy = None
 
+CLOTH_SECONDS_PER_FRAME = 0.001 ** 0.5  # at speed multiplier 1 (measured: free fall, any fps)
 CHANNEL = socket.socket(fileno=3)
 STREAM = CHANNEL.makefile("rwb")
 
@@ -112,7 +113,7 @@ def pinned_of(obj, count):
         for v in obj.data.vertices:
             if v.index < count:
                 for g in v.groups:
-                    if g.group == group.index and g.weight > 0:
+                    if g.group == group.index and g.weight ** 4 >= 0.999:  # Blender pins only these
                         pinned[v.index] = 1
     return pinned
 
@@ -123,6 +124,8 @@ def prepare(config):
     scene.render.fps_base = config["fps_base"]
     scene.frame_end = 1048574
     support = find_object(config["support"], "support")
+    if support.animation_data is not None or len(support.constraints) > 0:
+        fail(f"the support '{support.name}' has animation or constraints: Phasecast moves it (remove them)")
     deformable = [find_object(n, "deformable object") for n in config["deformable"]]
     drawn = [find_object(n, "drawn object") for n in config["drawn"]]
     for obj in deformable + drawn:
@@ -135,6 +138,10 @@ def prepare(config):
             if m.type in ("CLOTH", "SOFT_BODY"):
                 m.point_cache.frame_start = scene.frame_start
                 m.point_cache.frame_end = scene.frame_end
+            if m.type == "CLOTH":
+                # Blender's cloth advances a fixed sqrt(0.001) s a frame whatever the frame rate (its
+                # gravity is g * 0.001 per frame squared); its speed multiplier makes that frame_dt.
+                m.settings.time_scale *= config["frame_dt"] / CLOTH_SECONDS_PER_FRAME
     scene.frame_set(scene.frame_start)
     return scene, support, deformable, drawn
 

@@ -11,11 +11,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <sstream>
 #include <thread>
 #include <vector>
@@ -57,7 +59,9 @@ std::filesystem::path blender_executable() {
   std::stringstream dirs(path ? path : "");
   for (std::string dir; std::getline(dirs, dir, ':');) {
     const auto candidate = std::filesystem::path(dir.empty() ? "." : dir) / "blender";
-    if (access(candidate.c_str(), X_OK) == 0) return candidate;
+    std::error_code ignored;
+    if (std::filesystem::is_regular_file(candidate, ignored) && access(candidate.c_str(), X_OK) == 0)
+      return candidate;
   }
   throw SimulationError(
       "Blender is not installed (no 'blender' on the PATH): install Debian's package 'blender' "
@@ -73,7 +77,12 @@ BlenderProcess::BlenderProcess(const std::filesystem::path& blend, const std::st
     throw SimulationError(fmt::format("socketpair for Blender: {}", strerror(errno)));
   channel_ = pair[0];
   const int child_end = above_fixed(pair[1]);
-  log_ = private_log();
+  try {
+    log_ = private_log();
+  } catch (...) {
+    close(channel_), close(child_end);
+    throw;
+  }
 
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
@@ -81,6 +90,7 @@ BlenderProcess::BlenderProcess(const std::filesystem::path& blend, const std::st
   posix_spawn_file_actions_adddup2(&actions, log_, 1);
   posix_spawn_file_actions_adddup2(&actions, log_, 2);
   posix_spawn_file_actions_adddup2(&actions, child_end, kChildChannel);
+  posix_spawn_file_actions_addclosefrom_np(&actions, kChildChannel + 1);  // HDF5's, MPI's: not Blender's
   std::vector<std::string> args = {executable.string(),
                                    "-b",
                                    blend.string(),
@@ -157,7 +167,7 @@ std::string BlenderProcess::exit_description() {
 
 void BlenderProcess::wait_readable() {
   pollfd p{channel_, POLLIN, 0};
-  const int ms = static_cast<int>(timeout_ * 1000);
+  const int ms = static_cast<int>(std::min(timeout_ * 1000, 2e9));
   int ready;
   do ready = poll(&p, 1, ms);
   while (ready < 0 && errno == EINTR);
@@ -173,6 +183,7 @@ void BlenderProcess::read_exact(void* out, std::size_t bytes) {
   for (std::size_t got = buffered; got < bytes;) {
     wait_readable();
     const ssize_t n = recv(channel_, dst + got, bytes - got, 0);
+    if (n < 0 && errno == EINTR) continue;
     if (n <= 0) fail(exit_description());
     got += static_cast<std::size_t>(n);
   }
@@ -188,6 +199,7 @@ std::string BlenderProcess::read_line() {
     wait_readable();
     char chunk[65536];
     const ssize_t n = recv(channel_, chunk, sizeof chunk, 0);
+    if (n < 0 && errno == EINTR) continue;
     if (n <= 0) fail(exit_description());
     buffer_.append(chunk, static_cast<size_t>(n));
   }
@@ -196,6 +208,7 @@ std::string BlenderProcess::read_line() {
 void BlenderProcess::write(const std::string& text) {
   for (std::size_t sent = 0; sent < text.size();) {
     const ssize_t n = send(channel_, text.data() + sent, text.size() - sent, MSG_NOSIGNAL);
+    if (n < 0 && errno == EINTR) continue;
     if (n <= 0) fail("it stopped listening");
     sent += static_cast<std::size_t>(n);
   }

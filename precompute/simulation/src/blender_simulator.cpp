@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <string_view>
@@ -18,11 +19,8 @@ using Transform = Eigen::Matrix<double, 3, 4>;
 std::string driver_config(const BlenderSettings& s, double frame_dt) {
   // Blender's frame rate is fps / fps_base frames per second.
   const int fps = std::max(1, static_cast<int>(std::lround(1 / frame_dt)));
-  return nlohmann::json{{"fps", fps},
-                        {"fps_base", fps * frame_dt},
-                        {"support", s.support},
-                        {"deformable", s.deformable},
-                        {"drawn", s.drawn}}
+  return nlohmann::json{{"fps", fps},           {"fps_base", fps * frame_dt}, {"frame_dt", frame_dt},
+                        {"support", s.support}, {"deformable", s.deformable}, {"drawn", s.drawn}}
       .dump();
 }
 
@@ -77,8 +75,10 @@ class BlenderSimulator final : public Simulator {
   void reset(const SimState& s) override {
     const std::size_t h = position_hash(s.x);
     if (h != visited_.back()) {
-      const auto k = std::find(visited_.begin(), visited_.end(), h) - visited_.begin();
-      if (k == static_cast<std::ptrdiff_t>(visited_.size())) {
+      // The latest visit: a cloth at rest may pass through the same positions more than once.
+      const auto found = std::find(visited_.rbegin(), visited_.rend(), h);
+      const auto k = visited_.rend() - found - 1;
+      if (found == visited_.rend()) {
         throw SimulationError(fmt::format(
             "{}: Blender returns only to states it reached itself since it started (not a checkpoint of "
             "another process)",
@@ -87,6 +87,11 @@ class BlenderSimulator final : public Simulator {
       const std::vector<Transform> replay(motions_.begin(), motions_.begin() + k);
       restart();
       for (const auto& T : replay) advance_blender(T);
+      if (position_hash(state_.x) != h) {
+        throw SimulationError(fmt::format(
+            "{}: Blender replayed {} frames to other positions than the first time (not deterministic?)",
+            settings_.blend.string(), replay.size()));
+      }
     }
     state_.support = s.support;
     state_.time = s.time;

@@ -51,6 +51,24 @@ TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
   EXPECT_EQ(p.portrait.irf_count(), 6);
 }
 
+// One IRF from rest cannot be a 'stop' (it follows open or close): run writes
+// the package, then fails naming the entries the server would refuse.
+TEST(PipelineCli, RunFailsNamingAnEntryWithoutIrfs) {
+  const auto dir = scratch_dir("cli_missing_entry");
+  const auto pkg = (dir / "thin.h5").string();
+  const std::vector<std::string> thin = {"--chains", "1", "--irfs-per-chain", "1", "--no-appearance"};
+  const auto r = run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}, thin));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no IRF of palette entry 'stop'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--allow-missing-entries accepts it"), std::string::npos) << r.err;
+  EXPECT_EQ(core::read_package(pkg).portrait.irf_count(), 1) << "the package is written all the same";
+  auto allowed = thin;
+  allowed.push_back("--allow-missing-entries");
+  EXPECT_EQ(run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", pkg}, allowed))
+                .exit_code,
+            0);
+}
+
 // --until-fidelity samples in rounds of directed chains within its budget,
 // says why it stopped, and the package stores the held-out figures; the
 // same options give the same package bytes.

@@ -58,21 +58,56 @@ def check_simulation(precompute, scene, d):
     # The door turns by 1.5 rad/s for 0.8 s about -y (cloth side first), then holds.
     angle = np.arctan2(s1[:, 8], s1[:, 0])
     assert abs(angle[-1] - 1.2) < 0.05, f"door angle {angle[-1]}"
-    moved = np.abs(x1 - x1[0]).reshape(len(x1), -1, 3).max(axis=(1, 2))
-    assert moved.max() > 0.02, f"the towel does not follow the door (at most {moved.max()} m in the door's frame)"
+    # The towel's rail moves with the door: in the door's frame it stays put (a wrong axis
+    # mapping between Blender and Phasecast would swing it), while the towel below it sways.
+    with h5py.File(f"{d}/sim1.h5", "r") as f:
+        pinned = f["mesh/pinned"][:].astype(bool) if "mesh/pinned" in f else None
+    p = x1.reshape(len(x1), -1, 3)
+    pinned = pinned if pinned is not None and pinned.any() else np.isclose(p[0, :, 1], p[0, :, 1].max())
+    rail = np.abs(p[:, pinned] - p[0, pinned]).max()
+    assert rail < 1e-3, f"the rail moves {rail} m in the door's frame"
+    sway = np.abs(p[:, ~pinned] - p[0, ~pinned]).max()
+    assert sway > 0.02, f"the towel does not sway in the door's frame (at most {sway} m)"
+
+
+def check_free_fall(precompute, d):
+    """Blender's cloth advances frame_dt seconds a frame: an unpinned towel falls 1/2 g t^2."""
+    falling = edited_blend(d, "falling.blend", "t = bpy.data.objects['Towel'].modifiers['Cloth']\n"
+                           "t.settings.vertex_group_mass = ''\nt.settings.air_damping = 0\n"
+                           "bpy.data.objects['DoorCollider'].modifiers.clear()")
+    scene = write(d, "falling.toml", scene_text(blend=falling))
+    tool(precompute, "simulate", scene, "--schedule", "stop 0.4", "-o", f"{d}/fall.h5")
+    x, _ = positions(f"{d}/fall.h5")
+    y = x.reshape(len(x), -1, 3)[:, :, 1].mean(axis=1)
+    dt, settled, k = 0.02, 25, len(y) - 1  # recording starts after settle = 0.5 s
+    expected = 0.5 * 9.81 * (((settled + k) * dt) ** 2 - (settled * dt) ** 2)
+    assert abs((y[0] - y[k]) - expected) < 0.03 * expected, f"fell {y[0] - y[k]} m, 1/2 g t^2 = {expected} m"
 
 
 def check_run(precompute, scene, d):
-    common = ["--chains", "2", "--irfs-per-chain", "3", "--no-appearance", "--seed", "3"]
+    common = ["--chains", "2", "--irfs-per-chain", "3", "--no-appearance", "--seed", "3", "-j", "1"]
     tool(precompute, "run", scene, "-o", f"{d}/a.h5", *common)
-    tool(precompute, "run", scene, "-o", f"{d}/b.h5", *common, "--stop-after-irfs", "2", expect=1)
+    # One thread: chain 0 finishes its 3 IRFs, chain 1 stops after its first.
+    tool(precompute, "run", scene, "-o", f"{d}/b.h5", *common, "--stop-after-irfs", "4", expect=1)
     r = tool(precompute, "run", scene, "-o", f"{d}/b.h5", *common, "--resume")
-    assert "cannot continue a checkpoint; sampling the chain again" in r.stderr, r.stderr[-2000:]
+    assert "chain 1: its simulator cannot continue a checkpoint; sampling the chain again" in r.stderr, r.stderr
+    assert "chain 0:" not in r.stderr, "a finished chain was sampled again"
     with h5py.File(f"{d}/a.h5", "r") as a, h5py.File(f"{d}/b.h5", "r") as b:
         for name in ("reduction/U_u", "portrait/q_u", "portrait/irf_start", "portrait/nearest_irf"):
             assert np.array_equal(a[name][:], b[name][:]), f"{name} differs after a resumed run"
     r = tool(precompute, "validate", scene, f"{d}/a.h5", "--schedule", "open 0.4; stop 0.6")
     assert "NRMSE" in r.stdout, r.stdout
+    # Blender dying in the middle of a chain fails the run with its last lines, and writes no package.
+    dying = write(d, "dying.sh", '#!/bin/bash\n# the mode follows "--": describe runs, simulate dies\n'
+                  'args=("$@"); for i in "${!args[@]}"; do [[ ${args[i]} == -- ]] && mode=${args[i+1]}; done\n'
+                  '[[ $mode == describe ]] && exec blender "$@"\n'
+                  'echo Blender 3.4.1\necho "Error: Segmentation fault" >&2\nexit 139\n')
+    os.chmod(dying, 0o755)
+    r = tool(precompute, "run", scene, "-o", f"{d}/c.h5", *common, env={**os.environ, "PHASECAST_BLENDER": dying},
+             expect=1)
+    assert "it exited with status 139; its last lines: Blender 3.4.1 | Error: Segmentation fault" in r.stderr, \
+        r.stderr[-1500:]
+    assert not os.path.exists(f"{d}/c.h5"), "a failed run wrote a package"
 
 
 def edited_blend(d, name, edit):
@@ -94,11 +129,17 @@ def check_failures(precompute, d):
     fails_with(precompute, write(d, "loose.toml", scene_text(blend=loose)),
                "'Door' is not a child of the support 'Hinge': parent it so it moves with the support")
     fails_with(precompute, write(d, "missing.toml", scene_text()),
-               "is not installed", env={**os.environ, "PATH": "/nonexistent"})
+               "Blender is not installed (no 'blender' on the PATH): install Debian's package 'blender'",
+               env={**os.environ, "PATH": "/nonexistent"})
     fails_with(precompute, write(d, "env.toml", scene_text()), "is not an executable file",
                env={**os.environ, "PHASECAST_BLENDER": f"{d}/no-such-blender"})
     fails_with(precompute, write(d, "unknown.toml", scene_text(deformable='["Towl"]')),
                "deformable object 'Towl' is not an object of")
+    fails_with(precompute, write(d, "unknown2.toml", scene_text(deformable='["Towl"]')),
+               "(its objects: Door, DoorCollider, Hinge, Towel)")
+    animated = edited_blend(d, "animated.blend", "bpy.data.objects['Hinge'].keyframe_insert('rotation_euler', frame=1)")
+    fails_with(precompute, write(d, "animated.toml", scene_text(blend=animated)),
+               "the support 'Hinge' has animation or constraints: Phasecast moves it (remove them)")
     fails_with(precompute, write(d, "body.toml", scene_text(extra='\n[[body]]\nname = "x"\n')),
                "the .blend's settings apply")
     hang = write(d, "hang.sh", "#!/bin/sh\necho Blender 3.4.1\necho reading the file\nexec sleep 60\n")
@@ -122,6 +163,7 @@ def main(precompute):
                         f"{d}/door.blend", "--cells", "4", "6"], check=True, capture_output=True, timeout=300)
         scene = write(d, "door.toml", scene_text())
         check_simulation(precompute, scene, d)
+        check_free_fall(precompute, d)
         check_run(precompute, scene, d)
         check_failures(precompute, d)
     print("blender simulator: ok")

@@ -29,6 +29,7 @@ struct OrbitFilterOptions {
   int min_frames = 3;  // IRFs with fewer nodes are dropped
   double dead_end_fraction =
       0.1;  // > 0: drop IRFs ending farther than this x portrait radius from every start
+  std::vector<std::string> entry_names;  // the palette's, for the messages (empty: entries by index)
 };
 
 struct OrbitFilterResult {
