@@ -18,6 +18,9 @@ CHAIN = re.compile(r"(\d+) state nodes in ([\d.]+) s \(settling ([\d.]+) s, then
 
 
 def measure(precompute, scene, seed, schedules, out):
+    # A Blender scene's .blend is built by its [simulator] make when missing (as scripts/demo does).
+    subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "scripts", "lib", "scene_demo.py"), "--make-blend", scene],
+                   check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
     package = os.path.join(out, f"{os.path.basename(os.path.dirname(scene))}-{seed}.h5")
     run = subprocess.run([precompute, "run", scene, "-o", package, "--seed", str(seed), "--no-appearance"],
                          capture_output=True, text=True, check=True, cwd=ROOT)

@@ -2,6 +2,7 @@
 """The Blender simulator end to end on a tiny towel-on-door .blend (docs/simulator.md, "Blender"):
 simulate twice (the same bits), the door swings and the towel follows, run + validate through
 Blender, a resumed run gives the same package, and each failure a user can meet names its cause."""
+import filecmp
 import os
 import shutil
 import subprocess
@@ -95,6 +96,13 @@ def check_run(precompute, scene, d):
     with h5py.File(f"{d}/a.h5", "r") as a, h5py.File(f"{d}/b.h5", "r") as b:
         for name in ("reduction/U_u", "portrait/q_u", "portrait/irf_start", "portrait/nearest_irf"):
             assert np.array_equal(a[name][:], b[name][:]), f"{name} differs after a resumed run"
+    # Chains spread over MPI ranks: each rank runs its own Blender processes; the same package bytes.
+    mpirun = shutil.which("mpirun")
+    if mpirun:
+        ranks = subprocess.run([mpirun, "--oversubscribe", "--allow-run-as-root", "-np", "3", precompute, "run", scene,
+                                "-o", f"{d}/m.h5", *common], capture_output=True, text=True, timeout=600)
+        assert ranks.returncode == 0, ranks.stderr[-2000:]
+        assert filecmp.cmp(f"{d}/a.h5", f"{d}/m.h5", shallow=False), "3 MPI ranks wrote other package bytes"
     r = tool(precompute, "validate", scene, f"{d}/a.h5", "--schedule", "open 0.4; stop 0.6")
     assert "NRMSE" in r.stdout, r.stdout
     # Blender dying in the middle of a chain fails the run with its last lines, and writes no package.
