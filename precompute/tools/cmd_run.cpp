@@ -34,14 +34,16 @@ void check_every_entry_sampled(const core::ScenePackage& p, const Options& o) {
   std::vector<int> irfs(static_cast<size_t>(p.palette.size()), 0);
   for (const auto e : p.portrait.irf_palette) ++irfs[static_cast<size_t>(e)];
   std::string missing;
+  int count = 0;
   for (size_t e = 0; e < irfs.size(); ++e)
-    if (irfs[e] == 0) missing += (missing.empty() ? "'" : ", '") + p.palette.names[e] + "'";
-  if (missing.empty() || o.allow_missing_entries) return;
-  throw std::runtime_error(fmt::format(
-      "{}: no IRF of palette entry {} (the server would refuse it): sample more (--irfs-per-chain, "
-      "--chains) or let it follow more entries (its 'after'); the package is written, "
-      "--allow-missing-entries accepts it",
-      o.output, missing));
+    if (irfs[e] == 0) missing += (count++ ? ", '" : "'") + p.palette.names[e] + "'";
+  if (count == 0 || o.allow_missing_entries) return;
+  throw std::runtime_error(
+      fmt::format("{}: no IRF of palette {} {} (the server would refuse {}): sample more (--irfs-per-chain, "
+                  "--chains) or let {} follow more entries ('after'); the package is written, "
+                  "--allow-missing-entries accepts it",
+                  o.output, count > 1 ? "entries" : "entry", missing, count > 1 ? "them" : "it",
+                  count > 1 ? "them" : "it"));
 }
 
 // The held-out schedules' stream: never the sampler's, never the guides'.
