@@ -137,18 +137,30 @@ core::Reduction embedded_reduction(const core::SceneMesh& mesh, const Embedding&
   return out;
 }
 
+std::string listed(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return "[" + out + "]";
+}
+
+// A store of another scene is refused naming each field that differs.
 void check_matches(const Scene& scene, const OrbitIndex& o) {
   std::vector<std::string> names;
   for (const auto& e : scene.palette) names.push_back(e.name);
-  if (o.vertices != scene.model.vertices() || names != o.palette_names ||
-      std::abs(o.dt - scene.simulation.frame_dt) > 1e-12) {
-    throw std::invalid_argument(
-        fmt::format("orbit store of scene '{}' ({} vertices, {} palette entries, dt {}) does not belong to "
-                    "scene '{}' ({} "
-                    "vertices, {} palette entries, dt {})",
-                    o.scene, o.vertices, o.palette_names.size(), o.dt, scene.name, scene.model.vertices(),
-                    names.size(), scene.simulation.frame_dt));
-  }
+  std::string differs;
+  const auto add = [&differs](const std::string& what) { differs += (differs.empty() ? "" : "; ") + what; };
+  if (o.vertices != scene.model.vertices())
+    add(fmt::format("{} vertices in the store, {} in the scene", o.vertices, scene.model.vertices()));
+  if (names != o.palette_names)
+    add(fmt::format("palette {} in the store, {} in the scene (names and order must match)",
+                    listed(o.palette_names), listed(names)));
+  if (std::abs(o.dt - scene.simulation.frame_dt) > 1e-12)
+    add(fmt::format("dt {} in the store, frame_dt {} in the scene", o.dt, scene.simulation.frame_dt));
+  if (differs.empty()) return;
+  throw std::invalid_argument(
+      fmt::format("orbit store of scene '{}' ({} vertices, {} palette entries, dt {}) does not belong to "
+                  "scene '{}': {}",
+                  o.scene, o.vertices, o.palette_names.size(), o.dt, scene.name, differs));
 }
 
 }  // namespace

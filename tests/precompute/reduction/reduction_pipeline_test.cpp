@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <random>
 
 namespace phasecast::precompute {
@@ -193,6 +194,31 @@ TEST_F(Reduction, SampledOrbitsBecomeAValidPackage) {
               i);
 }
 
+// Two descriptions that read alike are no help: the error names the palette's order.
+TEST_F(Reduction, OrbitsOfAnotherPaletteOrderNameBothOrders) {
+  const auto dir = scratch_dir("reduce_palette_order");
+  std::string text = testing::read_file(testing::tiny_scene_path());
+  for (auto at = text.find("\"close\""); at != std::string::npos; at = text.find("\"close\"", at))
+    text.replace(at, 7, "\"shut\"");
+  std::ofstream(dir / "shut.toml") << text;
+  const auto other = load_scene_file(dir / "shut.toml");
+  write_orbit_store(simulate_schedule(other, parse_schedule("open 0.1", other)), dir / "orbits.h5");
+  const OrbitDisplacementSource A(dir / "orbits.h5");
+  ReductionOptions ro;
+  ro.max_rank = 3;
+  const auto basis = reduce_displacements(A, ro);
+  try {
+    build_package(scene, rules, read_orbit_index(dir / "orbits.h5"), basis, {});
+    FAIL() << "expected invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(
+        std::string(e.what()).find(": palette [shut, stop, open] in the store, [close, stop, open] in the "
+                                   "scene (names and order must match)"),
+        std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(Reduction, OrbitsOfAnotherSceneAreRejected) {
   const auto dir = scratch_dir("reduce_mismatch");
   const auto other = load_scene_file(testing::edited_tiny_scene(dir, "cells = [5, 7]", "cells = [4, 7]"));
@@ -208,7 +234,8 @@ TEST_F(Reduction, OrbitsOfAnotherSceneAreRejected) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(
         std::string(e.what()).find("orbit store of scene 'cloth_door_tiny' (40 vertices, 3 palette entries, "
-                                   "dt 0.02) does not belong to scene 'cloth_door_tiny' (48 vertices"),
+                                   "dt 0.02) does not belong to scene 'cloth_door_tiny': 40 vertices in the "
+                                   "store, 48 in the scene"),
         std::string::npos)
         << e.what();
   }
