@@ -1,5 +1,7 @@
 #include "phasecast/precompute/package/package_builder.h"
 
+#include "phasecast/core/kinematics_rows.h"
+
 #include "phasecast/core/mesh_geometry.h"
 #include "phasecast/core/phase_space.h"
 
@@ -154,6 +156,15 @@ void check_matches(const Scene& scene, const OrbitIndex& o) {
   if (names != o.palette_names)
     add(fmt::format("palette {} in the store, {} in the scene (names and order must match)",
                     listed(o.palette_names), listed(names)));
+  // A range the store names (an import manifest's kinematics) must be the scene's support range.
+  for (size_t d = 0; d < o.kinematics.size() && names == o.palette_names; ++d) {
+    const auto& k = o.kinematics[d];
+    const core::SupportKinematics want = entry_kinematics(scene, static_cast<int>(d));
+    if (k.range_max > k.range_min &&
+        (std::abs(k.range_min - want.range_min) > 1e-5 || std::abs(k.range_max - want.range_max) > 1e-5))
+      add(fmt::format("'{}' has the range [{}, {}] in the store, [{}, {}] in the scene's [support]", names[d],
+                      k.range_min, k.range_max, want.range_min, want.range_max));
+  }
   if (std::abs(o.dt - scene.simulation.frame_dt) > 1e-12)
     add(fmt::format("dt {} in the store, frame_dt {} in the scene", o.dt, scene.simulation.frame_dt));
   if (differs.empty()) return;
@@ -174,6 +185,9 @@ OrbitIndex read_orbit_index(const std::filesystem::path& path) {
     o.scene = r.text("scene");
     o.dt = r.number("dt");
     o.palette_names = r.strings("/palette/names");
+    const MatrixXfR k = r.matrix<float>("/palette/kinematics");
+    if (k.cols() != core::kKinematicsColumns) r.fail("/palette/kinematics", "expected D x 11");
+    o.kinematics = core::kinematics_from_rows(k);
     o.vertices = static_cast<int>(r.require("/mesh/rest_positions", h5::Dtype::f32, 2).dims[0]);
     o.irfs.start = r.vector<std::int32_t>("/irfs/start");
     o.irfs.length = r.vector<std::int32_t>("/irfs/length");

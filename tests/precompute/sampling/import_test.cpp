@@ -154,6 +154,18 @@ TEST(Import, ImportedOrbitsReduceIntoAServablePackage) {
   EXPECT_NE(r.err.find("does not belong to scene 'other': 4 vertices in the store, 9 in the scene"),
             std::string::npos)
       << r.err;
+
+  // The manifest's range is the scene's: a scene whose door stops at 45 degrees is refused, naming both.
+  std::string narrow = sheet_scene("external_sheet", R"(obj = { path = "open_0/f0.obj" })");
+  narrow.replace(narrow.find("range = [0, 90]"), 15, "range = [0, 45]");
+  std::ofstream(dir / "narrow.toml") << narrow;
+  r = testing::run_tool("phasecast-precompute",
+                        {"reduce", (dir / "narrow.toml").string(), orbits, "-o", package});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(
+      r.err.find("'open' has the range [0, 1.5708] in the store, [0, 0.7853982] in the scene's [support]"),
+      std::string::npos)
+      << r.err;
 }
 
 // The other tool moved the support: frame k turned the sheet by 0.1 (k + 1) rad

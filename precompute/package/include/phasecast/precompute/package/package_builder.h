@@ -23,6 +23,7 @@ struct OrbitIndex {
   double dt = 0;
   int vertices = 0;
   std::vector<std::string> palette_names;
+  std::vector<core::SupportKinematics> kinematics;  // per entry, as the store recorded them
   IrfList irfs;
   MatrixXfR support;  // N x 12
 };
