@@ -5,6 +5,7 @@
 
 #include "child_process.h"
 #include "phasecast/client/image_io.h"
+#include "real_server.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
 #include "test_peer.h"
@@ -77,6 +78,18 @@ class NetworkRender : public ::testing::Test {
   std::filesystem::path dir_;
   core::ScenePackage package_;
 };
+
+// A renderer pointed at the server's PUB port (an easy slip: both ports are
+// printed) is told so, instead of only being sent to look at CURVE keys.
+TEST_F(NetworkRender, ThePubPortIsNamedAsTheLikelySlip) {
+  core::write_package(package_, dir_ / "plate.h5");
+  testing::RealServer server(dir_ / "plate.h5", "tcp://127.0.0.1:*", "tcp://127.0.0.1:*", dir_ / "server");
+  const auto r =
+      testing::run_tool("phasecast-render", {"--connect", server.pub(), "--frames", "1", "--size", "32x32",
+                                             "--request-timeout", "0.5", "--out", path("pub")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_THAT(r.err, HasSubstr("is this its command endpoint, --cmd, not its --pub port?")) << r.err;
+}
 
 TEST_F(NetworkRender, RendersServerFramesWithoutAPackageFile) {
   testing::PeerOptions options;

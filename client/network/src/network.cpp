@@ -203,8 +203,9 @@ std::string handshake_failure(std::uint16_t event, std::uint32_t value, bool cur
                      "this server's public key, and does the server use CURVE?)",
                      why)
                : fmt::format(
-                     "the server closed the connection during the handshake{} (a server that requires "
-                     "CURVE does that: give --server-key)",
+                     "the server closed the connection during the handshake{} (is this its command "
+                     "endpoint, --cmd, not its --pub port? A server that requires CURVE does that too: give "
+                     "--server-key)",
                      why);
 }
 
@@ -271,10 +272,11 @@ class SocketMonitor {
 std::string connection_problem(const ConnectionEvents& e, bool curve) {
   if (!e.failure.empty()) return e.failure;
   if (e.connects > e.handshakes && e.handshakes == 0) {
-    return curve ? "the server closes every connection during the CURVE handshake (is --server-key this "
-                   "server's public key, and does the server use CURVE?)"
-                 : "the server closes every connection during the handshake (a server that requires CURVE "
-                   "does that: give --server-key)";
+    return curve
+               ? "the server closes every connection during the CURVE handshake (is --server-key this "
+                 "server's public key, and does the server use CURVE?)"
+               : "the server closes every connection during the handshake (is this its command endpoint, "
+                 "--cmd, not its --pub port? A server that requires CURVE does that too: give --server-key)";
   }
   return {};
 }
