@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
-"""The demo's contact sheet: a grid of frames spread evenly over a session, made by ffmpeg.
+"""A contact sheet of a folder of PNG frames: a grid spread evenly over them, made by ffmpeg.
 
-  contact_sheet.py FRAMES_DIR OUT.png [--columns 4] [--rows 3]
+  contact_sheet.py FRAMES_DIR (OUT.png | -o OUT.png) [--columns 4] [--rows 3]
+  scripts/contact-sheet FRAMES_DIR -o OUT.png      (the same, for any frames folder)
 
 Takes the PNGs of FRAMES_DIR in session order (frame_%06d.png, then
-restart01_frame_%06d.png, ... after a server restart: docs/client.md), picks
+restart01_frame_%06d.png, ... after a server restart: docs/client.md), or, in
+a folder without such names, every .png in natural order (frame2 before
+frame10) labelled with its name; picks
 columns x rows of them from the first to the last (repeating frames when there
 are fewer), scales each to half the frame size, labels it with its frame number
 (ffmpeg's drawtext; without labels when ffmpeg has no drawtext or no font), puts
@@ -39,8 +42,14 @@ def session_order(name):
 
 
 def label(name):
+    if not session_order(name):
+        return os.path.splitext(name)[0].replace("'", "").replace(":", " ")
     restart, frame = session_order(name)
     return f"restart {restart} frame {frame}" if restart else f"frame {frame}"
+
+
+def natural(name):
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name)]
 
 
 def picks(names, count):
@@ -73,10 +82,16 @@ def filter_graph(count, columns, tile, labels, names):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("frames_dir")
-    parser.add_argument("out")
+    parser.add_argument("out", nargs="?", help="the sheet to write (.png)")
+    parser.add_argument("-o", "--output", help="the sheet to write (.png), instead of OUT")
     parser.add_argument("--columns", type=int, default=4)
     parser.add_argument("--rows", type=int, default=3)
     args = parser.parse_args()
+    args.out = args.output or args.out
+    if not args.out:
+        sys.exit("contact_sheet: expected the sheet to write (OUT.png or -o OUT.png)")
+    if not os.path.isdir(args.frames_dir):
+        sys.exit(f"contact_sheet: {args.frames_dir} is not a folder of PNG frames")
     if args.columns < 1 or args.rows < 1:
         sys.exit(f"contact_sheet: --columns {args.columns} --rows {args.rows} is not a grid (expected at least 1 x 1)")
     ffmpeg = shutil.which("ffmpeg")
@@ -84,7 +99,9 @@ def main():
         sys.exit("contact_sheet: ffmpeg is not on PATH (scripts/install-deps installs it)")
     names = sorted((n for n in os.listdir(args.frames_dir) if session_order(n)), key=session_order)
     if not names:
-        sys.exit(f"contact_sheet: {args.frames_dir} has no frame_NNNNNN.png files")
+        names = sorted((n for n in os.listdir(args.frames_dir) if n.lower().endswith(".png")), key=natural)
+    if not names:
+        sys.exit(f"contact_sheet: {args.frames_dir} has no .png files")
     count = args.columns * args.rows
     chosen = picks(names, count)
     width, height = png_size(os.path.join(args.frames_dir, chosen[0]))
@@ -100,7 +117,7 @@ def main():
             sheet = (args.columns * (tile[0] + 2 * BORDER), args.rows * (tile[1] + 2 * BORDER))
             print(f"{args.out}: {args.columns} x {args.rows} frames of {args.frames_dir}, {label(chosen[0])} to "
                   f"{label(chosen[-1])} of its {len(names)}, {sheet[0]}x{sheet[1]} pixels, "
-                  f"{'labelled with their frame numbers' if labels else 'without labels (no font for drawtext)'}")
+                  f"{('labelled with their ' + ('frame numbers' if session_order(chosen[0]) else 'names')) if labels else 'without labels (no font for drawtext)'}")
             return 0
         error = (r.stderr.strip().splitlines() or ["no message"])[-1]
     sys.exit(f"contact_sheet: ffmpeg failed: {error}")

@@ -15,6 +15,7 @@ import signal
 import struct
 import subprocess
 import sys
+import tempfile
 
 source, bin_dir, work = sys.argv[1:4]
 demo = os.path.join(source, "scripts", "demo")
@@ -159,6 +160,25 @@ if os.path.exists(os.path.join(os.path.dirname(bin_dir), "web", "index.html")):
     check(not left.strip(), f"processes of scripts/demo --web survived Ctrl-C: {left}")
 else:
     print("demo: the web page is not built (no npm): scripts/demo --web not checked")
+
+# scripts/contact-sheet on any folder of PNGs: natural order (shot2 before shot10), one line when it cannot.
+if shutil.which("ffmpeg"):
+
+    with tempfile.TemporaryDirectory() as shots:
+        for i in (1, 2, 10):
+            subprocess.run(["ffmpeg", "-loglevel", "error", "-y", "-f", "lavfi", "-i", "testsrc=size=64x48:rate=1",
+                            "-frames:v", "1", os.path.join(shots, f"shot{i}.png")], check=True)
+        sheet_png = os.path.join(shots, "sheet.png")
+        r = run([os.path.join(source, "scripts", "contact-sheet"), shots, "-o", sheet_png, "--columns", "3", "--rows", "1"])
+        check(r.returncode == 0 and "3 x 1 frames of" in r.stdout and "shot1 to shot10 of its 3" in r.stdout,
+              f"scripts/contact-sheet: {r.stdout!r} {r.stderr!r}")
+        with open(sheet_png, "rb") as f:
+            head = f.read(24)
+        check(head[:8] == b"\x89PNG\r\n\x1a\n" and struct.unpack(">II", head[16:24]) == (3 * (32 + 4), 24 + 4),
+              "scripts/contact-sheet: the sheet is not a 108x28 PNG")
+        r = run([os.path.join(source, "scripts", "contact-sheet"), os.path.join(shots, "none"), "-o", sheet_png])
+        check(r.returncode == 1 and r.stderr.strip().endswith("none is not a folder of PNG frames"),
+              f"scripts/contact-sheet on a missing folder: {r.stderr!r}")
 
 if failures:
     sys.exit(f"{len(failures)} check(s) failed")
