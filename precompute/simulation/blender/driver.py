@@ -147,7 +147,7 @@ def prepare(config):
 
 
 def describe(config):
-    scene, support, deformable, drawn = prepare(config)
+    _, _, deformable, drawn = prepare(config)
     vertices, triangles, pinned, bodies = [], [], [], []
     for obj in deformable:
         world = world_vertices(obj)
@@ -172,12 +172,11 @@ def describe(config):
                 self_collision = True
                 distance = max(distance, m.collision_settings.self_distance_min)
     answer_json({"vertices": vertices, "triangles": triangles, "pinned": pinned, "bodies": bodies,
-                 "drawn": boxes, "self_collision": self_collision, "self_distance": distance,
-                 "frame_start": scene.frame_start})
+                 "drawn": boxes, "self_collision": self_collision, "self_distance": distance})
 
 
 def simulate(config):
-    scene, support, deformable, drawn = prepare(config)
+    scene, support, deformable, _ = prepare(config)
     base = support.matrix_world.copy()
     counts = [len(world_vertices(obj)) // 3 for obj in deformable]
     answer_json({"vertices": sum(counts)})

@@ -183,9 +183,10 @@ BlenderDescription describe_blender_scene(const BlenderSettings& settings, doubl
   BlenderDescription out;
   const auto& xyz = d.at("vertices");
   out.rest.resize(static_cast<Eigen::Index>(xyz.size()));
-  for (size_t v = 0; v + 2 < xyz.size(); v += 3)
+  const auto world = xyz.get<std::vector<double>>();
+  for (size_t v = 0; v + 2 < world.size(); v += 3)
     out.rest.segment<3>(static_cast<Eigen::Index>(v)) =
-        phasecast_point(nlohmann::json::array({xyz[v], xyz[v + 1], xyz[v + 2]}));
+        blender_to_phasecast() * Eigen::Vector3d(world[v], world[v + 1], world[v + 2]);
   const auto& tris = d.at("triangles");
   out.triangles.resize(static_cast<Eigen::Index>(tris.size()), 3);
   for (size_t t = 0; t < tris.size(); ++t)

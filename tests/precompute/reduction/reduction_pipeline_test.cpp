@@ -1,6 +1,7 @@
 // Streamed model reduction from an orbit store file, orbit filtering, and the
 // package assembled from them.
 
+#include "error_of.h"
 #include "phasecast/precompute/package/package_builder.h"
 #include "phasecast/precompute/reduction/displacement_reduction.h"
 #include "phasecast/precompute/sampling/irf_sampler.h"
@@ -51,6 +52,17 @@ class Reduction : public ::testing::Test {
  protected:
   Scene scene = load_scene_file(tiny_scene_path());
   PaletteRules rules = make_palette_rules(scene);
+
+  // Why a package of the tiny scene is refused from an orbit store of `other`.
+  std::string rejection_of_store_of(const Scene& other, const std::filesystem::path& dir) const {
+    write_orbit_store(simulate_schedule(other, parse_schedule("open 0.1", other)), dir / "orbits.h5");
+    const OrbitDisplacementSource A(dir / "orbits.h5");
+    ReductionOptions ro;
+    ro.max_rank = 3;
+    const auto basis = reduce_displacements(A, ro);
+    return testing::error_of<std::invalid_argument>(
+        [&] { build_package(scene, rules, read_orbit_index(dir / "orbits.h5"), basis, {}); });
+  }
 };
 
 TEST_F(Reduction, StreamedColumnsAreFramesMinusTheMeanAcrossBlocks) {
@@ -201,44 +213,22 @@ TEST_F(Reduction, OrbitsOfAnotherPaletteOrderNameBothOrders) {
   for (auto at = text.find("\"close\""); at != std::string::npos; at = text.find("\"close\"", at))
     text.replace(at, 7, "\"shut\"");
   std::ofstream(dir / "shut.toml") << text;
-  const auto other = load_scene_file(dir / "shut.toml");
-  write_orbit_store(simulate_schedule(other, parse_schedule("open 0.1", other)), dir / "orbits.h5");
-  const OrbitDisplacementSource A(dir / "orbits.h5");
-  ReductionOptions ro;
-  ro.max_rank = 3;
-  const auto basis = reduce_displacements(A, ro);
-  try {
-    build_package(scene, rules, read_orbit_index(dir / "orbits.h5"), basis, {});
-    FAIL() << "expected invalid_argument";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(
-        std::string(e.what()).find(": palette [shut, stop, open] in the store, [close, stop, open] in the "
-                                   "scene (names and order must match)"),
-        std::string::npos)
-        << e.what();
-  }
+  const auto error = rejection_of_store_of(load_scene_file(dir / "shut.toml"), dir);
+  EXPECT_NE(error.find(": palette [shut, stop, open] in the store, [close, stop, open] in the "
+                       "scene (names and order must match)"),
+            std::string::npos)
+      << error;
 }
 
 TEST_F(Reduction, OrbitsOfAnotherSceneAreRejected) {
   const auto dir = scratch_dir("reduce_mismatch");
-  const auto other = load_scene_file(testing::edited_tiny_scene(dir, "cells = [5, 7]", "cells = [4, 7]"));
-  const auto store = simulate_schedule(other, parse_schedule("open 0.1", other));
-  write_orbit_store(store, dir / "orbits.h5");
-  const OrbitDisplacementSource A(dir / "orbits.h5");
-  ReductionOptions ro;
-  ro.max_rank = 3;
-  const auto basis = reduce_displacements(A, ro);
-  try {
-    build_package(scene, rules, read_orbit_index(dir / "orbits.h5"), basis, {});
-    FAIL() << "expected invalid_argument";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(
-        std::string(e.what()).find("orbit store of scene 'cloth_door_tiny' (40 vertices, 3 palette entries, "
-                                   "dt 0.02) does not belong to scene 'cloth_door_tiny': 40 vertices in the "
-                                   "store, 48 in the scene"),
-        std::string::npos)
-        << e.what();
-  }
+  const auto error = rejection_of_store_of(
+      load_scene_file(testing::edited_tiny_scene(dir, "cells = [5, 7]", "cells = [4, 7]")), dir);
+  EXPECT_NE(error.find("orbit store of scene 'cloth_door_tiny' (40 vertices, 3 palette entries, "
+                       "dt 0.02) does not belong to scene 'cloth_door_tiny': 40 vertices in the "
+                       "store, 48 in the scene"),
+            std::string::npos)
+      << error;
 }
 
 }  // namespace
