@@ -5,7 +5,9 @@
 //   - `--downloaders` clients downloading every basis part back to back,
 //   - `--unread-clients` stalled clients, each sending `--unread` basis requests,
 //   - the server recording the stream,
-//   - a prober timing a stats request every 10 ms (command reply latency).
+//   - a prober timing a stats request every 10 ms (command reply latency;
+//     --probe scenes times list_scenes instead, which stays small however
+//     many instances there are: a stats reply lists every one).
 // At the end it reads the server's stats: late ticks, the longest tick, and
 // its peak resident memory (VmHWM). Figures go to docs/performance-server.md.
 
@@ -53,6 +55,10 @@ struct Options {
   double seconds = 20;
   std::vector<std::string> server_args;  // passed on, e.g. --max-pending-reply-bytes
   bool baseline = false;                 // the server predates the limit options (a build of an older commit)
+  bool record = true;                    // the server records the stream (--record on|off)
+  double probe_every_ms = 10;            // between the prober's requests
+  std::string probe = "stats";           // what the prober asks: stats or scenes (list_scenes)
+  std::string topic = "inst/";           // what the subscribers (and the one never reading) subscribe to
 };
 
 // The server as a child process on free loopback ports.
@@ -73,9 +79,9 @@ struct ServerChild {
       std::freopen(log.c_str(), "w", stdout);
       std::freopen((dir / "server.err").c_str(), "w",
                    stderr);  // not the bench's pipe: it would outlive the bench
-      std::vector<std::string> args{o.server, o.package,          "--instances", inst,    "--rate",
-                                    rate,     "--record",         rec,           "--cmd", "tcp://127.0.0.1:*",
-                                    "--pub",  "tcp://127.0.0.1:*"};
+      std::vector<std::string> args{o.server, o.package, "--instances", inst, "--rate", rate,
+                                    "--cmd",  "tcp://127.0.0.1:*", "--pub", "tcp://127.0.0.1:*"};
+      if (o.record) args.insert(args.end(), {"--record", rec});
       // The prober and the downloaders go faster than the default request rate allows.
       if (!o.baseline) args.insert(args.end(), {"--max-request-rate", "100000"});
       args.insert(args.end(), o.server_args.begin(), o.server_args.end());
@@ -171,7 +177,7 @@ int run(const Options& o) {
     std::vector<zmq::socket_t> subs;
     for (int i = 0; i < o.subscribers; ++i) {
       subs.emplace_back(ctx, zmq::socket_type::sub);
-      subs.back().set(zmq::sockopt::subscribe, "inst/");
+      subs.back().set(zmq::sockopt::subscribe, o.topic);
       subs.back().set(zmq::sockopt::linger, 0);
       subs.back().connect(server.pub);
     }
@@ -190,7 +196,7 @@ int run(const Options& o) {
     }
   });
   zmq::socket_t sleeper(ctx, zmq::socket_type::sub);  // subscribes and never reads
-  sleeper.set(zmq::sockopt::subscribe, "");
+  sleeper.set(zmq::sockopt::subscribe, o.topic);
   stall(sleeper);
   sleeper.connect(server.pub);
   for (int d = 0; d < o.downloaders; ++d) {
@@ -246,14 +252,14 @@ int run(const Options& o) {
   while (Clock::now() < until) {
     const auto t0 = Clock::now();
     try {
-      const auto probe = call(control, stats_request());
+      const auto probe = call(control, o.probe == "stats" ? stats_request() : list);
       peak_pending = std::max(peak_pending, probe.stats().pending_reply_bytes());
       latencies.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     } catch (const std::exception&) {
       ++lost;  // no reply within 10 s
       control = dealer(ctx, server.cmd);
     }
-    std::this_thread::sleep_for(10ms);
+    std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(o.probe_every_ms));
   }
   const auto stats = call(control, stats_request()).stats();
   const auto [hwm, rss] = server.memory_mib();
@@ -274,11 +280,12 @@ int run(const Options& o) {
       "{} downloads without a reply in 10 s, {} basis requests refused\n",
       latencies.size(), percentile(latencies, 0.5), percentile(latencies, 0.99), percentile(latencies, 1.0),
       lost, download_failures.load(), download_refusals.load());
-  fmt::print("frames received by the subscribers: {} of {} published x {} ({:.1f} %)\n", frames.load(),
-             stats.frames_published(), o.subscribers,
+  const auto published = stats.frames_published() + stats.batches_published();
+  fmt::print("messages received by the subscribers: {} of {} published ({} frames, {} batches) x {} ({:.1f} %)\n",
+             frames.load(), published, stats.frames_published(), stats.batches_published(), o.subscribers,
              100.0 * static_cast<double>(frames) /
                  static_cast<double>(std::max<std::uint64_t>(
-                     1, stats.frames_published() * static_cast<std::uint64_t>(o.subscribers))));
+                     1, published * static_cast<std::uint64_t>(o.subscribers))));
   fmt::print(
       "server memory: peak {:.0f} MiB, now {:.0f} MiB; reply bytes queued for clients: peak {:.1f} MiB; "
       "recording error: '{}'\n",
@@ -306,9 +313,23 @@ int main(int argc, char** argv) {
   app.add_option("--seconds", o.seconds, "duration")->capture_default_str();
   app.add_option("--server-arg", o.server_args, "an argument passed on to the server (repeat for more)")
       ->allow_extra_args(false);
+  std::string record = "on";
+  app.add_option("--record", record, "on|off: the server records the stream")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  app.add_option("--probe", o.probe, "the prober's request: stats (lists every instance) or scenes")
+      ->check(CLI::IsMember({"stats", "scenes"}))
+      ->capture_default_str();
+  app.add_option("--probe-every", o.probe_every_ms, "milliseconds between the prober's requests")
+      ->capture_default_str();
+  app.add_option("--topic", o.topic,
+                 "what every subscriber subscribes to: inst/ (every instance's own frames) or "
+                 "scene/NAME/ (the scene's batches)")
+      ->capture_default_str();
   app.add_flag("--baseline", o.baseline, "the server is an older build without the limit options");
   if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-bench-server-load"))
     return *status;
+  o.record = record == "on";
   if (o.package.empty()) o.package = phasecast::bench::cloth_ranks_package_file().string();
   try {
     return run(o);

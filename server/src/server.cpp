@@ -160,7 +160,7 @@ struct Server::Impl {
       : service(o.rate_hz),
         packages_loaded(load_packages(service, o)),
         router(context, zmq::socket_type::router),
-        pub(context, zmq::socket_type::pub) {
+        pub(context, zmq::socket_type::xpub) {
     service.set_record_dir(o.record_dir);
     service.set_limits(o.limits);
     service.set_pending_reply_bytes(
@@ -183,6 +183,7 @@ struct Server::Impl {
     pub_endpoint = bind(pub, o.pub_endpoint, "--pub");
     service.set_pub_endpoint(o.advertised_pub_endpoint.empty() ? pub_endpoint : o.advertised_pub_endpoint);
     if (o.record) service.start_recording(*o.record);
+    service.set_subscriptions(subscribed);  // nobody yet: build no message until someone subscribes
   }
 
   // Checks the options the service needs, loads the packages and creates the
@@ -273,6 +274,7 @@ struct Server::Impl {
   // ZeroMQ, so max_tick_seconds is what a subscriber feels.
   void tick(Clock::time_point deadline) {
     const auto start = Clock::now();
+    read_subscriptions();
     for (const auto& f : service.tick()) {
       // PUB never blocks: a subscriber past its high-water mark loses this frame.
       pub.send(zmq::buffer(f.topic), zmq::send_flags::sndmore | zmq::send_flags::dontwait);
@@ -284,6 +286,24 @@ struct Server::Impl {
     }
     const double took = std::chrono::duration<double>(Clock::now() - start).count();
     service.count_tick(took, start - deadline > period / 4);
+  }
+
+  // XPUB hands up each topic prefix as '\1' + prefix when its first subscriber
+  // comes and '\0' + prefix when its last one goes (ZeroMQ drops the repeats).
+  void read_subscriptions() {
+    bool changed = false;
+    zmq::message_t m;
+    while (pub.recv(m, zmq::recv_flags::dontwait)) {
+      if (m.size() == 0) continue;
+      const auto* bytes = m.data<char>();
+      std::string prefix(bytes + 1, m.size() - 1);
+      if (bytes[0] == 1) {
+        changed |= subscribed.insert(std::move(prefix)).second;
+      } else if (bytes[0] == 0) {
+        changed |= subscribed.erase(prefix) > 0;
+      }
+    }
+    if (changed) service.set_subscriptions(subscribed);
   }
 
   // Ticks until `stop` (the caller's) or `done` (a failed command thread).
@@ -336,7 +356,8 @@ struct Server::Impl {
   zmq::context_t context{1};
   std::unique_ptr<ZapHandler> zap;  // before the sockets: ZeroMQ asks it during their handshakes
   zmq::socket_t router;
-  zmq::socket_t pub;
+  zmq::socket_t pub;                // XPUB: publishes and tells which topics are wanted
+  std::set<std::string> subscribed;  // topic prefixes with at least one subscriber
   std::string cmd_endpoint, pub_endpoint;
   std::chrono::duration<double> period{};
   std::string reported_recording_error;

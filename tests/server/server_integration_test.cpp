@@ -10,6 +10,7 @@
 #include "synthetic_package.h"
 
 #include <gtest/gtest.h>
+#include <zmq_addon.hpp>
 
 #include <cstring>
 #include <filesystem>
@@ -61,6 +62,50 @@ TEST(ServerProcessTest, SubscriberDecodesConsecutiveFramesOfEveryInstance) {
   EXPECT_EQ(last_seq.size(), 2u);
   EXPECT_EQ(server.stop(SIGINT), 0);
   EXPECT_NE(server.out().find("phasecast-server: stopped after"), std::string::npos);
+}
+
+// The next message on `sub` as [topic][FrameBatch], or nothing within 10 s.
+std::optional<std::pair<std::string, v1::FrameBatch>> next_batch(zmq::socket_t& sub) {
+  zmq::pollitem_t item{sub.handle(), 0, ZMQ_POLLIN, 0};
+  if (zmq::poll(&item, 1, 10s) == 0) return std::nullopt;
+  std::vector<zmq::message_t> parts;
+  if (!zmq::recv_multipart(sub, std::back_inserter(parts)) || parts.size() != 2) return std::nullopt;
+  v1::FrameBatch b;
+  if (!b.ParseFromArray(parts[1].data(), static_cast<int>(parts[1].size()))) return std::nullopt;
+  return std::pair{parts[0].to_string(), b};
+}
+
+// One subscription follows every instance of a scene through one message
+// per tick, and the server builds Frame messages only once someone wants them.
+TEST(ServerProcessTest, SceneBatchesFollowEveryInstanceAndFramesOnlyWhenWanted) {
+  const auto pkg = fixture("batches");
+  ServerProcess server({pkg.string(), "--instances", "3", "--rate", "200"});
+  zmq::context_t ctx;
+  zmq::socket_t sub(ctx, zmq::socket_type::sub);
+  sub.set(zmq::sockopt::subscribe, "scene/plate/");
+  sub.connect(server.pub());
+  std::optional<std::uint64_t> last_tick;
+  for (int i = 0; i < 20; ++i) {
+    const auto b = next_batch(sub);
+    ASSERT_TRUE(b);
+    EXPECT_EQ(b->first, "scene/plate/0/");
+    ASSERT_EQ(b->second.instance_size(), 3);
+    EXPECT_EQ(b->second.instance(2), 3u);
+    EXPECT_EQ(b->second.q_u_size(), 3 * 4);
+    if (last_tick) {
+      EXPECT_EQ(b->second.tick(), *last_tick + 1) << "one batch per tick, none lost";
+    }
+    last_tick = b->second.tick();
+  }
+  CommandClient client(ctx, server.cmd());
+  EXPECT_EQ(client.call(stats_request()).stats().frames_published(), 0u) << "nobody follows one instance";
+  Subscriber one(ctx, server.pub(), "inst/2/");
+  const auto f = one.next();
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->instance(), 2u);
+  const auto stats = client.call(stats_request()).stats();
+  EXPECT_GT(stats.frames_published(), 0u);
+  EXPECT_LT(stats.frames_published(), stats.batches_published()) << "only instance 2's Frames";
 }
 
 TEST(ServerProcessTest, ImpulseFromAnotherClientChangesTheStreamWithinOneTick) {

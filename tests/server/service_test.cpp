@@ -4,6 +4,7 @@
 #include "error_of.h"
 #include "phasecast/server/recording.h"
 #include "phasecast/server/synthesis_service.h"
+#include "phasecast/server/topic_interest.h"
 #include "phasecast/server/wire.h"
 #include "run_tool.h"
 #include "synthetic_package.h"
@@ -382,6 +383,100 @@ TEST(Service, AnswersEachRequestKindWithItsResult) {
   const auto entries = core::read_recording_file(f.dir / "kinds.phcrec").entries;
   ASSERT_EQ(entries.size(), 5u);  // header, created, impulse, frame, destroyed
   EXPECT_EQ(entries[4].destroyed().frame(), 1u);
+}
+
+// A subscription is a topic prefix: what it reaches is what tick() builds.
+TEST(Service, TopicInterestMatchesPrefixesAsZeroMqDoes) {
+  TopicInterest t;
+  EXPECT_TRUE(t.wants_instance(3)) << "before any subscription: every Frame (tests read the tick)";
+  EXPECT_FALSE(t.wants("scene/plate/0/")) << "and no batch";
+  t.set({"inst/1"});
+  EXPECT_TRUE(t.wants_instance(1));
+  EXPECT_TRUE(t.wants_instance(12)) << "inst/1 is a prefix of inst/12/";
+  EXPECT_FALSE(t.wants_instance(2));
+  t.set({"inst/1/", "scene/plate/"});
+  EXPECT_FALSE(t.wants_instance(12)) << "the cache follows the subscriptions";
+  EXPECT_TRUE(t.wants("scene/plate/3/"));
+  EXPECT_FALSE(t.wants("scene/tall/0/"));
+  t.set({""});
+  EXPECT_TRUE(t.wants_instance(99));
+  EXPECT_TRUE(t.wants("scene/tall/0/"));
+  t.set({});
+  EXPECT_FALSE(t.wants_instance(1));
+  EXPECT_FALSE(t.wants("scene/plate/0/"));
+}
+
+// The frames of the instances of one scene whose ids share a block.
+std::map<std::string, v1::FrameBatch> batches_of(const std::vector<PublishedFrame>& published) {
+  std::map<std::string, v1::FrameBatch> out;
+  for (const auto& m : published) {
+    if (m.topic.starts_with("scene/")) {
+      EXPECT_TRUE(out[m.topic].ParseFromString(m.payload));
+    }
+  }
+  return out;
+}
+
+// Batches carry, field by field, what each instance's own Frame carries; a
+// scene's instances split by blocks of kFrameBatchBlock ids; nothing is
+// built that nobody subscribes to.
+TEST(Service, FrameBatchesCarryWhatFramesCarryPerSceneAndBlock) {
+  const TwoScenes f("batches");
+  std::vector<std::unique_ptr<SynthesisService>> services;
+  for (int i = 0; i < 3; ++i) {
+    auto& s = *services.emplace_back(std::make_unique<SynthesisService>(60));
+    s.load_package(f.plate);
+    s.load_package(f.tall);
+    for (std::uint32_t id = 1; id <= kFrameBatchBlock + 6; ++id) s.engine().create_instance("plate");
+    s.engine().create_instance("tall");
+    s.engine().create_instance("tall");
+    s.engine().schedule_impulse(5, s.engine().palette_index(5, "open"), std::nullopt);  // one moves
+  }
+  SynthesisService &frames = *services[0], &all_batches = *services[1], &some = *services[2];
+  all_batches.set_subscriptions({"scene/"});
+  some.set_subscriptions({"scene/plate/1/", "inst/7/"});
+  for (int t = 0; t < 3; ++t) {
+    std::map<std::uint32_t, v1::Frame> by_instance;
+    for (const auto& m : frames.tick()) {
+      v1::Frame fr;
+      ASSERT_TRUE(fr.ParseFromString(m.payload));
+      by_instance[fr.instance()] = fr;
+    }
+    ASSERT_EQ(by_instance.size(), kFrameBatchBlock + 8);
+    const auto& published = all_batches.tick();
+    const auto batches = batches_of(published);
+    ASSERT_EQ(published.size(), 3u) << "no Frame messages, three batches";
+    ASSERT_EQ(batches.size(), 3u);
+    EXPECT_EQ(batches.at("scene/plate/0/").instance_size(), static_cast<int>(kFrameBatchBlock) - 1);
+    EXPECT_EQ(batches.at("scene/plate/1/").instance_size(), 7);
+    EXPECT_EQ(batches.at("scene/tall/1/").instance_size(), 2);
+    for (const auto& [topic, b] : batches) {
+      EXPECT_EQ(b.tick(), static_cast<std::uint64_t>(t));
+      const int ru = static_cast<int>(b.rank_u()), ra = static_cast<int>(b.rank_a());
+      ASSERT_EQ(b.q_u_size(), ru * b.instance_size());
+      ASSERT_EQ(b.q_a_size(), ra * b.instance_size());
+      ASSERT_EQ(b.support_size(), 12 * b.instance_size());
+      for (int i = 0; i < b.instance_size(); ++i) {
+        const auto& fr = by_instance.at(b.instance(i));
+        EXPECT_EQ(topic, fmt::format("scene/{}/{}/", fr.scene(), fr.instance() / kFrameBatchBlock));
+        EXPECT_EQ(b.frame(i), fr.frame());
+        for (int k = 0; k < ru; ++k) ASSERT_EQ(b.q_u(ru * i + k), fr.q_u(k)) << "instance " << fr.instance();
+        for (int k = 0; k < ra; ++k) ASSERT_EQ(b.q_a(ra * i + k), fr.q_a(k));
+        for (int k = 0; k < 12; ++k) ASSERT_EQ(b.support(12 * i + k), fr.support(k));
+        EXPECT_EQ(b.palette_index(i), fr.palette_index());
+        EXPECT_EQ(b.irf(i), fr.irf());
+        EXPECT_EQ(b.irf_t(i), fr.irf_t());
+      }
+    }
+    const auto& chosen = some.tick();
+    ASSERT_EQ(chosen.size(), 2u);
+    EXPECT_EQ(chosen[0].topic, "inst/7/");
+    EXPECT_EQ(chosen[1].topic, "scene/plate/1/");
+  }
+  EXPECT_GT(batches_of(all_batches.tick()).at("scene/plate/0/").palette_index(4), -1)
+      << "instance 5 plays its impulse";
+  EXPECT_EQ(all_batches.stats().frames_published, 0u);
+  EXPECT_EQ(all_batches.stats().batches_published, 12u);
 }
 
 TEST(Service, ToolHasHelp) {

@@ -131,16 +131,19 @@ v1::Reply SynthesisService::handle(const v1::Request& request, const std::string
     }
     // Packages never change once serving: a basis chunk needs no lock.
     if (!request.has_basis()) lock.lock();
-    answer(request, client, reply);
-    reply.set_ok(true);  // before its size is taken
+    std::vector<InstanceRow> rows;
+    answer(request, client, reply, rows);
+    auto closing = std::move(closing_);
+    if (lock.owns_lock()) lock.unlock();
+    // Listing 45 000 instances takes milliseconds: the tick does not wait for it.
+    if (request.has_stats()) write_instances(rows, reply.mutable_stats()->mutable_instances());
+    if (request.has_list_instances()) write_instances(rows, reply.mutable_instances()->mutable_instances());
+    if (closing) closing->close();  // record_stop's last write and fsync, while the tick goes on
+    reply.set_ok(true);             // before its size is taken
     // Any large reply (a basis chunk, the stats or instance list of many
     // instances) waits in the client's queue until read: bounded like one.
     if (const auto bytes = reply.ByteSizeLong(); bytes > kRepliesAlwaysSent)
       check_pending_replies(client, bytes);
-    if (auto closing = std::move(closing_)) {
-      lock.unlock();
-      closing->close();  // record_stop's last write and fsync, while the tick goes on
-    }
   } catch (const std::exception& e) {  // EngineError, RequestError, RecordingError
     if (!lock.owns_lock()) lock.lock();
     ++stats_.bad_requests;
@@ -200,14 +203,15 @@ void SynthesisService::check_rate(const std::string& client) {
   b.tokens -= 1;
 }
 
-void SynthesisService::answer(const v1::Request& r, const std::string& client, v1::Reply& reply) {
+void SynthesisService::answer(const v1::Request& r, const std::string& client, v1::Reply& reply,
+                              std::vector<InstanceRow>& rows) {
   switch (r.body_case()) {
     case v1::Request::kImpulse:
       return impulse(r.impulse(), *reply.mutable_impulse());
     case v1::Request::kListScenes:
       return list_scenes(*reply.mutable_scenes());
     case v1::Request::kListInstances:
-      return list_instances(reply);
+      return list_instances(rows);
     case v1::Request::kCreateInstance:
       return create_instance(r.create_instance(), client, *reply.mutable_created());
     case v1::Request::kDestroyInstance:
@@ -219,7 +223,7 @@ void SynthesisService::answer(const v1::Request& r, const std::string& client, v
     case v1::Request::kRecordStop:
       return record_stop(*reply.mutable_record());
     case v1::Request::kStats:
-      return report_stats(*reply.mutable_stats());
+      return report_stats(*reply.mutable_stats(), rows);
     case v1::Request::BODY_NOT_SET:
       break;
   }
@@ -339,9 +343,9 @@ void SynthesisService::list_scenes(v1::SceneList& out) const {
 
 // Takes the whole reply because with no instances its result has always been
 // left unset rather than an empty list; replies stay byte-identical that way.
-void SynthesisService::list_instances(v1::Reply& reply) const {
-  for (const auto& [id, inst] : engine_.instances())
-    instance_info(id, *reply.mutable_instances()->add_instances());
+void SynthesisService::list_instances(std::vector<InstanceRow>& rows) const {
+  rows.reserve(engine_.instances().size());
+  for (const auto& [id, inst] : engine_.instances()) rows.push_back(instance_row(id));
 }
 
 void SynthesisService::create_instance(const v1::CreateInstance& r, const std::string& client,
@@ -450,9 +454,10 @@ void SynthesisService::record_stop(v1::RecordStatus& out) {
   closing_ = take_recorder(out);
 }
 
-void SynthesisService::report_stats(v1::Stats& out) const {
+void SynthesisService::report_stats(v1::Stats& out, std::vector<InstanceRow>& rows) const {
   out.set_ticks(stats_.ticks);
   out.set_frames_published(stats_.frames_published);
+  out.set_batches_published(stats_.batches_published);
   out.set_late_ticks(stats_.late_ticks);
   out.set_rate_hz(rate_hz_);
   out.set_requests(stats_.requests);
@@ -465,19 +470,39 @@ void SynthesisService::report_stats(v1::Stats& out) const {
   out.set_max_tick_seconds(stats_.max_tick_seconds);
   out.set_recording_error(recording_error_);
   out.set_pending_reply_bytes(pending_reply_bytes_({}).all);
-  for (const auto& [id, inst] : engine_.instances()) instance_info(id, *out.add_instances());
+  list_instances(rows);
+}
+
+SynthesisService::InstanceRow SynthesisService::instance_row(std::uint32_t id) const {
+  const auto& inst = engine_.instance(id);
+  return {id,
+          &engine_.scenes()[static_cast<std::size_t>(inst.scene)].name,
+          inst.frame,
+          inst.state.palette_index,
+          inst.state.irf,
+          inst.state.irf_t,
+          engine_.allowed_entries(id)};
+}
+
+void SynthesisService::write_instance(const InstanceRow& row, v1::InstanceInfo& out) {
+  out.set_instance(row.id);
+  out.set_scene(*row.scene);
+  out.set_frame(row.frame);
+  out.set_palette_index(row.palette_index);
+  out.set_irf(row.irf);
+  out.set_irf_t(row.irf_t);
+  out.set_topic(instance_topic(row.id));
+  for (const int d : row.allowed) out.add_allowed_now(static_cast<std::uint32_t>(d));
+}
+
+void SynthesisService::write_instances(const std::vector<InstanceRow>& rows,
+                                       google::protobuf::RepeatedPtrField<v1::InstanceInfo>* out) {
+  out->Reserve(static_cast<int>(rows.size()));
+  for (const auto& row : rows) write_instance(row, *out->Add());
 }
 
 void SynthesisService::instance_info(std::uint32_t id, v1::InstanceInfo& out) const {
-  const auto& inst = engine_.instance(id);
-  out.set_instance(id);
-  out.set_scene(engine_.scenes()[static_cast<std::size_t>(inst.scene)].name);
-  out.set_frame(inst.frame);
-  out.set_palette_index(inst.state.palette_index);
-  out.set_irf(inst.state.irf);
-  out.set_irf_t(inst.state.irf_t);
-  out.set_topic(instance_topic(id));
-  for (const int d : engine_.allowed_entries(id)) out.add_allowed_now(static_cast<std::uint32_t>(d));
+  write_instance(instance_row(id), out);
 }
 
 void SynthesisService::record_created(std::uint32_t id) {
@@ -575,21 +600,65 @@ void SynthesisService::tick_and_record() {
   stats_.impulses_applied += r.applied.size();
   stats_.impulses_refused += r.refused.size();
   record_impulses(r.applied);
-  published_.resize(r.frames.size());
-  std::size_t i = 0;
+  published_count_ = 0;
+  open_batches_.assign(engine_.scenes().size(), OpenBatch{});
+  batches_.resize(engine_.scenes().size());
   v1::RecordEntry entry;
   for (const auto& f : r.frames) {
-    to_frame_message(engine_.scenes()[static_cast<std::size_t>(f.scene)], f, frame_);
-    auto& out = published_[i++];
-    out.topic = instance_topic(f.instance);
-    frame_.SerializeToString(&out.payload);
-    if (recorder_) {
-      *entry.mutable_frame() = frame_;
-      recorder_->append(entry);
+    const auto& scene = engine_.scenes()[static_cast<std::size_t>(f.scene)];
+    if (recorder_ || interest_.wants_instance(f.instance)) {
+      to_frame_message(scene, f, frame_);
+      if (interest_.wants_instance(f.instance)) {
+        publish(instance_topic(f.instance), frame_);
+        ++stats_.frames_published;
+      }
+      if (recorder_) {
+        *entry.mutable_frame() = frame_;
+        recorder_->append(entry);
+      }
     }
+    add_to_batch(f);
   }
-  stats_.frames_published += published_.size();
+  for (std::size_t s = 0; s < open_batches_.size(); ++s) close_batch(s);
+  published_.resize(published_count_);
   if (recorder_) recorder_->end_tick();  // queues the tick for the writer thread; throws if it failed
+}
+
+void SynthesisService::publish(std::string topic, const google::protobuf::Message& message) {
+  if (published_.size() <= published_count_) published_.resize(published_count_ + 1);
+  auto& out = published_[published_count_++];
+  out.topic = std::move(topic);
+  message.SerializeToString(&out.payload);
+}
+
+// Frames arrive in id order, so a scene's blocks come one after the other:
+// a frame of a new block closes its scene's open batch.
+void SynthesisService::add_to_batch(const SynthesizedFrame& f) {
+  const auto s = static_cast<std::size_t>(f.scene);
+  const std::uint32_t block = batch_block(f.instance);
+  OpenBatch& open = open_batches_[s];
+  if (open.block != block) {
+    close_batch(s);
+    const auto& scene = engine_.scenes()[s];
+    open = {block, interest_.wants(scene_batch_topic(scene.name, block))};
+    if (open.wanted) begin_frame_batch(scene, block, stats_.ticks - 1, batches_[s]);
+  }
+  if (open.wanted) append_to_frame_batch(f, batches_[s]);
+}
+
+void SynthesisService::close_batch(std::size_t s) {
+  OpenBatch& open = open_batches_[s];
+  if (open.block && open.wanted) {
+    const auto& batch = batches_[s];
+    publish(scene_batch_topic(batch.scene(), batch.block()), batch);
+    ++stats_.batches_published;
+  }
+  open = {};
+}
+
+void SynthesisService::set_subscriptions(std::set<std::string> prefixes) {
+  std::lock_guard lock(mutex_);
+  interest_.set(std::move(prefixes));
 }
 
 }  // namespace phasecast::server

@@ -21,6 +21,31 @@ std::string instance_topic(std::uint32_t instance) {
   return fmt::format("inst/{}/", instance);
 }
 
+std::string scene_batch_topic(const std::string& scene, std::uint32_t block) {
+  return fmt::format("scene/{}/{}/", scene, block);
+}
+
+void begin_frame_batch(const SceneModel& scene, std::uint32_t block, std::uint64_t tick, v1::FrameBatch& out) {
+  out.Clear();  // keeps the repeated fields' storage for the next tick
+  out.set_scene(scene.name);
+  out.set_block(block);
+  out.set_tick(tick);
+  out.set_rank_u(static_cast<std::uint32_t>(scene.data->rank_u()));
+  out.set_rank_a(static_cast<std::uint32_t>(scene.data->rank_a()));
+  out.set_dt(scene.data->attributes.dt);
+}
+
+void append_to_frame_batch(const SynthesizedFrame& f, v1::FrameBatch& out) {
+  out.add_instance(f.instance);
+  out.add_frame(f.frame);
+  out.mutable_q_u()->Add(f.q_u.data(), f.q_u.data() + f.q_u.size());
+  out.mutable_q_a()->Add(f.q_a.data(), f.q_a.data() + f.q_a.size());
+  out.mutable_support()->Add(f.support.begin(), f.support.end());
+  out.add_palette_index(f.palette_index);
+  out.add_irf(f.irf);
+  out.add_irf_t(f.irf_t);
+}
+
 void to_frame_message(const SceneModel& scene, const SynthesizedFrame& f, v1::Frame& out) {
   out.set_instance(f.instance);
   out.set_seq(f.frame);

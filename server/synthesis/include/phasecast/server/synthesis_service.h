@@ -13,6 +13,7 @@
 #include "phasecast/proto/phasecast.pb.h"
 #include "phasecast/server/recording.h"
 #include "phasecast/server/synthesis_engine.h"
+#include "phasecast/server/topic_interest.h"
 
 #include <chrono>
 #include <cstdint>
@@ -22,6 +23,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -57,13 +59,14 @@ struct PendingReplyBytes {
 };
 
 struct PublishedFrame {
-  std::string topic;    // "inst/<id>/"
-  std::string payload;  // serialized Frame
+  std::string topic;    // "inst/<id>/" or "scene/<scene>/<block>/"
+  std::string payload;  // serialized Frame or FrameBatch
 };
 
 struct ServiceStats {
   std::uint64_t ticks = 0;
-  std::uint64_t frames_published = 0;
+  std::uint64_t frames_published = 0;   // Frame messages
+  std::uint64_t batches_published = 0;  // FrameBatch messages
   std::uint64_t late_ticks = 0;
   std::uint64_t requests = 0;
   std::uint64_t bad_requests = 0;
@@ -107,10 +110,15 @@ class SynthesisService {
   void count_bad_message();
   void count_tick(double seconds, bool late);
 
-  // Advances every instance one frame and returns their messages in id order;
-  // the recording (if any) gets the applied impulses, then the frames.
-  // The result is the caller's until its next tick() call.
+  // Advances every instance one frame and returns the messages someone
+  // subscribes to (set_subscriptions): each instance's Frame in id order and
+  // each scene's FrameBatch per block of ids; the recording (if any) gets the
+  // applied impulses, then every instance's Frame. The result is the
+  // caller's until its next tick() call.
   const std::vector<PublishedFrame>& tick();
+  // The topic prefixes subscribers hold (the transport's XPUB socket reports
+  // them). Until set: "inst/", every instance's Frame and no batch.
+  void set_subscriptions(std::set<std::string> prefixes);
 
   // Starts writing the stream to `path`, a new file (RecordingError if
   // already recording or the file exists or cannot be created); stop closes
@@ -125,24 +133,42 @@ class SynthesisService {
  private:
   // answer() fills the reply for the request's kind with one of the functions
   // after it; each throws (EngineError, RequestError, RecordingError) to refuse.
-  void answer(const v1::Request& request, const std::string& client, v1::Reply& reply);
+  // What an InstanceInfo says, taken under the lock; the messages of a
+  // listing (stats, list_instances) are written after it is released.
+  struct InstanceRow {
+    std::uint32_t id = 0;
+    const std::string* scene = nullptr;  // scenes never change once serving
+    std::uint64_t frame = 0;
+    std::int32_t palette_index = -1, irf = -1;
+    std::uint32_t irf_t = 0;
+    std::vector<int> allowed;
+  };
+  void answer(const v1::Request& request, const std::string& client, v1::Reply& reply,
+              std::vector<InstanceRow>& rows);
   void check_rate(const std::string& client);
   void impulse(const v1::Impulse& request, v1::ImpulseAccepted& out);
   void list_scenes(v1::SceneList& out) const;
-  void list_instances(v1::Reply& reply) const;
+  void list_instances(std::vector<InstanceRow>& rows) const;
   void create_instance(const v1::CreateInstance& request, const std::string& client, v1::InstanceInfo& out);
   void destroy_instance(const v1::DestroyInstance& request, v1::InstanceInfo& out);
   void basis(const v1::BasisRequest& request, v1::BasisChunk& out) const;
   void check_pending_replies(const std::string& client, std::uint64_t reply_bytes) const;
   void record_start(const v1::RecordStart& request, v1::RecordStatus& out);
   void record_stop(v1::RecordStatus& out);
-  void report_stats(v1::Stats& out) const;
+  void report_stats(v1::Stats& out, std::vector<InstanceRow>& rows) const;
+  InstanceRow instance_row(std::uint32_t id) const;
+  static void write_instance(const InstanceRow& row, v1::InstanceInfo& out);
+  static void write_instances(const std::vector<InstanceRow>& rows,
+                              google::protobuf::RepeatedPtrField<v1::InstanceInfo>* out);
 
   void instance_info(std::uint32_t id, v1::InstanceInfo& out) const;
   void record_created(std::uint32_t id);
   void record_destroyed(const v1::InstanceInfo& info);
   void record_impulses(const std::vector<AppliedImpulse>& applied);
   void tick_and_record();
+  void publish(std::string topic, const google::protobuf::Message& message);
+  void add_to_batch(const SynthesizedFrame& frame);
+  void close_batch(std::size_t scene);
   void start_recording_locked(const std::filesystem::path& path);
   std::unique_ptr<RecordingWriter> take_recorder(v1::RecordStatus& status);
 
@@ -166,7 +192,16 @@ class SynthesisService {
   std::map<std::uint32_t, std::string> owner_;       // instance -> client that created it
   std::map<std::string, std::size_t> instances_of_;  // client -> instances it created
   std::map<std::string, RateBucket> buckets_;        // client -> request budget
-  std::vector<PublishedFrame> published_;
+  std::vector<PublishedFrame> published_;  // its first published_count_ are this tick's
+  std::size_t published_count_ = 0;
+  TopicInterest interest_;
+  // Per scene: the block of ids whose batch is being filled, and whether anyone wants it.
+  struct OpenBatch {
+    std::optional<std::uint32_t> block;
+    bool wanted = false;
+  };
+  std::vector<OpenBatch> open_batches_;
+  std::vector<v1::FrameBatch> batches_;  // per scene, reused across ticks
   TickResult tick_result_;  // reused across ticks, like frame_, to keep its storage
   v1::Frame frame_;         // reused across ticks
 };

@@ -13,6 +13,18 @@ namespace phasecast::server {
 // "inst/<id>/": the trailing slash keeps instance 1's prefix from matching 10.
 std::string instance_topic(std::uint32_t instance);
 
+// Instances per FrameBatch: ids [kFrameBatchBlock * b, kFrameBatchBlock * (b + 1))
+// of a scene share block b, so a block's topic stays put as instances come and go.
+inline constexpr std::uint32_t kFrameBatchBlock = 1024;
+inline std::uint32_t batch_block(std::uint32_t instance) { return instance / kFrameBatchBlock; }
+// "scene/<scene>/<block>/"; "scene/<scene>/" subscribes to every block.
+std::string scene_batch_topic(const std::string& scene, std::uint32_t block);
+
+// Starts `out` as the (empty) batch of `block` of `scene` for tick `tick`.
+void begin_frame_batch(const SceneModel& scene, std::uint32_t block, std::uint64_t tick, v1::FrameBatch& out);
+// Appends one instance's frame to its batch (begun for its scene and block).
+void append_to_frame_batch(const SynthesizedFrame& frame, v1::FrameBatch& out);
+
 // The Frame published for `frame` of an instance of `scene`. seq equals the
 // frame number: every tick publishes every instance once, from frame 0.
 void to_frame_message(const SceneModel& scene, const SynthesizedFrame& frame, v1::Frame& out);
