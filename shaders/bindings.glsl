@@ -8,7 +8,8 @@
 #define PHASECAST_BINDING_TRANSFER_BASIS 3      // U_a, [48S][r_a4] vec4s
 #define PHASECAST_BINDING_POINT_FLAGS 4         // bit 0 deformable, bit 1 attached
 #define PHASECAST_BINDING_REST_NORMALS 5        // 3S
-#define PHASECAST_BINDING_REDUCED 6             // q_u (r_u4 vec4s) then q_a (r_a4)
-#define PHASECAST_BINDING_MEAN_DOTTED 7         // [S]: xyz = M-bar_c . L_c
-#define PHASECAST_BINDING_BASIS_DOTTED 8        // [S][3][r_a4]: (U_a . L)_j
-#define PHASECAST_BINDING_COUNT 9
+#define PHASECAST_BINDING_REDUCED 6             // per instance: q_u (r_u4 vec4s) then q_a (r_a4)
+#define PHASECAST_BINDING_MEAN_DOTTED 7         // [instance][S]: xyz = M-bar_c . L_c
+#define PHASECAST_BINDING_BASIS_DOTTED 8        // [instance][S][3][r_a4]: (U_a . L)_j
+#define PHASECAST_BINDING_INSTANCES 9           // per instance: placement, support, lights
+#define PHASECAST_BINDING_COUNT 10

@@ -14,18 +14,19 @@ layout(local_size_x = 64) in;
 layout(std430, binding = PHASECAST_BINDING_MEAN_TRANSFER) readonly buffer MeanTransfer { vec4 M_bar[]; };  // [S][3][4]: k in vec4s
 layout(std430, binding = PHASECAST_BINDING_TRANSFER_BASIS) readonly buffer TransferBasis { vec4 U_a[]; };  // [48S][r_a4]
 layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };     // bit 1 attached
-layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [S]: xyz = M_bar_c . L_c
-layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [S][3][r_a4]: (U_a . L)_j
+layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [instance][S]: xyz = M_bar_c . L_c
+layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [instance][S][3][r_a4]: (U_a . L)_j
 
 uniform int r_a4;
-uniform vec4 light[24];  // as in low_rank.vert: world at 0, support frame at 12
+uniform vec4 light[24];  // the instance's, as in low_rank.vert: its frame at 0, its support frame at 12
 uniform int points;      // S
+uniform int instance;    // whose dotted values these are (each instance sees the light turned its own way)
 
 void main() {
   uint v = gl_GlobalInvocationID.x;
   if (v >= uint(points)) return;
   int base = (flags[v] & 2u) != 0u ? 12 : 0;
-  uint n = uint(r_a4);
+  uint n = uint(r_a4), out_v = uint(instance * points) + v;
   vec3 mean_dotted;
   for (int c = 0; c < 3; ++c) {
     vec4 sum = vec4(0.0);
@@ -39,8 +40,8 @@ void main() {
         acc += U_a[row * n + b] * L.x + U_a[(row + 1u) * n + b] * L.y + U_a[(row + 2u) * n + b] * L.z +
                U_a[(row + 3u) * n + b] * L.w;
       }
-      U_dot[(3u * v + uint(c)) * n + b] = acc;
+      U_dot[(3u * out_v + uint(c)) * n + b] = acc;
     }
   }
-  M_dot[v] = vec4(mean_dotted, 0.0);
+  M_dot[out_v] = vec4(mean_dotted, 0.0);
 }

@@ -45,7 +45,14 @@ int main(int argc, char** argv) {
   auto* instance_opt = app.add_option("--instance", instance,
                                       "instance to follow (default: first instance of the "
                                       "first scene), or to take from a --replay recording");
-  app.add_option("--create", o.create, "create a new instance of this scene and follow it");
+  std::string instances;
+  app.add_option("--instances", instances,
+                 "several instances of one scene in one view, on a grid: a list (1,2,3), or all (every "
+                 "instance of the first scene); network, or --replay with a list");
+  app.add_option("--create", o.create, "create a new instance of this scene and follow it (--count of them)");
+  app.add_option("--count", o.count,
+                 "with --create: make this many instances and draw them in one view; local mode: draw this "
+                 "many copies of the IRF, each further on in it (default 1)");
   app.add_option("--replay", replay, "render a recorded stream (needs --package)");
   app.add_option("--package", package, "scene package (.h5): local mode, or the bases for --replay");
   auto* irf_opt =
@@ -95,6 +102,11 @@ int main(int argc, char** argv) {
     o.height = wh[1];
     o.backdrop = phasecast::client::parse_on_off(backdrop, "--backdrop");
     if (*instance_opt) o.instance = instance;
+    if (instances == "all") {
+      o.all_instances = true;
+    } else if (!instances.empty()) {
+      o.instances = phasecast::client::parse_instance_list(instances);
+    }
     if (*irf_opt) o.play_irf = play_irf;
     if (*fov_opt) o.fov_y_deg = fov;
     if (!replay.empty()) o.replay = replay;

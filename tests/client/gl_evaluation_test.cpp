@@ -354,6 +354,69 @@ TEST(GlEvaluation, TransferIsDottedWithTheLightOnlyWhenTheLightItSeesChanges) {
   EXPECT_NE(turned.radiance, sky.radiance);
 }
 
+// Four instances on the default grid, one instanced draw: each is its own
+// frame evaluated where it stands (the single-instance evaluation moved by
+// its placement), and changing one instance's frame changes only its part
+// of the picture.
+TEST(GlEvaluation, InstancesAreDrawnEachWithItsOwnStateWhereItStands) {
+  const auto package = testing::make_plate_package();
+  const auto basis = basis_from_package(package, 1);
+  const int size = 160;
+  auto backend = make_render_backend("osmesa", size, size);
+  LowRankRenderer single(*backend, basis, size, size);
+  LowRankRenderer renderer(*backend, basis, size, size);
+  const auto placements = grid_placements(rest_bounds(basis), 4);
+  renderer.set_placements(placements);
+  const Camera camera = group_camera(scene_camera(basis), rest_bounds(basis), placements);
+  renderer.set_camera(camera);
+  const FrameState rest = portrait_frames(package, 0)[0];
+  std::vector<FrameState> frames(4, rest);
+  frames[2] = portrait_frames(package, 0)[40];  // the door of instance 2 turned, its plate moving
+  frames[3] = portrait_frames(package, 3)[20];
+
+  const VertexDump all = renderer.evaluate(frames);
+  const std::size_t S = static_cast<std::size_t>(basis.points);
+  ASSERT_EQ(all.positions.size(), 4 * 3 * S);
+  for (std::size_t i = 0; i < 4; ++i) {
+    const VertexDump one = single.evaluate(frames[i]);
+    for (std::size_t k = 0; k < 3 * S; ++k) {
+      const float moved = one.positions[k] + placements[i](static_cast<int>(k % 3), 3);
+      ASSERT_NEAR(all.positions[3 * S * i + k], moved, 1e-5f) << "instance " << i << ", value " << k;
+      ASSERT_NEAR(all.radiance[3 * S * i + k], one.radiance[k], 1e-6f) << "instance " << i << ", value " << k;
+    }
+  }
+
+  // Where instance 2 can appear: its points at rest and moved, projected.
+  const Eigen::Matrix4f vp = view_projection(camera, size, size, 2 * scene_radius(basis) + 4);
+  Eigen::AlignedBox2f region;
+  for (const FrameState* f : {&rest, static_cast<const FrameState*>(&frames[2])}) {
+    std::vector<FrameState> just_2(4, rest);
+    just_2[2] = *f;
+    const VertexDump d = renderer.evaluate(just_2);
+    for (std::size_t v = 2 * S; v < 3 * S; ++v) {
+      const Eigen::Vector4f clip =
+          vp * Eigen::Vector4f(d.positions[3 * v], d.positions[3 * v + 1], d.positions[3 * v + 2], 1);
+      region.extend(
+          Eigen::Vector2f((clip.x() / clip.w() + 1) * size / 2, (1 - clip.y() / clip.w()) * size / 2));
+    }
+  }
+  std::vector<FrameState> before(4, rest), after(4, rest);
+  after[2] = frames[2];
+  const Image a = renderer.render(before), b = renderer.render(after);
+  int inside = 0, outside = 0;
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      const auto at = static_cast<std::size_t>(4 * (y * size + x));
+      if (std::equal(&a.rgba[at], &a.rgba[at + 3], &b.rgba[at])) continue;
+      const bool in = region.exteriorDistance(Eigen::Vector2f(x + 0.5f, y + 0.5f)) <= 2;
+      (in ? inside : outside)++;
+    }
+  }
+  EXPECT_GT(inside, 50) << "instance 2's motion shows";
+  EXPECT_EQ(outside, 0) << "no other instance changed";
+  EXPECT_THROW(renderer.render(std::span(&rest, 1)), RenderError) << "one frame per placed instance";
+}
+
 TEST(GlEvaluation, StaticMeshDrawsTheSameImage) {
   const auto package = testing::make_plate_package();
   const auto basis = basis_from_package(package, 1);

@@ -58,6 +58,12 @@ class BackgroundTool {
   pid_t pid_ = -1;
 };
 
+std::size_t files_in(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!std::filesystem::exists(dir, ec)) return 0;
+  return static_cast<std::size_t>(std::distance(std::filesystem::directory_iterator(dir), {}));
+}
+
 class NetworkRender : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -89,6 +95,41 @@ TEST_F(NetworkRender, ThePubPortIsNamedAsTheLikelySlip) {
                                              "--request-timeout", "0.5", "--out", path("pub")});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_THAT(r.err, HasSubstr("is this its command endpoint, --cmd, not its --pub port?")) << r.err;
+}
+
+// Four instances of a real server in one view, through one subscription to
+// the scene's batches: an impulse sent to instance 2 (the grid's right
+// column, front row) changes the picture there and nowhere on the left.
+TEST_F(NetworkRender, FourInstancesInOneViewAndAnImpulseChangesOnlyItsOwn) {
+  core::write_package(package_, dir_ / "plate.h5");
+  testing::RealServer server(dir_ / "plate.h5", "tcp://127.0.0.1:*", "tcp://127.0.0.1:*", dir_ / "server",
+                             {"--instances", "4"});
+  BackgroundTool tool({"--connect", server.cmd(), "--instances", "all", "--frames", "90", "--size", "120x90",
+                       "--light", "sun", "--out", path("four")},
+                      dir_ / "four.log");
+  for (int i = 0; i < 6000 && files_in(dir_ / "four") < 10; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const auto impulse =
+      testing::run_tool("phasecast-console", {"--connect", server.cmd(), "-e", "impulse(2, 'open')"});
+  ASSERT_EQ(impulse.exit_code, 0) << impulse.err;
+  ASSERT_EQ(tool.wait(), 0) << testing::read_file(dir_ / "four.log");
+  const auto log = testing::read_file(dir_ / "four.log");
+  EXPECT_THAT(log, HasSubstr("following 4 instances (1, 2, 3, 4) of 'plate'"));
+  std::vector<std::filesystem::path> frames;
+  for (const auto& e : std::filesystem::directory_iterator(dir_ / "four")) frames.push_back(e.path());
+  std::sort(frames.begin(), frames.end());
+  ASSERT_EQ(frames.size(), 90u);
+  const Image first = read_png(frames.front()), last = read_png(frames.back());
+  int left = 0, right = 0;
+  for (int y = 0; y < first.height; ++y) {
+    for (int x = 0; x < first.width; ++x) {
+      const auto at = static_cast<std::size_t>(4 * (y * first.width + x));
+      if (!std::equal(&first.rgba[at], &first.rgba[at + 3], &last.rgba[at]))
+        ++(2 * x < first.width ? left : right);
+    }
+  }
+  EXPECT_GT(right, 30) << "instance 2 turned";
+  EXPECT_EQ(left, 0) << "instances 1 and 3 stood still";
 }
 
 TEST_F(NetworkRender, RendersServerFramesWithoutAPackageFile) {
@@ -172,12 +213,6 @@ TEST_F(NetworkRender, MalformedFramesAreSkippedAndReported) {
   EXPECT_FALSE(std::filesystem::exists(dir_ / "bad" / frame_file_name(std::stoull(m[1]))));
   ASSERT_TRUE(std::regex_search(r.out, m, std::regex(R"(rejected frames (\d+))")));
   EXPECT_GE(std::stoi(m[1]), 2);
-}
-
-std::size_t files_in(const std::filesystem::path& dir) {
-  std::error_code ec;
-  if (!std::filesystem::exists(dir, ec)) return 0;
-  return static_cast<std::size_t>(std::distance(std::filesystem::directory_iterator(dir), {}));
 }
 
 TEST_F(NetworkRender, ReconnectsAfterTheServerRestartsAndRechecksTheBases) {

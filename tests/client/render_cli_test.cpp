@@ -168,11 +168,63 @@ TEST_F(RenderCli, HelpDescribesTheModes) {
   EXPECT_THAT(r.out, HasSubstr("--backdrop"));
 }
 
+// Local mode draws --count copies of the IRF in one view, each further on
+// in it: the dump holds every copy's points, each copy the single-instance
+// frame moved to its place on the grid.
+TEST_F(RenderCli, CountDrawsCopiesOfTheIrfSideBySide) {
+  const auto file = path("copies.csv");
+  const auto r =
+      testing::run_tool("phasecast-render", {"--package", path("plate.h5"), "--play-irf", "2", "--count", "3",
+                                             "--size", "64x64", "--dump-vertices", "0", file});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr(", 3 instances"));
+  std::ifstream in(file);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::vector<float>> rows;
+  while (std::getline(in, line)) {
+    std::stringstream row(line);
+    std::string cell;
+    auto& values = rows.emplace_back();
+    while (std::getline(row, cell, ',')) values.push_back(std::stof(cell));
+  }
+  ASSERT_EQ(rows.size(), 3u * 85);
+  const auto frames = portrait_frames(package_, 2);
+  const auto basis = basis_from_package(package_, 0);
+  const std::size_t stagger = frames.size() / 3;
+  const auto placements = grid_placements(rest_bounds(basis), 3);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const auto& f = frames[i * stagger];
+    const auto cpu = cpu_positions(basis, f.q_u, f.support);
+    for (std::size_t v = 0; v < 85; ++v) {
+      for (int c = 0; c < 3; ++c) {
+        const double want = cpu[3 * v + static_cast<std::size_t>(c)] + placements[i](c, 3);
+        EXPECT_NEAR(rows[85 * i + v][static_cast<std::size_t>(c)], want, 1e-5 * (std::abs(want) + 1))
+            << "copy " << i << ", point " << v;
+      }
+    }
+  }
+}
+
 TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--backend", "vulkan"}),
             "phasecast-render: render backend 'vulkan' is unknown (expected one of osmesa, egl, window)\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--light", "moon"}),
             "phasecast-render: light probe 'moon' is unknown (expected one of grace, sky, sun, white)\n");
+  EXPECT_EQ(one_line_error({"--connect", "tcp://127.0.0.1:1", "--instances", "1,x"}),
+            "phasecast-render: --instances '1,x' is invalid at 'x' (expected all, or instance ids each once: "
+            "1,2,3)\n");
+  EXPECT_EQ(one_line_error({"--connect", "tcp://127.0.0.1:1", "--instances", "2,2"}),
+            "phasecast-render: --instances '2,2' is invalid at '2' (expected all, or instance ids each once: "
+            "1,2,3)\n");
+  EXPECT_EQ(one_line_error({"--connect", "tcp://127.0.0.1:1", "--instances", "1,2", "--create", "plate"}),
+            "phasecast-render: give --instances, --instance or --create, one of them\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--instances", "1,2"}),
+            "phasecast-render: --instances needs --connect tcp://host:5555 or --replay stream.rec\n");
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--count", "0"}),
+            "phasecast-render: --count 0 is invalid (expected 1..4096 instances)\n");
+  EXPECT_EQ(one_line_error({"--connect", "tcp://127.0.0.1:1", "--count", "4"}),
+            "phasecast-render: --count needs --create SCENE (network) or local mode (--package p.h5)\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--backdrop", "maybe"}),
             "phasecast-render: --backdrop 'maybe' is invalid (expected on or off)\n");
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--size", "big"}),

@@ -14,6 +14,7 @@
 #include <cerrno>
 #include <cstring>
 #include <regex>
+#include <set>
 #include <type_traits>
 #include <variant>
 
@@ -498,9 +499,22 @@ struct FrameSubscriber::Impl {
 
 FrameSubscriber::FrameSubscriber(const std::string& endpoint, std::uint32_t instance,
                                  const CurveClientKeys& curve)
-    : impl_(std::make_unique<Impl>()), instance_(instance) {
+    : FrameSubscriber(endpoint, std::string(), {instance}, curve) {}
+
+FrameSubscriber::FrameSubscriber(const std::string& endpoint, const std::string& scene,
+                                 std::vector<std::uint32_t> instances, const CurveClientKeys& curve)
+    : impl_(std::make_unique<Impl>()), instances_(std::move(instances)) {
+  if (instances_.empty()) throw NetworkError("no instance to follow (expected at least one)");
+  std::sort(instances_.begin(), instances_.end());
   impl_->socket.set(zmq::sockopt::linger, 0);
-  impl_->socket.set(zmq::sockopt::subscribe, fmt::format("inst/{}/", instance));
+  if (instances_.size() == 1) {
+    impl_->socket.set(zmq::sockopt::subscribe, fmt::format("inst/{}/", instances_[0]));
+  } else {
+    std::set<std::uint32_t> blocks;
+    for (const auto id : instances_) blocks.insert(id / kFrameBatchBlock);
+    for (const auto b : blocks)
+      impl_->socket.set(zmq::sockopt::subscribe, fmt::format("scene/{}/{}/", scene, b));
+  }
   apply_curve(impl_->socket, curve);
   impl_->curve = curve.enabled();
   impl_->monitor = std::make_unique<SocketMonitor>(impl_->socket, impl_->curve);
@@ -514,6 +528,71 @@ FrameSubscriber::FrameSubscriber(const std::string& endpoint, std::uint32_t inst
 FrameSubscriber::~FrameSubscriber() = default;
 
 std::optional<v1::Frame> FrameSubscriber::receive(std::chrono::milliseconds timeout) {
+  auto frames = receive_all(timeout);
+  if (frames.empty()) return std::nullopt;
+  return std::move(frames.front());
+}
+
+std::vector<v1::Frame> frames_of_batch(const v1::FrameBatch& b, const std::vector<std::uint32_t>& instances) {
+  const auto n = static_cast<std::size_t>(b.instance_size());
+  const std::size_t ru = b.rank_u(), ra = b.rank_a();
+  const auto sized = [n](int size, std::size_t per) { return static_cast<std::size_t>(size) == n * per; };
+  if (!sized(b.frame_size(), 1) || !sized(b.q_u_size(), ru) || !sized(b.q_a_size(), ra) ||
+      !sized(b.support_size(), 12) || !sized(b.palette_index_size(), 1) || !sized(b.irf_size(), 1) ||
+      !sized(b.irf_t_size(), 1)) {
+    throw std::invalid_argument(fmt::format("frame batch of '{}' block {}: fields do not hold {} instances",
+                                            b.scene(), b.block(), n));
+  }
+  std::vector<v1::Frame> out;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::binary_search(instances.begin(), instances.end(), b.instance(static_cast<int>(i)))) continue;
+    const int k = static_cast<int>(i);
+    v1::Frame& f = out.emplace_back();
+    f.set_instance(b.instance(k));
+    f.set_seq(b.frame(k));
+    f.set_frame(b.frame(k));
+    f.set_sim_time(static_cast<double>(b.frame(k)) * b.dt());
+    f.mutable_q_u()->Add(b.q_u().begin() + static_cast<int>(i * ru),
+                         b.q_u().begin() + static_cast<int>((i + 1) * ru));
+    f.mutable_q_a()->Add(b.q_a().begin() + static_cast<int>(i * ra),
+                         b.q_a().begin() + static_cast<int>((i + 1) * ra));
+    f.mutable_support()->Add(b.support().begin() + 12 * k, b.support().begin() + 12 * (k + 1));
+    f.set_palette_index(b.palette_index(k));
+    f.set_irf(b.irf(k));
+    f.set_irf_t(b.irf_t(k));
+    f.set_scene(b.scene());
+  }
+  return out;
+}
+
+namespace {
+
+// The followed instances' frames in one [topic][payload] message; empty when
+// it holds none of them or does not parse.
+std::vector<v1::Frame> followed_frames(const std::vector<zmq::message_t>& parts,
+                                       const std::vector<std::uint32_t>& instances) {
+  if (parts.size() != 2) return {};
+  const auto size = static_cast<int>(parts[1].size());
+  if (parts[0].to_string_view().starts_with("scene/")) {
+    v1::FrameBatch batch;
+    if (!batch.ParseFromArray(parts[1].data(), size)) return {};
+    try {
+      return frames_of_batch(batch, instances);
+    } catch (const std::invalid_argument&) {
+      return {};
+    }
+  }
+  v1::Frame frame;
+  if (!frame.ParseFromArray(parts[1].data(), size) ||
+      !std::binary_search(instances.begin(), instances.end(), frame.instance())) {
+    return {};
+  }
+  return {frame};
+}
+
+}  // namespace
+
+std::vector<v1::Frame> FrameSubscriber::receive_all(std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::array<zmq::pollitem_t, 2> items{
       {{static_cast<void*>(impl_->socket), 0, ZMQ_POLLIN, 0},
@@ -523,25 +602,20 @@ std::optional<v1::Frame> FrameSubscriber::receive(std::chrono::milliseconds time
     // Frames of a restarted server wait until the caller has looked at it.
     if (impl_->reconnect_pending() && impl_->returned_at != impl_->events.handshakes) {
       impl_->returned_at = impl_->events.handshakes;
-      return std::nullopt;
+      return {};
     }
     const auto left =
         std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     // Past the deadline one last look without waiting (timeout 0: a non-blocking read).
-    if (poll_items(items.data(), items.size(), std::max(left, std::chrono::milliseconds(0))) <= 0) {
-      return std::nullopt;
-    }
+    if (poll_items(items.data(), items.size(), std::max(left, std::chrono::milliseconds(0))) <= 0) return {};
     if (items[0].revents & ZMQ_POLLIN) {
       std::vector<zmq::message_t> parts;
       (void)zmq::recv_multipart(impl_->socket, std::back_inserter(parts));
-      v1::Frame frame;
-      if (parts.size() == 2 && frame.ParseFromArray(parts[1].data(), static_cast<int>(parts[1].size())) &&
-          frame.instance() == instance_) {
-        return frame;
-      }
+      auto frames = followed_frames(parts, instances_);
+      if (!frames.empty()) return frames;
       ++malformed_;
     }
-    if (left.count() <= 0) return std::nullopt;
+    if (left.count() <= 0) return {};
   }
 }
 

@@ -64,20 +64,33 @@ FrameOutput::~FrameOutput() {
 }
 
 void FrameOutput::render(const FrameState& frame) {
+  render(std::span(&frame, 1));
+}
+
+// Pixels come back from the GPU only when a PNG or the video needs them.
+void FrameOutput::render(std::span<const FrameState> frames) {
   if (!first_) first_ = std::chrono::steady_clock::now();
   const auto start = std::chrono::steady_clock::now();
-  const Image image = renderer_->render(frame);
+  const bool keep = options_.png_dir || ffmpeg_;
+  Image image;
+  if (keep) {
+    image = renderer_->render(frames);
+  } else {
+    renderer_->draw(frames);
+    renderer_->finish();  // render-only time is the GPU's, not only the calls'
+  }
   stats_.render_seconds += seconds_since(start);
   ++stats_.frames;
-  if (last_frame_ && frame.frame <= *last_frame_) ++session_;
-  last_frame_ = frame.frame;
-  if (options_.png_dir) write_png(image, *options_.png_dir / frame_file_name(frame.frame, session_));
+  const std::uint64_t number = frames.front().frame;
+  if (last_frame_ && number <= *last_frame_) ++session_;
+  last_frame_ = number;
+  if (options_.png_dir) write_png(image, *options_.png_dir / frame_file_name(number, session_));
   if (ffmpeg_ && std::fwrite(image.rgba.data(), 1, image.rgba.size(), ffmpeg_) != image.rgba.size()) {
     throw std::runtime_error(
         fmt::format("--video {}: ffmpeg stopped accepting frames", options_.video->string()));
   }
-  if (options_.dump_frame && *options_.dump_frame == frame.frame && !dumped_) {
-    write_vertex_dump(renderer_->evaluate(frame), options_.dump_path);
+  if (options_.dump_frame && *options_.dump_frame == number && !dumped_) {
+    write_vertex_dump(renderer_->evaluate(frames), options_.dump_path);
     dumped_ = true;
   }
   stats_.wall_seconds = seconds_since(*first_);

@@ -41,6 +41,11 @@ GroundPlane::GroundPlane(const GlFunctions& gl, const ClientBasis& basis, float 
   centre_ = {0.5f * (lo.x() + hi.x()), 0.5f * (lo.z() + hi.z())};
 }
 
+void GroundPlane::cover(const Eigen::Vector2f& centre, float radius) {
+  centre_ = centre;
+  radius_ = radius;
+}
+
 void GroundPlane::draw(const Camera& camera, int width, int height, const ShLight& light,
                        float exposure) const {
   if (!(camera.eye.y() > height_)) return;

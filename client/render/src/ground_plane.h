@@ -19,6 +19,10 @@ class GroundPlane {
   // centred under its bounding box.
   GroundPlane(const GlFunctions& gl, const ClientBasis& basis, float scene_radius);
 
+  // Many instances: the ground centred under them (x, z) and reaching this
+  // many radii of the group.
+  void cover(const Eigen::Vector2f& centre, float radius);
+
   void draw(const Camera& camera, int width, int height, const ShLight& light, float exposure) const;
 
  private:

@@ -8,6 +8,7 @@
 #include "phasecast/client/embedded_shaders.h"
 
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <array>
@@ -15,6 +16,7 @@
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <span>
 #include <utility>
 
 namespace phasecast::client {
@@ -40,6 +42,7 @@ enum Binding : GLuint {
   kReduced = PHASECAST_BINDING_REDUCED,
   kMeanDotted = PHASECAST_BINDING_MEAN_DOTTED,
   kBasisDotted = PHASECAST_BINDING_BASIS_DOTTED,
+  kInstances = PHASECAST_BINDING_INSTANCES,
   kBindingCount = PHASECAST_BINDING_COUNT
 };
 
@@ -63,6 +66,10 @@ std::vector<std::uint32_t> point_flags(const ClientBasis& basis) {
   return flags;
 }
 
+// Floats per instance in the Instances buffer (shaders/low_rank.vert):
+// placement and support (column-major mat4s), then 24 vec4s of light.
+constexpr std::size_t kInstanceFloats = 16 + 16 + 96;
+
 // Support transform (3x4 row-major, support -> world) as a 4x4 for GLSL.
 Eigen::Matrix4f support_matrix(const FrameState& f) {
   Eigen::Matrix4f support = Eigen::Matrix4f::Identity();
@@ -85,11 +92,11 @@ std::vector<float> interleave(const VertexDump& d, int points) {
   return interleaved;
 }
 
-VertexDump deinterleave(const std::vector<float>& captured, int points) {
+VertexDump deinterleave(const std::vector<float>& captured, std::size_t points) {
   VertexDump dump;
-  dump.positions.reserve(3 * static_cast<std::size_t>(points));
-  dump.radiance.reserve(3 * static_cast<std::size_t>(points));
-  for (std::size_t v = 0; v < static_cast<std::size_t>(points); ++v) {
+  dump.positions.reserve(3 * points);
+  dump.radiance.reserve(3 * points);
+  for (std::size_t v = 0; v < points; ++v) {
     dump.positions.insert(dump.positions.end(), &captured[6 * v], &captured[6 * v + 3]);
     dump.radiance.insert(dump.radiance.end(), &captured[6 * v + 3], &captured[6 * v + 6]);
   }
@@ -119,7 +126,8 @@ struct LowRankRenderer::Impl {
   int width, height;
   float radius;
   GlProgram program, static_program, dot_program;
-  std::optional<std::array<float, 96>> dotted_lights;  // lights the dotted form was made with
+  // Per instance: the lights its dotted form was made with.
+  std::vector<std::optional<std::array<float, 96>>> dotted_lights;
   std::uint64_t light_dot_passes = 0;
   VertexArray vao, static_vao, evaluated_vao;
   Evaluation evaluation = Evaluation::per_point_pass;
@@ -135,11 +143,17 @@ struct LowRankRenderer::Impl {
   int r_u4 = 0, r_a4 = 0;  // ranks in vec4 blocks (shaders/low_rank.vert)
   Backdrop backdrop = Backdrop::none;
   std::optional<GroundPlane> ground;  // made on the first set_backdrop(ground)
+  // Where the instances stand (instance frame -> world); one at the origin by default.
+  std::vector<Eigen::Matrix4f> placements{Eigen::Matrix4f::Identity()};
+  std::size_t allocated_instances = 0;  // instances the per-instance buffers hold
+  float view_radius = 0;                // of the group: depth range and ground
+  Eigen::Vector2f ground_centre = Eigen::Vector2f::Zero();
 
   Impl(RenderBackend& b, const ClientBasis& bases, int w, int h)
       : backend(b), gl(detail::load_gl_functions(b)), basis(bases), width(w), height(h) {
     basis.validate("renderer");
     radius = scene_radius(basis);
+    view_radius = radius;
     camera = scene_camera(basis);
     light = light_probe("grace");
     program = detail::link_vertex_program(gl, shaders::low_rank_vert, "low_rank.vert", true);
@@ -153,6 +167,7 @@ struct LowRankRenderer::Impl {
   void set_backdrop(Backdrop b) {
     if (b == Backdrop::ground && !ground) {
       ground.emplace(gl, basis, radius);
+      ground->cover(ground_centre, view_radius);
       check("setting up the backdrop");
     }
     backdrop = b;
@@ -199,17 +214,28 @@ struct LowRankRenderer::Impl {
     for (auto& buffer : storage) buffer = Buffer(gl);
     r_u4 = (basis.rank_u + 3) / 4;
     r_a4 = (basis.rank_a + 3) / 4;
-    const auto points = static_cast<std::size_t>(basis.points);
     upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
     upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
     upload_storage(kMeanTransfer, basis.mean_transfer, "mean_transfer");
     upload_storage(kTransferBasis, pad_columns(basis.U_a, basis.rank_a), "U_a");
     upload_storage(kPointFlags, point_flags(basis), "flags");
     upload_storage(kRestNormals, basis.normals, "normals");
-    upload_storage(kReduced, std::vector<float>(static_cast<std::size_t>(4 * (r_u4 + r_a4)) + 4), "q");
-    // Written by light_dot.comp: M_bar.L (a vec4 per point), U_a.L ([S][3][r_a4] vec4s).
-    upload_storage(kMeanDotted, std::vector<float>(4 * points), "M_bar.L");
-    upload_storage(kBasisDotted, std::vector<float>(12 * points * r_a4), "U_a.L");
+    allocate_instances(placements.size());
+  }
+
+  // The buffers that hold something per instance: q, placement, support and
+  // lights, and what light_dot.comp writes (M_bar.L, a vec4 per point; U_a.L,
+  // [S][3][r_a4] vec4s), and the per-point pass's output.
+  void allocate_instances(std::size_t n) {
+    const auto points = static_cast<std::size_t>(basis.points);
+    upload_storage(kReduced, std::vector<float>(n * static_cast<std::size_t>(4 * (r_u4 + r_a4)) + 4), "q");
+    upload_storage(kMeanDotted, std::vector<float>(n * 4 * points), "M_bar.L");
+    upload_storage(kBasisDotted, std::vector<float>(n * 12 * points * static_cast<std::size_t>(r_a4)),
+                   "U_a.L");
+    upload_storage(kInstances, std::vector<float>(n * kInstanceFloats), "instances");
+    dotted_lights.assign(n, std::nullopt);
+    allocated_instances = n;
+    if (feedback_buffer) create_feedback_buffer();
   }
 
   // The triangles, recorded in vao: the in_draw evaluation draws with it.
@@ -227,8 +253,9 @@ struct LowRankRenderer::Impl {
   void create_feedback_buffer() {
     feedback_buffer = Buffer(gl);
     gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer.get());
-    gl.glBufferData(GL_TRANSFORM_FEEDBACK_BUFFER, static_cast<GLsizeiptr>(6 * sizeof(float)) * basis.points,
-                    nullptr, GL_DYNAMIC_COPY);
+    gl.glBufferData(GL_TRANSFORM_FEEDBACK_BUFFER,
+                    static_cast<GLsizeiptr>(6 * sizeof(float) * allocated_instances) * basis.points, nullptr,
+                    GL_DYNAMIC_COPY);
     evaluated_vao = VertexArray(gl);
     describe_vertices(evaluated_vao, feedback_buffer);
   }
@@ -268,58 +295,87 @@ struct LowRankRenderer::Impl {
     return renderbuffer;
   }
 
-  void set_uniforms(const GlProgram& p, const FrameState& f) {
+  // Buffer bindings belong to the context, which other renderers may share
+  // (tests, benchmarks): each draw binds its own.
+  void bind_storage() {
+    for (GLuint b = 0; b < kBindingCount; ++b)
+      gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b, storage[b].get());
+  }
+
+  void set_uniforms(const GlProgram& p, std::span<const FrameState> frames) {
+    bind_storage();
     p.use();
-    const Eigen::Matrix4f vp = view_projection(camera, width, height, radius);
+    const Eigen::Matrix4f vp = view_projection(camera, width, height, view_radius);
     gl.glUniformMatrix4fv(p.uniform("view_projection"), 1, GL_FALSE, vp.data());
     gl.glUniform1f(p.uniform("exposure"), exposure);
-    if (&p == &program) set_low_rank_uniforms(f);
+    if (&p == &program) set_low_rank_uniforms(frames);
   }
 
-  // What only low_rank.vert reads: ranks, support, lights and q.
-  void set_low_rank_uniforms(const FrameState& f) {
+  // What only low_rank.vert reads: ranks, and per instance q, support,
+  // placement and lights.
+  void set_low_rank_uniforms(std::span<const FrameState> frames) {
     gl.glUniform1i(program.uniform("r_u4"), r_u4);
     gl.glUniform1i(program.uniform("r_a4"), r_a4);
+    gl.glUniform1i(program.uniform("points"), basis.points);
     gl.glUniform1i(program.uniform("has_transfer"), has_transfer ? 1 : 0);
-    const Eigen::Matrix4f support = support_matrix(f);
-    gl.glUniformMatrix4fv(program.uniform("support"), 1, GL_FALSE, support.data());
-    const auto lights = frame_lights(support);
-    if (has_transfer) update_light_dotted(lights);
+    std::vector<float> instances(frames.size() * kInstanceFloats);
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      const Eigen::Matrix4f& placement = placements[i];
+      const Eigen::Matrix4f support = placement * support_matrix(frames[i]);
+      const auto lights = instance_lights(placement, support);
+      float* out = &instances[i * kInstanceFloats];
+      std::copy_n(placement.data(), 16, out);
+      std::copy_n(support.data(), 16, out + 16);
+      std::copy(lights.begin(), lights.end(), out + 32);
+      if (has_transfer) update_light_dotted(i, lights);
+    }
     program.use();  // update_light_dotted may have switched to dot_program
-    gl.glUniform4fv(program.uniform("light"), 24, lights.data());
-    upload_reduced(f);
+    gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kInstances].get());
+    gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(instances), instances.data());
+    upload_reduced(frames);
   }
 
-  // Per-frame upload: q_u then q_a, each padded to vec4 blocks.
-  void upload_reduced(const FrameState& f) {
-    std::vector<float> q(static_cast<std::size_t>(4 * (r_u4 + r_a4)), 0.0f);
-    std::copy(f.q_u.begin(), f.q_u.end(), q.begin());
-    std::copy(f.q_a.begin(), f.q_a.end(), q.begin() + 4 * r_u4);
+  // Per-frame upload: per instance q_u then q_a, each padded to vec4 blocks.
+  void upload_reduced(std::span<const FrameState> frames) {
+    const auto stride = static_cast<std::size_t>(4 * (r_u4 + r_a4));
+    std::vector<float> q(frames.size() * stride, 0.0f);
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      std::copy(frames[i].q_u.begin(), frames[i].q_u.end(),
+                q.begin() + static_cast<std::ptrdiff_t>(i * stride));
+      std::copy(frames[i].q_a.begin(), frames[i].q_a.end(),
+                q.begin() + static_cast<std::ptrdiff_t>(i * stride) + 4 * r_u4);
+    }
     gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kReduced].get());
     if (!q.empty()) gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(q), q.data());
   }
 
-  // The world light and the light rotated into the support frame (§5.3).
-  std::array<float, 96> frame_lights(const Eigen::Matrix4f& support) const {
+  // The world light as an instance's points see it (§5.3): rotated into the
+  // instance's frame for free points and into its support frame for
+  // attached ones. An unrotated placement leaves the world light as it is.
+  std::array<float, 96> instance_lights(const Eigen::Matrix4f& placement,
+                                        const Eigen::Matrix4f& support) const {
     std::array<float, 96> lights{};
-    const auto world = light.packed();
+    const Eigen::Matrix3d turn = placement.topLeftCorner<3, 3>().cast<double>();
+    const auto world = turn.isIdentity(0) ? light.packed() : light_in_support_frame(light, turn).packed();
     const auto local = light_in_support_frame(light, support.topLeftCorner<3, 3>().cast<double>()).packed();
     std::copy(world.begin(), world.end(), lights.begin());
     std::copy(local.begin(), local.end(), lights.begin() + 48);
     return lights;
   }
 
-  // Re-dots the transfer bases with the light when the light the points see
-  // changed (a new light or a rotated support); otherwise nothing to do.
-  void update_light_dotted(const std::array<float, 96>& lights) {
-    if (dotted_lights && *dotted_lights == lights) return;
+  // Re-dots the transfer bases with an instance's light when the light its
+  // points see changed (a new light or a rotated support); otherwise nothing to do.
+  void update_light_dotted(std::size_t instance, const std::array<float, 96>& lights) {
+    auto& dotted = dotted_lights[instance];
+    if (dotted && *dotted == lights) return;
     dot_program.use();
     gl.glUniform1i(dot_program.uniform("r_a4"), r_a4);
     gl.glUniform4fv(dot_program.uniform("light"), 24, lights.data());
     gl.glUniform1i(dot_program.uniform("points"), basis.points);
+    gl.glUniform1i(dot_program.uniform("instance"), static_cast<GLint>(instance));
     gl.glDispatchCompute(static_cast<GLuint>((basis.points + 63) / 64), 1, 1);
     gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    dotted_lights = lights;
+    dotted = lights;
     ++light_dot_passes;
   }
 
@@ -347,37 +403,61 @@ struct LowRankRenderer::Impl {
     backend.present();
   }
 
-  // Pass 1: the low-rank program once per scene point (GL_POINTS, rasterizer
-  // off), positions and radiance captured into feedback_buffer.
-  void evaluation_pass(const FrameState& f) {
-    set_uniforms(program, f);
+  // Pass 1: the low-rank program once per scene point and instance
+  // (GL_POINTS, rasterizer off), positions and radiance captured into
+  // feedback_buffer, instance after instance.
+  void evaluation_pass(std::span<const FrameState> frames) {
+    set_uniforms(program, frames);
     gl.glEnable(GL_RASTERIZER_DISCARD);
     gl.glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer.get());
     gl.glBindVertexArray(vao.get());
     gl.glBeginTransformFeedback(GL_POINTS);
-    gl.glDrawArrays(GL_POINTS, 0, basis.points);
+    gl.glDrawArraysInstanced(GL_POINTS, 0, basis.points, static_cast<GLsizei>(frames.size()));
     gl.glEndTransformFeedback();
     gl.glBindVertexArray(0);
     gl.glDisable(GL_RASTERIZER_DISCARD);
   }
 
-  void draw_triangles(const GlProgram& p, const VertexArray& vertex_array, const FrameState& f) {
+  // The triangles of every instance in one draw: from the per-point pass's
+  // output (instance i's points start at i S), or evaluated in the draw.
+  void draw_triangles(const GlProgram& p, const VertexArray& vertex_array,
+                      std::span<const FrameState> frames) {
     begin_frame();
-    set_uniforms(p, f);
+    set_uniforms(p, frames);
     gl.glBindVertexArray(vertex_array.get());
-    gl.glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(basis.triangles.size()), GL_UNSIGNED_INT, nullptr);
+    const auto count = static_cast<GLsizei>(basis.triangles.size());
+    const auto n = static_cast<GLsizei>(frames.size());
+    if (&p == &program) {
+      gl.glDrawElementsInstanced(GL_TRIANGLES, count, GL_UNSIGNED_INT, nullptr, n);
+    } else {
+      std::vector<GLsizei> counts(frames.size(), count);
+      std::vector<const void*> offsets(frames.size(), nullptr);
+      std::vector<GLint> base_vertices(frames.size());
+      for (std::size_t i = 0; i < frames.size(); ++i) base_vertices[i] = static_cast<GLint>(i) * basis.points;
+      gl.glMultiDrawElementsBaseVertex(GL_TRIANGLES, counts.data(), GL_UNSIGNED_INT, offsets.data(), n,
+                                       base_vertices.data());
+    }
     gl.glBindVertexArray(0);
   }
 
-  void draw(const FrameState& f) {
-    validate_frame(f, basis, "renderer");
+  // One frame per placement.
+  void check_frames(std::span<const FrameState> frames) const {
+    if (frames.size() != placements.size()) {
+      throw RenderError(fmt::format("{} frames for {} placed instances (expected one frame per instance)",
+                                    frames.size(), placements.size()));
+    }
+    for (const auto& f : frames) validate_frame(f, basis, "renderer");
+  }
+
+  void draw(std::span<const FrameState> frames) {
+    check_frames(frames);
     if (evaluation == Evaluation::per_point_pass) {
       // Each point is evaluated exactly once; the triangles then read the
       // results as plain vertex attributes (shared vertices are not re-run).
-      evaluation_pass(f);
-      draw_triangles(static_program, evaluated_vao, f);
+      evaluation_pass(frames);
+      draw_triangles(static_program, evaluated_vao, frames);
     } else {
-      draw_triangles(program, vao, f);
+      draw_triangles(program, vao, frames);
     }
     show();
     check("drawing a frame");
@@ -395,14 +475,46 @@ struct LowRankRenderer::Impl {
     return image;
   }
 
-  VertexDump evaluate(const FrameState& f) {
-    validate_frame(f, basis, "renderer");
-    evaluation_pass(f);
-    std::vector<float> captured(static_cast<std::size_t>(6 * basis.points));
+  VertexDump evaluate(std::span<const FrameState> frames) {
+    check_frames(frames);
+    evaluation_pass(frames);
+    const std::size_t points = frames.size() * static_cast<std::size_t>(basis.points);
+    std::vector<float> captured(6 * points);
     gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer.get());
     gl.glGetBufferSubData(GL_TRANSFORM_FEEDBACK_BUFFER, 0, byte_size(captured), captured.data());
     check("capturing vertices by transform feedback");
-    return deinterleave(captured, basis.points);
+    return deinterleave(captured, points);
+  }
+
+  // Rigid placements only: the light is turned with them (instance_lights),
+  // which a scale or shear would make wrong.
+  void set_placements(std::vector<Eigen::Matrix4f> next) {
+    if (next.empty()) throw RenderError("no placement given (expected at least one instance)");
+    for (std::size_t i = 0; i < next.size(); ++i) {
+      const Eigen::Matrix3f r = next[i].topLeftCorner<3, 3>();
+      if (!next[i].allFinite() || !(r.transpose() * r).isIdentity(1e-4f) || r.determinant() < 0 ||
+          !next[i].row(3).isApprox(Eigen::RowVector4f(0, 0, 0, 1))) {
+        throw RenderError(
+            fmt::format("placement {} is not a rotation and a translation (expected a rigid transform)", i));
+      }
+    }
+    placements = std::move(next);
+    if (placements.size() != allocated_instances) allocate_instances(placements.size());
+    frame_group();
+  }
+
+  // The group's centre and radius: the depth range and the ground take in
+  // every instance.
+  void frame_group() {
+    Eigen::AlignedBox3f rest;
+    for (std::size_t v = 0; v < static_cast<std::size_t>(basis.points); ++v)
+      rest.extend(
+          Eigen::Vector3f(basis.mean_shape[3 * v], basis.mean_shape[3 * v + 1], basis.mean_shape[3 * v + 2]));
+    Eigen::AlignedBox3f group;
+    for (const auto& p : placements) group.extend((p * rest.center().homogeneous()).head<3>());
+    view_radius = radius + 0.5f * group.diagonal().norm();
+    ground_centre = {group.center().x(), group.center().z()};
+    if (ground) ground->cover(ground_centre, view_radius);
   }
 
   void set_static_mesh(const VertexDump& d) {
@@ -427,7 +539,8 @@ struct LowRankRenderer::Impl {
   void draw_static() {
     if (!has_static)
       throw RenderError("draw_static: no static mesh was uploaded (call set_static_mesh first)");
-    draw_triangles(static_program, static_vao, FrameState{});
+    const FrameState rest;
+    draw_triangles(static_program, static_vao, std::span(&rest, 1));
     check("drawing the static mesh");
   }
 };
@@ -455,14 +568,30 @@ void LowRankRenderer::set_backdrop(Backdrop backdrop) {
   impl_->set_backdrop(backdrop);
 }
 void LowRankRenderer::draw(const FrameState& frame) {
-  impl_->draw(frame);
+  impl_->draw(std::span(&frame, 1));
 }
 Image LowRankRenderer::render(const FrameState& frame) {
-  impl_->draw(frame);
+  impl_->draw(std::span(&frame, 1));
   return impl_->read_pixels();
 }
 VertexDump LowRankRenderer::evaluate(const FrameState& frame) {
-  return impl_->evaluate(frame);
+  return impl_->evaluate(std::span(&frame, 1));
+}
+void LowRankRenderer::set_placements(std::vector<Eigen::Matrix4f> placements) {
+  impl_->set_placements(std::move(placements));
+}
+std::size_t LowRankRenderer::instances() const {
+  return impl_->placements.size();
+}
+void LowRankRenderer::draw(std::span<const FrameState> frames) {
+  impl_->draw(frames);
+}
+Image LowRankRenderer::render(std::span<const FrameState> frames) {
+  impl_->draw(frames);
+  return impl_->read_pixels();
+}
+VertexDump LowRankRenderer::evaluate(std::span<const FrameState> frames) {
+  return impl_->evaluate(frames);
 }
 void LowRankRenderer::set_static_mesh(const VertexDump& vertices) {
   impl_->set_static_mesh(vertices);

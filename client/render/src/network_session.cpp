@@ -5,8 +5,10 @@
 
 #include <fmt/format.h>
 #include <fmt/ostream.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
+#include <map>
 #include <ostream>
 #include <thread>
 #include <utility>
@@ -14,60 +16,88 @@
 namespace phasecast::client {
 namespace {
 
-// Which instance to follow: --instance, a new one of --create, or the first
-// instance of the first scene.
-Subscription resolve(CommandClient& cmd, const RenderOptions& o, std::optional<std::uint32_t> created) {
+// Instance -> the scene it plays, as the server lists them.
+std::map<std::uint32_t, std::string> scenes_of_instances(CommandClient& cmd) {
+  const v1::InstanceList listed = cmd.list_instances();
+  std::map<std::uint32_t, std::string> scene_of;
+  for (const auto& i : listed.instances()) scene_of[i.instance()] = i.scene();
+  return scene_of;
+}
+
+// The instances the options name, made if they ask for new ones (--create,
+// --count of them; made again when a restarted server lost them).
+std::vector<std::uint32_t> wanted_instances(CommandClient& cmd, const RenderOptions& o,
+                                            const std::vector<std::uint32_t>& created,
+                                            const std::map<std::uint32_t, std::string>& scene_of,
+                                            const v1::SceneList& scenes) {
+  const auto exists = [&](std::uint32_t id) { return scene_of.count(id) != 0; };
+  if (o.instance || !o.instances.empty()) {
+    const auto ids = o.instance ? std::vector<std::uint32_t>{*o.instance} : o.instances;
+    for (const auto id : ids) {
+      if (!exists(id)) {
+        throw NetworkError(fmt::format("--instance{} {}: the server at {} has no such instance (it has {})",
+                                       o.instance ? "" : "s", id, cmd.endpoint(), scene_of.size()));
+      }
+    }
+    return ids;
+  }
+  if (!o.create.empty()) {
+    if (!created.empty() && std::all_of(created.begin(), created.end(), exists)) return created;
+    std::vector<std::uint32_t> made;
+    for (int i = 0; i < o.count; ++i) made.push_back(cmd.create_instance(o.create).instance());
+    return made;
+  }
+  if (scenes.scenes().empty())
+    throw NetworkError(fmt::format("the server at {} has no scenes", cmd.endpoint()));
+  const std::string& first = scenes.scenes(0).name();
+  std::vector<std::uint32_t> of_first;
+  for (const auto& [id, scene] : scene_of) {
+    if (scene == first) of_first.push_back(id);
+  }
+  if (of_first.empty()) {
+    throw NetworkError(fmt::format("the server at {} has no instance of scene '{}' (use --create {})",
+                                   cmd.endpoint(), first, first));
+  }
+  if (!o.all_instances) of_first.resize(1);
+  return of_first;
+}
+
+// Which instances to follow: --instance or --instances, new ones of
+// --create, every instance of the first scene (--instances all), or its
+// first instance. One renderer draws one scene's instances.
+Subscription resolve(CommandClient& cmd, const RenderOptions& o, const std::vector<std::uint32_t>& created) {
   const auto scenes = cmd.list_scenes();
   Subscription sub;
   sub.pub_endpoint = resolve_pub_endpoint(scenes.pub_endpoint(), cmd.endpoint());
-  auto find_scene = [&](const std::string& name) -> const v1::SceneInfo* {
-    for (const auto& s : scenes.scenes()) {
-      if (s.name() == name) return &s;
+  auto scene_of = scenes_of_instances(cmd);
+  sub.instances = wanted_instances(cmd, o, created, scene_of, scenes);
+  if (!scene_of.count(sub.instances.front())) scene_of = scenes_of_instances(cmd);  // made just now
+  const std::string scene_name = scene_of[sub.instances.front()];
+  for (const auto id : sub.instances) {
+    if (scene_of[id] != scene_name) {
+      throw NetworkError(fmt::format(
+          "--instances: instance {} plays '{}' and instance {} plays '{}' (expected instances of one scene: "
+          "one renderer holds one scene's bases)",
+          sub.instances.front(), scene_name, id, scene_of[id]));
     }
-    return nullptr;
-  };
-  std::string scene_name;
-  const auto instances = cmd.list_instances();
-  const std::optional<std::uint32_t> wanted = o.instance ? o.instance : created;
-  if (wanted) {
-    const auto it = std::find_if(instances.instances().begin(), instances.instances().end(),
-                                 [&](const v1::InstanceInfo& i) { return i.instance() == *wanted; });
-    const bool recreate = it == instances.instances().end() && !o.create.empty();
-    if (it == instances.instances().end() && !recreate) {
-      throw NetworkError(fmt::format("--instance {}: the server at {} has no such instance (it has {})",
-                                     *wanted, cmd.endpoint(), instances.instances_size()));
-    }
-    if (recreate) {  // the server restarted and lost the instance this client created
-      const auto info = cmd.create_instance(o.create);
-      sub.instance = info.instance();
-      scene_name = info.scene();
-    } else {
-      sub.instance = it->instance();
-      scene_name = it->scene();
-    }
-  } else if (!o.create.empty()) {
-    const auto info = cmd.create_instance(o.create);
-    sub.instance = info.instance();
-    scene_name = info.scene();
-  } else {
-    if (scenes.scenes().empty())
-      throw NetworkError(fmt::format("the server at {} has no scenes", cmd.endpoint()));
-    scene_name = scenes.scenes(0).name();
-    const auto it = std::find_if(instances.instances().begin(), instances.instances().end(),
-                                 [&](const v1::InstanceInfo& i) { return i.scene() == scene_name; });
-    if (it == instances.instances().end()) {
-      throw NetworkError(fmt::format("the server at {} has no instance of scene '{}' (use --create {})",
-                                     cmd.endpoint(), scene_name, scene_name));
-    }
-    sub.instance = it->instance();
   }
-  const auto* scene = find_scene(scene_name);
-  if (!scene) {
+  const auto it = std::find_if(scenes.scenes().begin(), scenes.scenes().end(),
+                               [&](const v1::SceneInfo& s) { return s.name() == scene_name; });
+  if (it == scenes.scenes().end()) {
     throw NetworkError(fmt::format("instance {} plays scene '{}', which list_scenes does not list",
-                                   sub.instance, scene_name));
+                                   sub.instances.front(), scene_name));
   }
-  sub.scene = *scene;
+  sub.scene = *it;
   return sub;
+}
+
+// "instance 3" or "instances 1, 2, 3" (the first eight of a long list).
+std::string describe(const std::vector<std::uint32_t>& ids) {
+  if (ids.size() == 1) return fmt::format("instance {}", ids.front());
+  const std::size_t shown = std::min<std::size_t>(ids.size(), 8);
+  return fmt::format("{} instances ({}{})", ids.size(),
+                     fmt::join(ids.begin(), ids.begin() + static_cast<std::ptrdiff_t>(shown), ", "),
+                     shown < ids.size() ? ", ..." : "");
 }
 
 // Once the bases are on the GPU the client keeps only their sizes, name and
@@ -117,13 +147,14 @@ NetworkSession::NetworkSession(const RenderOptions& o, const ShLight& light, std
       frame_timeout_(milliseconds_of(o.frame_timeout_s)) {
   cmd_ = std::make_unique<CommandClient>(o.connect, request_timeout_, 3, curve_);
   sub_ = resolve(*cmd_, o, created_);
-  if (!o.create.empty()) created_ = sub_.instance;
+  if (!o.create.empty()) created_ = sub_.instances;
   basis_ = download(*cmd_, sub_.scene, log);
-  target_ = std::make_unique<RenderTarget>(basis_, o, light, 1.0 / sub_.scene.dt());
+  target_ = std::make_unique<RenderTarget>(basis_, o, light, 1.0 / sub_.scene.dt(),
+                                           static_cast<int>(sub_.instances.size()));
   keep_sizes_only(basis_);
-  fmt::print(log, "phasecast-render: {} ({}), following instance {} of '{}' on {}{}\n",
-             target_->renderer->gl_description(), o.backend, sub_.instance, basis_.scene, sub_.pub_endpoint,
-             curve_.enabled() ? " (CURVE)" : "");
+  fmt::print(log, "phasecast-render: {} ({}), following {} of '{}' on {}{}\n",
+             target_->renderer->gl_description(), o.backend, describe(sub_.instances), basis_.scene,
+             sub_.pub_endpoint, curve_.enabled() ? " (CURVE)" : "");
   subscribe();
   last_rendered_ = std::chrono::steady_clock::now();
 }
@@ -132,16 +163,17 @@ void NetworkSession::run() {
   while (keep_going()) {
     check_give_up();
     const auto left = milliseconds_of(o_.give_up_after_s - seconds_since(last_rendered_));
-    auto frame = subscriber_->receive(std::max(std::chrono::milliseconds(1), std::min(left, frame_timeout_)));
+    auto frames =
+        subscriber_->receive_all(std::max(std::chrono::milliseconds(1), std::min(left, frame_timeout_)));
     if (subscriber_->take_reconnected()) {
       ++reconnects_;
       const bool resubscribed =
           recheck(fmt::format("the frame connection to {} was lost and made again", sub_.pub_endpoint), true);
-      if (resubscribed) continue;  // `frame` came through the old subscription
+      if (resubscribed) continue;  // `frames` came through the old subscription
       restart_explained_ = true;   // the new server's first frame steps back: already checked
     }
-    if (frame) {
-      handle(*frame);
+    if (!frames.empty()) {
+      handle(frames);
     } else if (seconds_since(last_received_) >= o_.frame_timeout_s) {
       reconnect(fmt::format("no frames for {:.1f} s", o_.frame_timeout_s));
     }
@@ -162,31 +194,43 @@ bool NetworkSession::keep_going() const {
   return !interrupted_ && target_->backend->open() && (o_.max_frames == 0 || rendered_ < o_.max_frames);
 }
 
-void NetworkSession::handle(const v1::Frame& frame) {
+// Frames of the followed instances from one message. The view is drawn
+// when the last followed instance's frame came: a scene's batches are
+// published in id order, so the others of that tick came before it.
+void NetworkSession::handle(const std::vector<v1::Frame>& frames) {
   last_received_ = std::chrono::steady_clock::now();
-  if (sequence_.observe(frame.seq()) && !std::exchange(restart_explained_, false)) {
-    // A restarted server, maybe with another package: ask before drawing.
-    const auto why =
-        fmt::format("instance {}: the stream started again (seq {})", sub_.instance, frame.seq());
-    if (recheck(why, true)) return;
+  for (const auto& frame : frames) {
+    if (frame.instance() != sub_.instances.front()) continue;
+    if (sequence_.observe(frame.seq()) && !std::exchange(restart_explained_, false)) {
+      // A restarted server, maybe with another package: ask before drawing.
+      const auto why =
+          fmt::format("instance {}: the stream started again (seq {})", frame.instance(), frame.seq());
+      if (recheck(why, true)) return;
+    }
   }
-  const FrameState state = frame_state(frame);
-  try {
-    check_frame(frame, state);
-  } catch (const std::invalid_argument& e) {
-    reject(e.what());
-    return;
+  for (const auto& frame : frames) {
+    FrameState state = frame_state(frame);
+    try {
+      check_frame(frame, state);
+    } catch (const std::invalid_argument& e) {
+      reject(e.what());
+      return;
+    }
+    latest_[frame.instance()] = std::move(state);
   }
+  if (frames.back().instance() != sub_.instances.back() || latest_.size() < sub_.instances.size()) return;
   if (rejected_run_ > 1)  // the run of rejected frames may span a reconnect
     fmt::print(log_, "phasecast-render: rendering again after {} rejected frames\n", rejected_run_);
   rejected_run_ = 0;
   state_ = State::following;
-  render(state);
+  std::vector<FrameState> view;
+  for (const auto id : sub_.instances) view.push_back(latest_.at(id));
+  render(view);
 }
 
 // The frame must fit the bases held (one bad frame never ends the session).
 void NetworkSession::check_frame(const v1::Frame& frame, const FrameState& state) const {
-  const std::string source = fmt::format("instance {}", sub_.instance);
+  const std::string source = fmt::format("instance {}", frame.instance());
   if (!frame.scene().empty() && frame.scene() != basis_.scene) {
     throw std::invalid_argument(
         fmt::format("{}: frame {}: scene '{}' (expected '{}', whose bases this client holds)", source,
@@ -195,14 +239,15 @@ void NetworkSession::check_frame(const v1::Frame& frame, const FrameState& state
   validate_frame(state, basis_, source);
 }
 
-void NetworkSession::render(const FrameState& state) {
+void NetworkSession::render(const std::vector<FrameState>& view) {
   const unsigned session = target_->output->session();
-  target_->output->render(state);
+  target_->output->render(view);
+  const std::uint64_t frame = view.front().frame;
   if (target_->output->session() != session && o_.out_dir) {
-    fmt::print(log_, "phasecast-render: frame numbers started again at {}; PNGs from now on: {}\n",
-               state.frame, frame_file_name(state.frame, target_->output->session()));
+    fmt::print(log_, "phasecast-render: frame numbers started again at {}; PNGs from now on: {}\n", frame,
+               frame_file_name(frame, target_->output->session()));
   }
-  report_progress(log_, target_->output->stats(), state.frame, o_.max_frames);
+  report_progress(log_, target_->output->stats(), frame, o_.max_frames);
   ++rendered_;
   last_rendered_ = std::chrono::steady_clock::now();
   stalled_.clear();
@@ -283,17 +328,23 @@ bool NetworkSession::adopt(const Subscription& next, bool resubscribe, bool anno
   }
   log_.flush();
   resubscribe =
-      resubscribe || changed || next.instance != sub_.instance || next.pub_endpoint != sub_.pub_endpoint;
+      resubscribe || changed || next.instances != sub_.instances || next.pub_endpoint != sub_.pub_endpoint;
+  if (next.instances.size() != sub_.instances.size()) {
+    fmt::print(log_, "phasecast-render: following {} now\n", describe(next.instances));
+    target_->set_instances(static_cast<int>(next.instances.size()), o_);
+  }
   sub_ = next;
-  if (!o_.create.empty()) created_ = sub_.instance;
+  if (!o_.create.empty()) created_ = sub_.instances;
   if (resubscribe) subscribe();
   return resubscribe;
 }
 
 void NetworkSession::subscribe() {
   if (subscriber_) malformed_ += subscriber_->malformed();
-  subscriber_ = std::make_unique<FrameSubscriber>(sub_.pub_endpoint, sub_.instance, curve_);
+  subscriber_ =
+      std::make_unique<FrameSubscriber>(sub_.pub_endpoint, sub_.scene.name(), sub_.instances, curve_);
   sequence_.last.reset();  // a new subscription: numbering may start anywhere
+  latest_.clear();
   restart_explained_ = false;
   last_received_ = std::chrono::steady_clock::now();
 }
@@ -303,7 +354,7 @@ void NetworkSession::check_give_up() {
   std::string why = stalled_;
   if (why.empty()) {
     const std::string problem = subscriber_->connection_problem();
-    why = fmt::format("no frames of instance {} came from {}{}", sub_.instance, sub_.pub_endpoint,
+    why = fmt::format("no frames of {} came from {}{}", describe(sub_.instances), sub_.pub_endpoint,
                       problem.empty() ? "" : ": " + problem);
   }
   throw NetworkError(

@@ -12,20 +12,24 @@
 #include <chrono>
 #include <cstdint>
 #include <iosfwd>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace phasecast::client {
 
-// The instance followed, its scene and where its frames are published.
+// The instances followed (in id order, of one scene), their scene and where
+// their frames are published.
 struct Subscription {
   v1::SceneInfo scene;
-  std::uint32_t instance = 0;
+  std::vector<std::uint32_t> instances;
   std::string pub_endpoint;
 };
 
-// Follows one instance of a server, also across restarts of the server
+// Follows instances of a server (one, or several of one scene drawn in one
+// view), also across restarts of the server
 // (docs/client.md, "Network mode"). Frames are drawn while they match the
 // bases the client holds; when the connection comes back after a loss, when
 // the sequence starts again or when a frame is rejected, it asks the server
@@ -50,11 +54,11 @@ class NetworkSession {
 
  private:
   bool keep_going() const;
-  void handle(const v1::Frame& frame);
+  void handle(const std::vector<v1::Frame>& frames);
 
   // The frame must fit the bases held (one bad frame never ends the session).
   void check_frame(const v1::Frame& frame, const FrameState& state) const;
-  void render(const FrameState& state);
+  void render(const std::vector<FrameState>& view);
 
   // The first rejected frame of a run is printed and makes the client ask the
   // server again (another package?); the rest of the run is only counted, and
@@ -82,12 +86,13 @@ class NetworkSession {
   const CurveClientKeys curve_;
   const std::chrono::milliseconds request_timeout_, frame_timeout_;
   std::unique_ptr<CommandClient> cmd_;
-  std::optional<std::uint32_t> created_;  // --create: the instance made, made again after a restart
+  std::vector<std::uint32_t> created_;  // --create: the instances made, made again after a restart
   Subscription sub_;
   ClientBasis basis_;  // sizes, scene and hash only, once on the GPU
   std::unique_ptr<RenderTarget> target_;
   std::unique_ptr<FrameSubscriber> subscriber_;
-  SequenceTracker sequence_;
+  SequenceTracker sequence_;                    // of the first followed instance
+  std::map<std::uint32_t, FrameState> latest_;  // each followed instance's last frame
   State state_ = State::following;
   std::uint64_t reconnects_ = 0, rendered_ = 0, rejected_ = 0, rejected_run_ = 0, malformed_ = 0;
   bool restart_explained_ = false;  // a reconnect was checked; the step back of seq it brings needs no check

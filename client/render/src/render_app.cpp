@@ -15,10 +15,22 @@
 #include <algorithm>
 #include <cmath>
 #include <ostream>
+#include <sstream>
 #include <utility>
 
 namespace phasecast::client {
 namespace {
+
+// Per tick, one frame of each instance, while every instance has one.
+std::vector<std::vector<FrameState>> side_by_side(const std::vector<std::vector<FrameState>>& per_instance) {
+  std::size_t ticks = per_instance.front().size();
+  for (const auto& frames : per_instance) ticks = std::min(ticks, frames.size());
+  std::vector<std::vector<FrameState>> views(ticks);
+  for (std::size_t t = 0; t < ticks; ++t) {
+    for (const auto& frames : per_instance) views[t].push_back(frames[t]);
+  }
+  return views;
+}
 
 void check_source(const RenderOptions& o) {
   const int sources = (!o.connect.empty() ? 1 : 0) + (o.replay ? 1 : 0) + (o.package && !o.replay ? 1 : 0);
@@ -40,6 +52,27 @@ void check_source(const RenderOptions& o) {
     throw std::invalid_argument("--instance needs --connect tcp://host:5555 or --replay stream.rec");
   }
   if (o.instance && !o.create.empty()) throw std::invalid_argument("give --instance or --create, not both");
+  const bool several = !o.instances.empty() || o.all_instances;
+  if (several && (o.instance || !o.create.empty())) {
+    throw std::invalid_argument("give --instances, --instance or --create, one of them");
+  }
+  if (several && o.connect.empty() && !o.replay) {
+    throw std::invalid_argument("--instances needs --connect tcp://host:5555 or --replay stream.rec");
+  }
+  if (o.all_instances && o.connect.empty()) {
+    throw std::invalid_argument("--instances all needs --connect (with --replay, list the instances)");
+  }
+  if (!(o.count >= 1 && o.count <= kMaxInstancesInView)) {
+    throw std::invalid_argument(
+        fmt::format("--count {} is invalid (expected 1..{} instances)", o.count, kMaxInstancesInView));
+  }
+  if (o.count > 1 && o.create.empty() && (o.replay || !o.connect.empty())) {
+    throw std::invalid_argument("--count needs --create SCENE (network) or local mode (--package p.h5)");
+  }
+  if (o.instances.size() > static_cast<std::size_t>(kMaxInstancesInView)) {
+    throw std::invalid_argument(fmt::format("--instances lists {} instances (expected at most {})",
+                                            o.instances.size(), kMaxInstancesInView));
+  }
   if ((!o.server_key.empty() || !o.client_key.empty()) && o.connect.empty()) {
     throw std::invalid_argument(
         fmt::format("{} needs --connect tcp://host:5555 (CURVE secures the connection)",
@@ -59,43 +92,102 @@ void check_source(const RenderOptions& o) {
   }
 }
 
+// Replay of several instances: their frames side by side, tick by tick, as
+// long as every one of them has a frame.
+std::vector<std::vector<FrameState>> recorded_views(const Recording& rec, const RenderOptions& o,
+                                                    const ClientBasis& basis) {
+  std::vector<std::vector<FrameState>> per_instance;
+  if (o.instances.empty()) {
+    per_instance.push_back(recorded_frames(rec, o.instance, o.replay->string(), basis.scene).frames);
+  } else {
+    for (const auto id : o.instances)
+      per_instance.push_back(recorded_frames(rec, id, o.replay->string(), basis.scene).frames);
+  }
+  return side_by_side(per_instance);
+}
+
+// Local mode: the IRF played by `count` copies, each further on in it.
+std::vector<std::vector<FrameState>> portrait_views(const core::ScenePackage& package,
+                                                    const RenderOptions& o) {
+  const auto frames = portrait_frames(package, o.play_irf.value_or(0));
+  std::vector<std::vector<FrameState>> per_instance(static_cast<std::size_t>(o.count));
+  const std::size_t n = frames.size(), stagger = std::max<std::size_t>(1, n / per_instance.size());
+  for (std::size_t i = 0; i < per_instance.size(); ++i) {
+    for (std::size_t t = 0; t < n; ++t) {
+      FrameState f = frames[(t + i * stagger) % n];
+      f.frame = frames[t].frame;
+      per_instance[i].push_back(std::move(f));
+    }
+  }
+  return side_by_side(per_instance);
+}
+
 void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log,
                const std::atomic<bool>& interrupted) {
   const core::ScenePackage package = core::read_package(*o.package);
   const ClientBasis basis = basis_from_package(package, core::file_content_hash(*o.package));
-  std::vector<FrameState> frames;
+  std::vector<std::vector<FrameState>> views;  // per tick, one frame per instance
   if (o.replay) {
     const Recording rec = core::read_recording_file(*o.replay);
     if (rec.truncated)
       fmt::print(log, "phasecast-render: {}: last record truncated, ignored\n", o.replay->string());
     expect_recorded_with(rec, basis, o.replay->string(), o.package->string());
-    frames = recorded_frames(rec, o.instance, o.replay->string(), basis.scene).frames;
+    views = recorded_views(rec, o, basis);
   } else {
-    frames = portrait_frames(package, o.play_irf.value_or(0));
+    views = portrait_views(package, o);
   }
-  if (o.max_frames > 0 && frames.size() > o.max_frames) frames.resize(o.max_frames);
+  if (o.max_frames > 0 && views.size() > o.max_frames) views.resize(o.max_frames);
   const std::string source = o.replay ? "recording " + o.replay->string() : o.package->string();
-  for (const auto& f : frames) validate_frame(f, basis, source);
-  if (o.dump_frame && std::none_of(frames.begin(), frames.end(),
-                                   [&](const FrameState& f) { return f.frame == *o.dump_frame; })) {
-    throw std::invalid_argument(fmt::format("--dump-vertices {}: no such frame (expected {}..{})",
-                                            *o.dump_frame, frames.front().frame, frames.back().frame));
+  for (const auto& view : views) {
+    for (const auto& f : view) validate_frame(f, basis, source);
   }
-
-  RenderTarget target(basis, o, light, 1.0 / package.attributes.dt);
-  fmt::print(log, "phasecast-render: {} ({}), scene '{}', {} points, r_u = {}, r_a = {}, {} frames\n",
+  if (o.dump_frame && std::none_of(views.begin(), views.end(), [&](const std::vector<FrameState>& v) {
+        return v.front().frame == *o.dump_frame;
+      })) {
+    throw std::invalid_argument(fmt::format("--dump-vertices {}: no such frame (expected {}..{})",
+                                            *o.dump_frame, views.front().front().frame,
+                                            views.back().front().frame));
+  }
+  const int instances = views.empty() ? 1 : static_cast<int>(views.front().size());
+  RenderTarget target(basis, o, light, 1.0 / package.attributes.dt, instances);
+  fmt::print(log, "phasecast-render: {} ({}), scene '{}', {} points, r_u = {}, r_a = {}, {} frames{}\n",
              target.renderer->gl_description(), o.backend, basis.scene, basis.points, basis.rank_u,
-             basis.rank_a, frames.size());
-  for (const auto& f : frames) {
+             basis.rank_a, views.size(), instances > 1 ? fmt::format(", {} instances", instances) : "");
+  for (const auto& view : views) {
     if (interrupted || !target.backend->open()) break;
-    target.output->render(f);
-    report_progress(log, target.output->stats(), f.frame, frames.size());
+    target.output->render(view);
+    report_progress(log, target.output->stats(), view.front().frame, views.size());
   }
   target.output->finish();
   report(log, target.output->stats(), o.width, o.height);
 }
 
 }  // namespace
+
+std::vector<std::uint32_t> parse_instance_list(const std::string& text) {
+  std::vector<std::uint32_t> ids;
+  std::istringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    std::size_t used = 0;
+    unsigned long id = 0;
+    try {
+      id = std::stoul(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (item.empty() || used != item.size() || item[0] == '-' || id > UINT32_MAX ||
+        std::find(ids.begin(), ids.end(), id) != ids.end()) {
+      throw std::invalid_argument(
+          fmt::format("--instances '{}' is invalid at '{}' (expected all, or instance ids each once: 1,2,3)",
+                      text, item));
+    }
+    ids.push_back(static_cast<std::uint32_t>(id));
+  }
+  if (ids.empty() || text.back() == ',')
+    throw std::invalid_argument(fmt::format("--instances '{}' is invalid (expected all, or 1,2,3)", text));
+  return ids;
+}
 
 bool parse_on_off(const std::string& value, const std::string& option) {
   if (value == "on") return true;

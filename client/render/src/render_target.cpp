@@ -10,8 +10,8 @@
 
 namespace phasecast::client {
 
-Camera camera_for(const ClientBasis& basis, const RenderOptions& o) {
-  Camera c = scene_camera(basis);
+Camera camera_for(const Camera& view, const RenderOptions& o) {
+  Camera c = view;
   if (!o.eye.empty()) c.eye = parse_vector3(o.eye, "--eye");
   if (!o.target.empty()) c.target = parse_vector3(o.target, "--target");
   if (!o.up.empty()) c.up = parse_vector3(o.up, "--up");
@@ -22,11 +22,11 @@ Camera camera_for(const ClientBasis& basis, const RenderOptions& o) {
     }
     c.fov_y_deg = *o.fov_y_deg;
   }
-  const Eigen::Vector3f view = c.target - c.eye;
-  if (!(view.norm() > 0)) {
+  const Eigen::Vector3f direction = c.target - c.eye;
+  if (!(direction.norm() > 0)) {
     throw std::invalid_argument("camera eye and target coincide (expected distinct --eye and --target)");
   }
-  if (!(view.normalized().cross(c.up).norm() > 1e-6f)) {
+  if (!(direction.normalized().cross(c.up).norm() > 1e-6f)) {
     throw std::invalid_argument(
         "camera --up is parallel to the view direction (expected a vector across it)");
   }
@@ -36,9 +36,18 @@ Camera camera_for(const ClientBasis& basis, const RenderOptions& o) {
 void RenderTarget::make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
   renderer = std::make_unique<LowRankRenderer>(*backend, basis, o.width, o.height);
   renderer->set_light(light);
-  renderer->set_camera(camera_for(basis, o));
+  view_ = scene_camera(basis);
+  rest_ = rest_bounds(basis);
   renderer->set_exposure(o.exposure);
   renderer->set_backdrop(o.backdrop ? Backdrop::ground : Backdrop::none);
+  set_instances(instances_, o);
+}
+
+void RenderTarget::set_instances(int count, const RenderOptions& o) {
+  instances_ = count;
+  const auto placements = grid_placements(rest_, count);
+  renderer->set_placements(placements);
+  renderer->set_camera(camera_for(group_camera(view_, rest_, placements), o));
 }
 
 void report(std::ostream& log, const RenderStats& s, int width, int height) {

@@ -16,9 +16,13 @@
 
 namespace phasecast::client {
 
-// The scene's camera with the options' --eye, --target, --up and --fov.
-// Throws std::invalid_argument naming the option that makes no camera.
-Camera camera_for(const ClientBasis& basis, const RenderOptions& o);
+// `view` (the scene's camera, or the group's) with the options' --eye,
+// --target, --up and --fov. Throws std::invalid_argument naming the option
+// that makes no camera.
+Camera camera_for(const Camera& view, const RenderOptions& o);
+inline Camera camera_for(const ClientBasis& basis, const RenderOptions& o) {
+  return camera_for(scene_camera(basis), o);
+}
 
 // Backend, renderer and outputs. The renderer holds one set of bases; the
 // backend and the outputs last the whole run.
@@ -28,7 +32,11 @@ struct RenderTarget {
   std::unique_ptr<FrameOutput> output;
 
   // `frame_rate`: frames per second of the stream (1 / dt), for the video.
-  RenderTarget(const ClientBasis& basis, const RenderOptions& o, const ShLight& light, double frame_rate) {
+  // `instances`: how many instances of the scene stand in the view, on the
+  // default grid.
+  RenderTarget(const ClientBasis& basis, const RenderOptions& o, const ShLight& light, double frame_rate,
+               int instances = 1)
+      : instances_(instances) {
     backend = make_render_backend(o.backend, o.width, o.height);
     make_renderer(basis, o, light);
     OutputOptions out;
@@ -48,8 +56,17 @@ struct RenderTarget {
     output->set_renderer(*renderer);
   }
 
+  // `count` instances on the default grid from now on; the camera takes in
+  // all of them unless the options place it.
+  void set_instances(int count, const RenderOptions& o);
+  int instances() const { return instances_; }
+
  private:
   void make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light);
+
+  int instances_ = 1;
+  Camera view_;               // the scene's own camera
+  Eigen::AlignedBox3f rest_;  // of x_bar: the grid's spacing
 };
 
 // "phasecast-render: N frames at WxH: ... frames/s render-only, ... end-to-end".

@@ -9,8 +9,6 @@
 #include <stdexcept>
 
 namespace phasecast::client {
-namespace {
-
 Eigen::AlignedBox3f rest_bounds(const ClientBasis& b) {
   Eigen::AlignedBox3f box;
   for (std::size_t v = 0; v < static_cast<std::size_t>(b.points); ++v) {
@@ -18,8 +16,6 @@ Eigen::AlignedBox3f rest_bounds(const ClientBasis& b) {
   }
   return box;
 }
-
-}  // namespace
 
 float scene_radius(const ClientBasis& b) {
   const auto box = rest_bounds(b);
@@ -41,6 +37,54 @@ Camera scene_camera(const ClientBasis& b) {
   const float distance =
       scene_radius(b) / std::tan(0.5f * c.fov_y_deg * std::numbers::pi_v<float> / 180) * 1.1f;
   c.eye = c.target + Eigen::Vector3f(0, 0, distance);
+  return c;
+}
+
+std::vector<Eigen::Matrix4f> grid_placements(const Eigen::AlignedBox3f& rest, int count) {
+  if (count < 1) throw std::invalid_argument(fmt::format("{} instances (expected at least 1)", count));
+  const int columns = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(count))));
+  const int rows = (count + columns - 1) / columns;
+  const float spacing = 2.2f * std::max(0.5f * rest.diagonal().norm(), 1e-3f);
+  std::vector<Eigen::Matrix4f> placements;
+  for (int i = 0; i < count; ++i) {
+    Eigen::Matrix4f p = Eigen::Matrix4f::Identity();
+    p(0, 3) = spacing * (static_cast<float>(i % columns) - 0.5f * static_cast<float>(columns - 1));
+    p(2, 3) = -spacing * (static_cast<float>(i / columns) - 0.5f * static_cast<float>(rows - 1));
+    placements.push_back(p);
+  }
+  return placements;
+}
+
+namespace {
+constexpr float kGroupElevationDeg = 30;
+}  // namespace
+
+Camera group_camera(const Camera& view, const Eigen::AlignedBox3f& rest,
+                    const std::vector<Eigen::Matrix4f>& placements) {
+  Camera c = view;
+  if (placements.size() <= 1 && (placements.empty() || placements[0].isIdentity())) return c;
+  Eigen::AlignedBox3f group;
+  for (const auto& p : placements) {
+    for (int k = 0; k < 8; ++k) {
+      const auto corner = rest.corner(static_cast<Eigen::AlignedBox3f::CornerType>(k));
+      group.extend((p * corner.homogeneous()).head<3>());
+    }
+  }
+  // The scene's own view direction, raised to look down on the rows at
+  // least kGroupElevation (from level the front row hides the others), from a
+  // distance that fits the group's bounding sphere in the field of view.
+  Eigen::Vector3f back = (c.eye - c.target).normalized();
+  const Eigen::Vector3f up = c.up.normalized();
+  const float min_elevation = std::sin(kGroupElevationDeg * std::numbers::pi_v<float> / 180);
+  if (back.dot(up) < min_elevation) {
+    Eigen::Vector3f level = back - back.dot(up) * up;
+    if (level.norm() < 1e-6f) level = up.unitOrthogonal();
+    back = level.normalized() * std::sqrt(1 - min_elevation * min_elevation) + min_elevation * up;
+  }
+  const Eigen::Vector3f shift = group.center() - rest.center();
+  const float radius = 0.5f * group.diagonal().norm();
+  c.target += shift;
+  c.eye = c.target + back * (radius / std::tan(0.5f * c.fov_y_deg * std::numbers::pi_v<float> / 180) * 1.05f);
   return c;
 }
 

@@ -17,6 +17,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace phasecast::client {
 
@@ -92,10 +93,19 @@ class CommandClient {
   std::uint64_t next_id_ = 1;
 };
 
+// Instances per FrameBatch: ids [1024 b, 1024 (b + 1)) share block b
+// (docs/protocol.md, "Frames").
+inline constexpr std::uint32_t kFrameBatchBlock = 1024;
+
 class FrameSubscriber {
  public:
   // Connects a SUB socket to `endpoint` and subscribes to "inst/<instance>/".
   FrameSubscriber(const std::string& endpoint, std::uint32_t instance, const CurveClientKeys& curve = {});
+  // Several instances of `scene`: one subscription per block of ids they
+  // fall in ("scene/<scene>/<block>/", one FrameBatch per block and tick);
+  // one instance: its own Frames.
+  FrameSubscriber(const std::string& endpoint, const std::string& scene, std::vector<std::uint32_t> instances,
+                  const CurveClientKeys& curve = {});
   ~FrameSubscriber();
   FrameSubscriber(const FrameSubscriber&) = delete;
   FrameSubscriber& operator=(const FrameSubscriber&) = delete;
@@ -106,6 +116,10 @@ class FrameSubscriber {
   // the server before it takes frames from a restarted one. Messages that do
   // not parse or belong to another instance are counted and skipped.
   std::optional<v1::Frame> receive(std::chrono::milliseconds timeout);
+  // The frames of the followed instances in the next message (a Frame, or
+  // those a FrameBatch holds, in id order), as receive() does; empty when it
+  // would return nullopt.
+  std::vector<v1::Frame> receive_all(std::chrono::milliseconds timeout);
   std::uint64_t malformed() const { return malformed_; }
 
   // True once for each time the connection to the publisher was lost and
@@ -119,9 +133,15 @@ class FrameSubscriber {
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  std::uint32_t instance_;
+  std::vector<std::uint32_t> instances_;  // sorted
   std::uint64_t malformed_ = 0;
 };
+
+// The frames of `instances` (sorted) that a FrameBatch holds, as the Frames
+// the server would publish for them; throws std::invalid_argument when the
+// batch's fields do not add up.
+std::vector<v1::Frame> frames_of_batch(const v1::FrameBatch& batch,
+                                       const std::vector<std::uint32_t>& instances);
 
 // Per-instance sequence numbers (Frame.seq): counts the frames missed in gaps
 // and the restarts of the stream (seq going back: a restarted server).

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 
 namespace phasecast::client {
@@ -45,7 +46,11 @@ class FrameOutput {
 
   // Renders `frame` with the current renderer. A frame number not above the
   // last one starts a new session (a restarted server): its PNG names carry it.
+  // Pixels are read back from the GPU only for PNGs and the video.
   void render(const FrameState& frame);
+  // Several instances in one view (one frame per placement of the renderer),
+  // named and numbered by the first one's frame.
+  void render(std::span<const FrameState> frames);
   // Renders with `renderer` from now on (new bases); files, video and
   // figures go on, so nothing written so far is replaced.
   void set_renderer(LowRankRenderer& renderer) { renderer_ = &renderer; }

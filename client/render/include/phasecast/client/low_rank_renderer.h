@@ -12,9 +12,12 @@
 #include "phasecast/client/render_backend.h"
 #include "phasecast/client/sh_light.h"
 
+#include <Eigen/Core>
+
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -72,6 +75,18 @@ class LowRankRenderer {
   Image render(const FrameState& frame);
   // Positions and radiance of every point via transform feedback.
   VertexDump evaluate(const FrameState& frame);
+
+  // Many instances of the scene in one view: where each stands (instance
+  // frame -> world: a rotation and a translation, RenderError otherwise), in
+  // the order the calls below take their frames. Default: one instance where
+  // the scene was made. The depth range and the ground take in all of them.
+  void set_placements(std::vector<Eigen::Matrix4f> placements);
+  std::size_t instances() const;
+  // One frame per placement, all drawn by one instanced draw (§5.3 per instance).
+  void draw(std::span<const FrameState> frames);
+  Image render(std::span<const FrameState> frames);
+  // Instance after instance: S points each.
+  VertexDump evaluate(std::span<const FrameState> frames);
 
   // Benchmark reference: the same mesh drawn from static per-vertex data
   // (no low-rank evaluation), uploaded once by set_static_mesh.

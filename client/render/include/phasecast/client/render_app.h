@@ -9,14 +9,23 @@
 #include <iosfwd>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace phasecast::client {
 
+// Instances one renderer draws at most (--count, --instances).
+inline constexpr int kMaxInstancesInView = 4096;
+
 struct RenderOptions {
   // Frame source: exactly one of connect, replay (+ package) or package alone.
-  std::string connect;                          // tcp://host:5555 (command socket)
-  std::optional<std::uint32_t> instance;        // network: the instance to follow
-  std::string create;                           // network: create an instance of this scene
+  std::string connect;                    // tcp://host:5555 (command socket)
+  std::optional<std::uint32_t> instance;  // network: the instance to follow
+  // Several instances of one scene in one view, on a grid: these (network,
+  // replay), or every instance of the scene (network: --instances all).
+  std::vector<std::uint32_t> instances;
+  bool all_instances = false;
+  std::string create;  // network: create an instance of this scene (--count of them)
+  int count = 1;       // --create: instances made; local mode: copies of the IRF, each further on
   std::optional<std::filesystem::path> replay;  // recording file
   std::optional<std::filesystem::path> package;
   std::optional<int> play_irf;  // local mode: IRF to play (default 0)
@@ -40,6 +49,10 @@ struct RenderOptions {
   std::filesystem::path server_key;  // network: the server's CURVE public key file (NAME.pub)
   std::filesystem::path client_key;  // network: this client's CURVE secret key file (NAME.key)
 };
+
+// "1,2,3" -> {1, 2, 3}, each once; throws std::invalid_argument naming
+// --instances and what was expected.
+std::vector<std::uint32_t> parse_instance_list(const std::string& text);
 
 // "on" -> true, "off" -> false; anything else throws std::invalid_argument
 // naming `option` and the two values expected.

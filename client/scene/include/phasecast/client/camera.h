@@ -6,9 +6,11 @@
 #include "phasecast/client/client_basis.h"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <array>
 #include <string>
+#include <vector>
 
 namespace phasecast::client {
 
@@ -31,6 +33,21 @@ Eigen::Matrix4f view_projection(const Camera& camera, int width, int height, flo
 
 // Radius of the bounding sphere of x_bar about its bounding-box centre.
 float scene_radius(const ClientBasis& basis);
+
+// The bounding box of x_bar.
+Eigen::AlignedBox3f rest_bounds(const ClientBasis& basis);
+
+// Where `count` instances of a scene whose rest mesh fills `rest` stand on
+// the default grid (instance frame -> world): columns along x, rows going
+// back along -z, as square as the count allows, 2.2 scene radii apart (a
+// door swung open or a leaf in the wind stays clear of its neighbours),
+// centred on the scene's own place. Throws std::invalid_argument below 1.
+std::vector<Eigen::Matrix4f> grid_placements(const Eigen::AlignedBox3f& rest, int count);
+
+// `view` (the scene's camera) moved with the group's centre and pulled back
+// along its own direction until every placed instance is in the picture.
+Camera group_camera(const Camera& view, const Eigen::AlignedBox3f& rest,
+                    const std::vector<Eigen::Matrix4f>& placements);
 
 // Parses "x,y,z"; throws std::invalid_argument naming `what` otherwise.
 Eigen::Vector3f parse_vector3(const std::string& text, const std::string& what);
