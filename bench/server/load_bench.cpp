@@ -79,8 +79,8 @@ struct ServerChild {
       std::freopen(log.c_str(), "w", stdout);
       std::freopen((dir / "server.err").c_str(), "w",
                    stderr);  // not the bench's pipe: it would outlive the bench
-      std::vector<std::string> args{o.server, o.package, "--instances", inst, "--rate", rate,
-                                    "--cmd",  "tcp://127.0.0.1:*", "--pub", "tcp://127.0.0.1:*"};
+      std::vector<std::string> args{o.server, o.package, "--instances",       inst,    "--rate",
+                                    rate,     "--cmd",   "tcp://127.0.0.1:*", "--pub", "tcp://127.0.0.1:*"};
       if (o.record) args.insert(args.end(), {"--record", rec});
       // The prober and the downloaders go faster than the default request rate allows.
       if (!o.baseline) args.insert(args.end(), {"--max-request-rate", "100000"});
@@ -281,11 +281,12 @@ int run(const Options& o) {
       latencies.size(), percentile(latencies, 0.5), percentile(latencies, 0.99), percentile(latencies, 1.0),
       lost, download_failures.load(), download_refusals.load());
   const auto published = stats.frames_published() + stats.batches_published();
-  fmt::print("messages received by the subscribers: {} of {} published ({} frames, {} batches) x {} ({:.1f} %)\n",
-             frames.load(), published, stats.frames_published(), stats.batches_published(), o.subscribers,
-             100.0 * static_cast<double>(frames) /
-                 static_cast<double>(std::max<std::uint64_t>(
-                     1, published * static_cast<std::uint64_t>(o.subscribers))));
+  fmt::print(
+      "messages received by the subscribers: {} of {} published ({} frames, {} batches) x {} ({:.1f} %)\n",
+      frames.load(), published, stats.frames_published(), stats.batches_published(), o.subscribers,
+      100.0 * static_cast<double>(frames) /
+          static_cast<double>(
+              std::max<std::uint64_t>(1, published * static_cast<std::uint64_t>(o.subscribers))));
   fmt::print(
       "server memory: peak {:.0f} MiB, now {:.0f} MiB; reply bytes queued for clients: peak {:.1f} MiB; "
       "recording error: '{}'\n",

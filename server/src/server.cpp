@@ -356,7 +356,7 @@ struct Server::Impl {
   zmq::context_t context{1};
   std::unique_ptr<ZapHandler> zap;  // before the sockets: ZeroMQ asks it during their handshakes
   zmq::socket_t router;
-  zmq::socket_t pub;                // XPUB: publishes and tells which topics are wanted
+  zmq::socket_t pub;                 // XPUB: publishes and tells which topics are wanted
   std::set<std::string> subscribed;  // topic prefixes with at least one subscriber
   std::string cmd_endpoint, pub_endpoint;
   std::chrono::duration<double> period{};

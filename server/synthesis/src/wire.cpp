@@ -25,7 +25,8 @@ std::string scene_batch_topic(const std::string& scene, std::uint32_t block) {
   return fmt::format("scene/{}/{}/", scene, block);
 }
 
-void begin_frame_batch(const SceneModel& scene, std::uint32_t block, std::uint64_t tick, v1::FrameBatch& out) {
+void begin_frame_batch(const SceneModel& scene, std::uint32_t block, std::uint64_t tick,
+                       v1::FrameBatch& out) {
   out.Clear();  // keeps the repeated fields' storage for the next tick
   out.set_scene(scene.name);
   out.set_block(block);

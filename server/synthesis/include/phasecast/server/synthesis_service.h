@@ -192,7 +192,7 @@ class SynthesisService {
   std::map<std::uint32_t, std::string> owner_;       // instance -> client that created it
   std::map<std::string, std::size_t> instances_of_;  // client -> instances it created
   std::map<std::string, RateBucket> buckets_;        // client -> request budget
-  std::vector<PublishedFrame> published_;  // its first published_count_ are this tick's
+  std::vector<PublishedFrame> published_;            // its first published_count_ are this tick's
   std::size_t published_count_ = 0;
   TopicInterest interest_;
   // Per scene: the block of ids whose batch is being filled, and whether anyone wants it.
@@ -202,8 +202,8 @@ class SynthesisService {
   };
   std::vector<OpenBatch> open_batches_;
   std::vector<v1::FrameBatch> batches_;  // per scene, reused across ticks
-  TickResult tick_result_;  // reused across ticks, like frame_, to keep its storage
-  v1::Frame frame_;         // reused across ticks
+  TickResult tick_result_;               // reused across ticks, like frame_, to keep its storage
+  v1::Frame frame_;                      // reused across ticks
 };
 
 }  // namespace phasecast::server

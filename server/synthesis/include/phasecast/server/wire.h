@@ -16,7 +16,9 @@ std::string instance_topic(std::uint32_t instance);
 // Instances per FrameBatch: ids [kFrameBatchBlock * b, kFrameBatchBlock * (b + 1))
 // of a scene share block b, so a block's topic stays put as instances come and go.
 inline constexpr std::uint32_t kFrameBatchBlock = 1024;
-inline std::uint32_t batch_block(std::uint32_t instance) { return instance / kFrameBatchBlock; }
+inline std::uint32_t batch_block(std::uint32_t instance) {
+  return instance / kFrameBatchBlock;
+}
 // "scene/<scene>/<block>/"; "scene/<scene>/" subscribes to every block.
 std::string scene_batch_topic(const std::string& scene, std::uint32_t block);
 
