@@ -4,6 +4,10 @@
 sample. scripts/demo reads it; phasecast-precompute checks the same section
 (docs/scenes.md, "[demo]").
 
+With --field it reads a field file (scenes/fields/NAME.toml: many instances of
+one scene in one view) and prints three lines: the scene it names, how many
+instances, and its example Lua script.
+
 With --make-blend it instead writes a Blender scene's missing .blend by running
 its [simulator] make script in Blender (docs/simulator.md), and prints the
 .blend's path (nothing for a scene of the built-in simulator)."""
@@ -55,8 +59,30 @@ def make_blend(scene_file):
         sys.exit(f"{scene_file}: [simulator] make: {' '.join(command)} failed: {tail}")
 
 
+def field(field_file):
+    try:
+        with open(field_file, "rb") as f:
+            spec = tomllib.load(f)
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        sys.exit(f"{field_file}: cannot read the field file ({e})")
+    section = spec.get("field")
+    if not isinstance(section, dict) or not isinstance(section.get("scene"), str):
+        sys.exit(f"{field_file}: [field] scene: expected the name of the scene its instances play")
+    count = section.get("instances")
+    if not isinstance(count, int) or isinstance(count, bool) or not 1 <= count <= 1024:
+        sys.exit(f"{field_file}: [field] instances: expected a whole number in 1..1024, got {count!r}")
+    demo = spec.get("demo", {})
+    if not isinstance(demo.get("script"), str):
+        sys.exit(f"{field_file}: [demo] script: expected the Lua script that drives the field")
+    print(section["scene"])
+    print(count)
+    print(os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(field_file)), demo["script"])))
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "--make-blend":
         make_blend(sys.argv[2])
+    elif sys.argv[1] == "--field":
+        field(sys.argv[2])
     else:
         main(sys.argv[1])

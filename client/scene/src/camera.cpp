@@ -82,9 +82,20 @@ Camera group_camera(const Camera& view, const Eigen::AlignedBox3f& rest,
     back = level.normalized() * std::sqrt(1 - min_elevation * min_elevation) + min_elevation * up;
   }
   const Eigen::Vector3f shift = group.center() - rest.center();
-  const float radius = 0.5f * group.diagonal().norm();
   c.target += shift;
-  c.eye = c.target + back * (radius / std::tan(0.5f * c.fov_y_deg * std::numbers::pi_v<float> / 180) * 1.05f);
+  // The nearest eye on that line that sees every corner of the group's box
+  // within the vertical field of view (and as wide, for square or wider images).
+  const Eigen::Vector3f forward = -back;
+  const Eigen::Vector3f side = forward.cross(up).normalized();
+  const Eigen::Vector3f above = side.cross(forward);
+  const float t = std::tan(0.5f * c.fov_y_deg * std::numbers::pi_v<float> / 180);
+  float distance = 0;
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector3f p = group.corner(static_cast<Eigen::AlignedBox3f::CornerType>(k)) - c.target;
+    const float across = std::max(std::abs(p.dot(side)), std::abs(p.dot(above)));
+    distance = std::max(distance, across / t - p.dot(forward));
+  }
+  c.eye = c.target + back * (1.15f * distance);  // room for motion beyond the rest boxes
   return c;
 }
 
