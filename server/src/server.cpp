@@ -179,6 +179,8 @@ struct Server::Impl {
     router.set(zmq::sockopt::linger, 200);
     pub.set(zmq::sockopt::sndhwm, o.pub_high_water_mark);
     pub.set(zmq::sockopt::linger, 0);
+    const int handshake_ms = static_cast<int>(o.handshake_timeout_s * 1000);
+    for (auto* s : {&router, &pub}) s->set(zmq::sockopt::handshake_ivl, handshake_ms);
     cmd_endpoint = bind(router, o.cmd_endpoint, "--cmd");
     pub_endpoint = bind(pub, o.pub_endpoint, "--pub");
     service.set_pub_endpoint(o.advertised_pub_endpoint.empty() ? pub_endpoint : o.advertised_pub_endpoint);
@@ -189,6 +191,10 @@ struct Server::Impl {
   // Checks the options the service needs, loads the packages and creates the
   // instances asked for at start.
   static bool load_packages(SynthesisService& service, const ServerOptions& o) {
+    if (!(o.handshake_timeout_s >= 0.1 && o.handshake_timeout_s <= 3600)) {
+      throw std::runtime_error(
+          fmt::format("--handshake-timeout {} (expected seconds in [0.1, 3600])", o.handshake_timeout_s));
+    }
     if (!(o.rate_hz > 0 && o.rate_hz <= 10000)) {
       throw std::runtime_error(fmt::format("--rate {} (expected a tick rate in (0, 10000] Hz)", o.rate_hz));
     }

@@ -67,6 +67,10 @@ void add_server_options(CLI::App& app, ServerFlags& f) {
                  "are refused")
       ->check(CLI::Range(std::uint64_t{1} << 20, ~std::uint64_t{0}))
       ->capture_default_str();
+  app.add_option("--handshake-timeout", f.options.handshake_timeout_s,
+                 "seconds a new connection has to finish the ZeroMQ handshake before it is dropped (idle "
+                 "peers cannot hold the descriptors real clients need)")
+      ->capture_default_str();
   app.add_option("--curve-secret-key", f.secret_key,
                  "this server's CURVE secret key file (NAME.key from phasecast-keygen): encrypts and "
                  "authenticates both sockets")

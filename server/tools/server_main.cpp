@@ -11,6 +11,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <sys/resource.h>
+
 #include <csignal>
 #include <cstdio>
 #include <exception>
@@ -51,6 +53,18 @@ void announce(Server& server) {
   std::fflush(stdout);
 }
 
+// Every client connection is a descriptor: the soft limit (often 1024, or
+// lower in containers) goes up to the hard limit, and the line says so.
+void raise_descriptor_limit() {
+  rlimit limit{};
+  if (getrlimit(RLIMIT_NOFILE, &limit) != 0 || limit.rlim_cur >= limit.rlim_max) return;
+  const rlim_t before = limit.rlim_cur;
+  limit.rlim_cur = limit.rlim_max;
+  if (setrlimit(RLIMIT_NOFILE, &limit) == 0) {
+    fmt::print("phasecast-server: descriptor limit raised from {} to {}\n", before, limit.rlim_max);
+  }
+}
+
 // Runs the tick thread; the main thread waits for SIGINT/SIGTERM (blocked in
 // every thread, so none is interrupted mid-tick) or for the tick thread to fail.
 int serve(const ServerOptions& o) {
@@ -60,6 +74,7 @@ int serve(const ServerOptions& o) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
+  raise_descriptor_limit();
   Server server(o);
   announce(server);
   std::atomic<bool> stop{false}, done{false};

@@ -34,6 +34,10 @@ struct ServerOptions {
   std::filesystem::path record_dir = "recordings";  // where record_start requests write
   std::optional<double> blend_lambda;               // overrides every package's lambda
   int pub_high_water_mark = 1000;                   // frames queued per subscriber before drops
+  // A connection that has not finished the ZeroMQ handshake (greeting, CURVE)
+  // within this many seconds is dropped: idle peers cannot hold the server's
+  // descriptors and lock real clients out (docs/security.md).
+  double handshake_timeout_s = 5;
   ServiceLimits limits;
   // CURVE (docs/security.md): this server's secret key file turns on
   // authentication and encryption on both sockets; the allow-list, if any,
