@@ -19,14 +19,14 @@ layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisD
 
 uniform int r_a4;
 uniform vec4 light[24];  // the instance's, as in low_rank.vert: its frame at 0, its support frame at 12
-uniform int points;      // S
-uniform int instance;    // whose dotted values these are (each instance sees the light turned its own way)
+uniform int points;      // points to dot: S, or the block's (low_rank.vert, "point blocks")
+uniform int out_base;    // where the instance's dotted values start (each instance sees the light its own way)
 
 void main() {
   uint v = gl_GlobalInvocationID.x;
   if (v >= uint(points)) return;
   int base = (flags[v] & 2u) != 0u ? 12 : 0;
-  uint n = uint(r_a4), out_v = uint(instance * points) + v;
+  uint n = uint(r_a4), out_v = uint(out_base) + v;
   vec3 mean_dotted;
   for (int c = 0; c < 3; ++c) {
     vec4 sum = vec4(0.0);

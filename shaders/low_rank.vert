@@ -35,7 +35,13 @@ layout(std430, binding = PHASECAST_BINDING_INSTANCES) readonly buffer Instances 
 
 uniform int r_u4;
 uniform int r_a4;
-uniform int points;         // S
+// Scenes larger than one storage block are drawn a block of points at a
+// time, one instance at a time, with every per-point buffer bound from the
+// block's first point (low_rank_renderer.cpp, "point blocks"); otherwise
+// first_point and instance_base are 0 and dotted_stride is S rounded up to 64.
+uniform int first_point;    // gl_VertexID of the bound buffers' first point
+uniform int instance_base;  // added to gl_InstanceID
+uniform int dotted_stride;  // points per instance in the bound MeanDotted, BasisDotted
 uniform bool has_transfer;  // false: the scene has no appearance model (§4)
 uniform mat4 view_projection;
 
@@ -43,6 +49,7 @@ out vec3 world_position;  // captured by transform feedback (--dump-vertices)
 out vec3 radiance;        // linear exit radiance, RGB
 
 // Eq. 7: x = x_bar + U_u q_u for deformable points.
+// v: the point's index in the bound per-point buffers.
 vec3 displaced_position(uint v, bool deformable, uint q0) {
   uint row = 3u * v;
   vec3 x = vec3(x_bar[row], x_bar[row + 1u], x_bar[row + 2u]);
@@ -58,7 +65,7 @@ vec3 displaced_position(uint v, bool deformable, uint q0) {
 
 // §4.2: exit radiance = (M_bar + U_a q_a) . L per colour channel, from the
 // light-dotted form (light_dot.vert): M_bar.L + sum_j (U_a.L)_j q_a[j].
-// v: the point's index among all instances' points (instance S + point).
+// v: the point's index in the bound dotted buffers.
 vec3 transfer_radiance(uint v, uint q0) {
   vec3 rgb = M_dot[v].xyz;
   uint n = uint(r_a4), qa = q0 + uint(r_u4);
@@ -87,13 +94,14 @@ vec3 fallback_radiance(uint v, uint i, int base) {
 }
 
 void main() {
-  uint v = uint(gl_VertexID), i = uint(gl_InstanceID);
+  uint v = uint(gl_VertexID - first_point), i = uint(gl_InstanceID + instance_base);
   uint q0 = i * uint(r_u4 + r_a4);
   uint f = flags[v];
   bool attached = (f & 2u) != 0u;
   vec3 x = displaced_position(v, (f & 1u) != 0u, q0);
   world_position = ((attached ? instances[i].support : instances[i].placement) * vec4(x, 1.0)).xyz;
   int base = attached ? 12 : 0;
-  radiance = has_transfer ? transfer_radiance(i * uint(points) + v, q0) : fallback_radiance(v, i, base);
+  uint dotted = uint(gl_InstanceID * dotted_stride) + v;
+  radiance = has_transfer ? transfer_radiance(dotted, q0) : fallback_radiance(v, i, base);
   gl_Position = view_projection * vec4(world_position, 1.0);
 }

@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <cstdlib>
 #include <numbers>
 #include <random>
 
@@ -415,6 +416,35 @@ TEST(GlEvaluation, InstancesAreDrawnEachWithItsOwnStateWhereItStands) {
   EXPECT_GT(inside, 50) << "instance 2's motion shows";
   EXPECT_EQ(outside, 0) << "no other instance changed";
   EXPECT_THROW(renderer.render(std::span(&rest, 1)), RenderError) << "one frame per placed instance";
+}
+
+// Bases larger than one shader storage block are bound a block of points
+// at a time: with the block capped at 64 points of U_a (the fixture has 85
+// points), two blocks draw the same pixels and evaluate the same values as one.
+TEST(GlEvaluation, BasesLargerThanOneStorageBlockAreDrawnInBlocks) {
+  const auto package = testing::make_plate_package();
+  const auto basis = basis_from_package(package, 1);
+  auto backend = make_render_backend("osmesa", 96, 96);
+  LowRankRenderer whole(*backend, basis, 96, 96);
+  const std::size_t u_a_row = 48 * 4 * static_cast<std::size_t>((basis.rank_a + 3) / 4) * sizeof(float);
+  ::setenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES", std::to_string(64 * u_a_row).c_str(), 1);
+  LowRankRenderer blocks(*backend, basis, 96, 96);
+  ::unsetenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES");
+  EXPECT_EQ(whole.point_blocks(), 1);
+  ASSERT_EQ(blocks.point_blocks(), 2);
+  for (auto* r : {&whole, &blocks}) {
+    r->set_placements(grid_placements(rest_bounds(basis), 3));
+    r->set_camera(
+        group_camera(scene_camera(basis), rest_bounds(basis), grid_placements(rest_bounds(basis), 3)));
+  }
+  const std::vector<FrameState> frames{portrait_frames(package, 0)[40], portrait_frames(package, 3)[20],
+                                       portrait_frames(package, 4)[10]};
+  const VertexDump a = whole.evaluate(frames), b = blocks.evaluate(frames);
+  EXPECT_EQ(a.positions, b.positions);
+  EXPECT_EQ(a.radiance, b.radiance);
+  EXPECT_EQ(max_channel_difference(whole.render(frames), blocks.render(frames)), 0);
+  blocks.set_evaluation(Evaluation::in_draw);  // a triangle may join two blocks: stays per point
+  EXPECT_EQ(max_channel_difference(whole.render(frames), blocks.render(frames)), 0);
 }
 
 TEST(GlEvaluation, StaticMeshDrawsTheSameImage) {

@@ -47,6 +47,7 @@ namespace phasecast::client::detail {
   X(PFNGLDELETEBUFFERSPROC, glDeleteBuffers)                             \
   X(PFNGLBINDBUFFERPROC, glBindBuffer)                                   \
   X(PFNGLBINDBUFFERBASEPROC, glBindBufferBase)                           \
+  X(PFNGLBINDBUFFERRANGEPROC, glBindBufferRange)                         \
   X(PFNGLBUFFERDATAPROC, glBufferData)                                   \
   X(PFNGLBUFFERSUBDATAPROC, glBufferSubData)                             \
   X(PFNGLGETBUFFERSUBDATAPROC, glGetBufferSubData)                       \

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <optional>
@@ -117,6 +118,29 @@ GLsizeiptr byte_size(const std::vector<T>& v) {
   return static_cast<GLsizeiptr>(v.size() * sizeof(T));
 }
 
+// Points per block are a multiple of this, so every block's first byte in
+// every per-point buffer is 256-byte aligned (4 bytes per point and up).
+constexpr int kBlockAlign = 64;
+
+int round_up(int x, int to) {
+  return (x + to - 1) / to * to;
+}
+
+// The most bytes one bound shader storage range may span: the context's
+// limit, or PHASECAST_MAX_STORAGE_BLOCK_BYTES when lower (tests split small
+// scenes with it; docs/client.md).
+std::size_t storage_block_limit(const GlFunctions& gl) {
+  GLint limit = 0;
+  gl.glGetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &limit);
+  auto bytes = static_cast<std::size_t>(static_cast<unsigned>(limit));
+  if (const char* cap = std::getenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES")) {
+    char* end = nullptr;
+    const unsigned long long v = std::strtoull(cap, &end, 10);
+    if (end != cap && *end == 0 && v > 0) bytes = std::min<std::size_t>(bytes, v);
+  }
+  return bytes;
+}
+
 }  // namespace
 
 struct LowRankRenderer::Impl {
@@ -148,6 +172,13 @@ struct LowRankRenderer::Impl {
   std::size_t allocated_instances = 0;  // instances the per-instance buffers hold
   float view_radius = 0;                // of the group: depth range and ground
   Eigen::Vector2f ground_centre = Eigen::Vector2f::Zero();
+  // Point blocks: when a per-point buffer is larger than one shader storage
+  // block may span (block_limit), the passes bind block_points points of
+  // every per-point buffer at a time and run one instance at a time.
+  std::size_t block_limit = 0;
+  int block_points = 0;
+  int stride_points = 0;  // S rounded up to kBlockAlign: an instance's share of the dotted buffers
+  bool split = false;
 
   Impl(RenderBackend& b, const ClientBasis& bases, int w, int h)
       : backend(b), gl(detail::load_gl_functions(b)), basis(bases), width(w), height(h) {
@@ -182,15 +213,16 @@ struct LowRankRenderer::Impl {
   }
 
   // Empty parts (no U_a) still get a small buffer so every binding is valid.
+  // Per-point buffers may be larger than one storage block (point blocks);
+  // the per-instance ones (q, instances) are bound whole.
   template <class T>
   void upload_storage(Binding binding, const std::vector<T>& data, const char* part) {
-    GLint limit32 = 0;
-    gl.glGetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &limit32);
-    if (byte_size(data) > static_cast<GLsizeiptr>(static_cast<unsigned>(limit32))) {
+    const bool whole = binding == kReduced || binding == kInstances;
+    if (whole && static_cast<std::size_t>(byte_size(data)) > block_limit) {
       throw RenderError(
-          fmt::format("{} backend: basis part {} needs {} bytes, more than one shader storage "
-                      "block may hold ({} bytes)",
-                      backend.name(), part, byte_size(data), static_cast<unsigned>(limit32)));
+          fmt::format("{} backend: {} needs {} bytes, more than one shader storage block may hold "
+                      "({} bytes): fewer instances",
+                      backend.name(), part, byte_size(data), block_limit));
     }
     gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[binding].get());
     const std::array<T, 4> padding{};
@@ -200,9 +232,9 @@ struct LowRankRenderer::Impl {
   }
 
   void upload_bases() {
+    has_transfer = basis.has_transfer();
     upload_storage_buffers();
     // The client keeps only sizes and flags on the CPU once the GPU has the bases.
-    has_transfer = basis.has_transfer();
     basis.U_u = {};
     basis.U_a = {};
     basis.mean_transfer = {};
@@ -214,6 +246,8 @@ struct LowRankRenderer::Impl {
     for (auto& buffer : storage) buffer = Buffer(gl);
     r_u4 = (basis.rank_u + 3) / 4;
     r_a4 = (basis.rank_a + 3) / 4;
+    block_limit = storage_block_limit(gl);
+    stride_points = round_up(basis.points, kBlockAlign);
     upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
     upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
     upload_storage(kMeanTransfer, basis.mean_transfer, "mean_transfer");
@@ -227,7 +261,8 @@ struct LowRankRenderer::Impl {
   // lights, and what light_dot.comp writes (M_bar.L, a vec4 per point; U_a.L,
   // [S][3][r_a4] vec4s), and the per-point pass's output.
   void allocate_instances(std::size_t n) {
-    const auto points = static_cast<std::size_t>(basis.points);
+    const auto points = static_cast<std::size_t>(stride_points);
+    plan_point_blocks(n);
     upload_storage(kReduced, std::vector<float>(n * static_cast<std::size_t>(4 * (r_u4 + r_a4)) + 4), "q");
     upload_storage(kMeanDotted, std::vector<float>(n * 4 * points), "M_bar.L");
     upload_storage(kBasisDotted, std::vector<float>(n * 12 * points * static_cast<std::size_t>(r_a4)),
@@ -302,6 +337,59 @@ struct LowRankRenderer::Impl {
       gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, b, storage[b].get());
   }
 
+  // Bytes per point of each per-point buffer (the dotted ones: per instance).
+  std::array<std::size_t, kBindingCount> bytes_per_point() const {
+    std::array<std::size_t, kBindingCount> b{};
+    b[kMeanShape] = 12;
+    b[kDisplacementBasis] = 48 * static_cast<std::size_t>(r_u4);
+    b[kMeanTransfer] = has_transfer ? 192 : 0;
+    b[kTransferBasis] = has_transfer ? 768 * static_cast<std::size_t>(r_a4) : 0;
+    b[kPointFlags] = 4;
+    b[kRestNormals] = 12;
+    b[kMeanDotted] = 16;
+    b[kBasisDotted] = 48 * static_cast<std::size_t>(r_a4);
+    return b;
+  }
+
+  // One block for everything when every buffer, all instances' dotted
+  // values included, fits one storage block; else blocks of as many points
+  // as the widest buffer's limit allows.
+  void plan_point_blocks(std::size_t instances) {
+    const auto bpp = bytes_per_point();
+    const std::size_t widest = *std::max_element(bpp.begin(), bpp.end());
+    const auto S = static_cast<std::size_t>(stride_points);
+    split = false;
+    for (int b = 0; b < static_cast<int>(kBindingCount); ++b) {
+      const bool dotted = b == kMeanDotted || b == kBasisDotted;
+      if (bpp[static_cast<std::size_t>(b)] * S * (dotted ? instances : 1) > block_limit) split = true;
+    }
+    block_points = stride_points;
+    if (!split) return;
+    block_points = static_cast<int>(block_limit / widest) / kBlockAlign * kBlockAlign;
+    if (block_points < kBlockAlign) {
+      throw RenderError(
+          fmt::format("{} backend: {} points of {} bytes each exceed one shader storage block ({} bytes)",
+                      backend.name(), kBlockAlign, widest, block_limit));
+    }
+    evaluation = Evaluation::per_point_pass;  // a triangle may join points of different blocks
+  }
+
+  // Binds points [first, first + count) of every per-point buffer, and of
+  // instance `instance`'s dotted values.
+  void bind_point_block(int first, int count, std::size_t instance) {
+    const auto bpp = bytes_per_point();
+    for (int b = 0; b < static_cast<int>(kBindingCount); ++b) {
+      const auto size = bpp[static_cast<std::size_t>(b)];
+      if (size == 0) continue;
+      const bool dotted = b == kMeanDotted || b == kBasisDotted;
+      const std::size_t point =
+          (dotted ? instance * static_cast<std::size_t>(stride_points) : 0) + static_cast<std::size_t>(first);
+      gl.glBindBufferRange(GL_SHADER_STORAGE_BUFFER, static_cast<GLuint>(b),
+                           storage[static_cast<std::size_t>(b)].get(), static_cast<GLintptr>(point * size),
+                           static_cast<GLsizeiptr>(static_cast<std::size_t>(count) * size));
+    }
+  }
+
   void set_uniforms(const GlProgram& p, std::span<const FrameState> frames) {
     bind_storage();
     p.use();
@@ -316,7 +404,9 @@ struct LowRankRenderer::Impl {
   void set_low_rank_uniforms(std::span<const FrameState> frames) {
     gl.glUniform1i(program.uniform("r_u4"), r_u4);
     gl.glUniform1i(program.uniform("r_a4"), r_a4);
-    gl.glUniform1i(program.uniform("points"), basis.points);
+    gl.glUniform1i(program.uniform("first_point"), 0);
+    gl.glUniform1i(program.uniform("instance_base"), 0);
+    gl.glUniform1i(program.uniform("dotted_stride"), stride_points);
     gl.glUniform1i(program.uniform("has_transfer"), has_transfer ? 1 : 0);
     std::vector<float> instances(frames.size() * kInstanceFloats);
     for (std::size_t i = 0; i < frames.size(); ++i) {
@@ -371,9 +461,21 @@ struct LowRankRenderer::Impl {
     dot_program.use();
     gl.glUniform1i(dot_program.uniform("r_a4"), r_a4);
     gl.glUniform4fv(dot_program.uniform("light"), 24, lights.data());
-    gl.glUniform1i(dot_program.uniform("points"), basis.points);
-    gl.glUniform1i(dot_program.uniform("instance"), static_cast<GLint>(instance));
-    gl.glDispatchCompute(static_cast<GLuint>((basis.points + 63) / 64), 1, 1);
+    auto dispatch = [&](int count, int out_base) {
+      gl.glUniform1i(dot_program.uniform("points"), count);
+      gl.glUniform1i(dot_program.uniform("out_base"), out_base);
+      gl.glDispatchCompute(static_cast<GLuint>((count + 63) / 64), 1, 1);
+    };
+    if (!split) {
+      dispatch(basis.points, static_cast<int>(instance) * stride_points);
+    } else {
+      for (int first = 0; first < basis.points; first += block_points) {
+        const int count = std::min(block_points, basis.points - first);
+        bind_point_block(first, count, instance);
+        dispatch(count, 0);
+      }
+      bind_storage();
+    }
     gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     dotted = lights;
     ++light_dot_passes;
@@ -409,13 +511,40 @@ struct LowRankRenderer::Impl {
   void evaluation_pass(std::span<const FrameState> frames) {
     set_uniforms(program, frames);
     gl.glEnable(GL_RASTERIZER_DISCARD);
-    gl.glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer.get());
     gl.glBindVertexArray(vao.get());
-    gl.glBeginTransformFeedback(GL_POINTS);
-    gl.glDrawArraysInstanced(GL_POINTS, 0, basis.points, static_cast<GLsizei>(frames.size()));
-    gl.glEndTransformFeedback();
+    if (!split) {
+      gl.glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer.get());
+      gl.glBeginTransformFeedback(GL_POINTS);
+      gl.glDrawArraysInstanced(GL_POINTS, 0, basis.points, static_cast<GLsizei>(frames.size()));
+      gl.glEndTransformFeedback();
+    } else {
+      evaluate_point_blocks(frames.size());
+    }
     gl.glBindVertexArray(0);
     gl.glDisable(GL_RASTERIZER_DISCARD);
+  }
+
+  // Point blocks: each block of each instance captured where the instanced
+  // draw would have put it (instance i's points start at i S).
+  void evaluate_point_blocks(std::size_t instances) {
+    gl.glUniform1i(program.uniform("dotted_stride"), 0);
+    for (std::size_t i = 0; i < instances; ++i) {
+      gl.glUniform1i(program.uniform("instance_base"), static_cast<GLint>(i));
+      for (int first = 0; first < basis.points; first += block_points) {
+        const int count = std::min(block_points, basis.points - first);
+        bind_point_block(first, count, i);
+        gl.glUniform1i(program.uniform("first_point"), first);
+        const auto at = (i * static_cast<std::size_t>(basis.points) + static_cast<std::size_t>(first)) * 6 *
+                        sizeof(float);
+        gl.glBindBufferRange(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_buffer.get(),
+                             static_cast<GLintptr>(at),
+                             static_cast<GLsizeiptr>(static_cast<std::size_t>(count) * 6 * sizeof(float)));
+        gl.glBeginTransformFeedback(GL_POINTS);
+        gl.glDrawArrays(GL_POINTS, first, count);
+        gl.glEndTransformFeedback();
+      }
+    }
+    bind_storage();
   }
 
   // The triangles of every instance in one draw: from the per-point pass's
@@ -562,7 +691,8 @@ std::uint64_t LowRankRenderer::light_dot_passes() const {
   return impl_->light_dot_passes;
 }
 void LowRankRenderer::set_evaluation(Evaluation evaluation) {
-  impl_->evaluation = evaluation;
+  // Point blocks evaluate once per point: a triangle may join points of two blocks.
+  impl_->evaluation = impl_->split ? Evaluation::per_point_pass : evaluation;
 }
 void LowRankRenderer::set_backdrop(Backdrop backdrop) {
   impl_->set_backdrop(backdrop);
@@ -598,6 +728,10 @@ void LowRankRenderer::set_static_mesh(const VertexDump& vertices) {
 }
 void LowRankRenderer::draw_static() {
   impl_->draw_static();
+}
+int LowRankRenderer::point_blocks() const {
+  const auto& i = *impl_;
+  return i.split ? (i.basis.points + i.block_points - 1) / i.block_points : 1;
 }
 void LowRankRenderer::finish() {
   impl_->gl.glFinish();

@@ -21,6 +21,12 @@
 namespace phasecast::client {
 namespace {
 
+// ", bases bound in 3 blocks of points" when they exceed one storage block.
+std::string blocks_note(const LowRankRenderer& renderer) {
+  const int n = renderer.point_blocks();
+  return n > 1 ? fmt::format(", bases bound in {} blocks of points (larger than one storage block)", n) : "";
+}
+
 // Per tick, one frame of each instance, while every instance has one.
 std::vector<std::vector<FrameState>> side_by_side(const std::vector<std::vector<FrameState>>& per_instance) {
   std::size_t ticks = per_instance.front().size();
@@ -150,9 +156,10 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log,
   }
   const int instances = views.empty() ? 1 : static_cast<int>(views.front().size());
   RenderTarget target(basis, o, light, 1.0 / package.attributes.dt, instances);
-  fmt::print(log, "phasecast-render: {} ({}), scene '{}', {} points, r_u = {}, r_a = {}, {} frames{}\n",
+  fmt::print(log, "phasecast-render: {} ({}), scene '{}', {} points, r_u = {}, r_a = {}, {} frames{}{}\n",
              target.renderer->gl_description(), o.backend, basis.scene, basis.points, basis.rank_u,
-             basis.rank_a, views.size(), instances > 1 ? fmt::format(", {} instances", instances) : "");
+             basis.rank_a, views.size(), instances > 1 ? fmt::format(", {} instances", instances) : "",
+             blocks_note(*target.renderer));
   for (const auto& view : views) {
     if (interrupted || !target.backend->open()) break;
     target.output->render(view);

@@ -95,6 +95,11 @@ class LowRankRenderer {
   // How often the transfer bases were dotted with the light (light_dot.comp):
   // once per change of light or support rotation, not once per frame.
   std::uint64_t light_dot_passes() const;
+  // Blocks of points the passes bind at a time: 1 unless a basis (or all
+  // instances' light-dotted transfer) is larger than one shader storage
+  // block may span, GL_MAX_SHADER_STORAGE_BLOCK_SIZE or the lower
+  // PHASECAST_MAX_STORAGE_BLOCK_BYTES from the environment.
+  int point_blocks() const;
   // Waits until the GPU finished (timing).
   void finish();
   Image read_pixels();
