@@ -12,4 +12,5 @@
 #define PHASECAST_BINDING_MEAN_DOTTED 7         // [instance][S]: xyz = M-bar_c . L_c
 #define PHASECAST_BINDING_BASIS_DOTTED 8        // [instance][S][3][r_a4]: (U_a . L)_j
 #define PHASECAST_BINDING_INSTANCES 9           // per instance: placement, support, lights
-#define PHASECAST_BINDING_COUNT 10
+#define PHASECAST_BINDING_EVALUATED 10          // low_rank.comp's output: 6 floats per point and instance
+#define PHASECAST_BINDING_COUNT 11

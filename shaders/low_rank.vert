@@ -1,107 +1,25 @@
 #version 450 core
 #include "bindings.glsl"
-// The thin client's low-rank superposition (§5.3). Bases live in shader
-// storage buffers uploaded once; per frame only q_u, q_a (buffer Reduced) and
-// the support transform change. No vertex attributes: gl_VertexID is the
-// scene point index and gl_InstanceID the instance: many instances of one
-// scene, each with its own (q_u, q_a), support and placement in the world,
-// are one instanced draw. Normally run once per point and instance
+#include "low_rank_eval.glsl"
+// The thin client's low-rank superposition (§5.3) as a vertex program. Bases
+// live in shader storage buffers uploaded once; per frame only q_u, q_a
+// (buffer Reduced) and the support transforms change. No vertex attributes:
+// gl_VertexID is the scene point index and gl_InstanceID the instance: many
+// instances of one scene, each with its own (q_u, q_a), support and placement
+// in the world, are one instanced draw. Run once per point and instance
 // (glDrawArraysInstanced GL_POINTS, rasterizer off) with world_position and
-// radiance captured by transform feedback for the triangle draw;
-// Evaluation::in_draw runs it inside glDrawElementsInstanced instead. The
-// transfer arrives light-dotted (light_dot.comp).
-//
-// GPU layout (packed by low_rank_renderer.cpp from the row-major protocol
-// layout): ranks are padded to whole vec4 blocks, r_u4 = ceil(r_u / 4) and
-// r_a4 = ceil(r_a / 4), so each basis row is read with vec4 loads.
+// radiance captured by transform feedback for the triangle draw, or
+// (Evaluation::in_draw) inside glDrawElementsInstanced. low_rank.comp is the
+// same pass as a compute shader. The transfer arrives light-dotted
+// (light_dot.comp).
 
-layout(std430, binding = PHASECAST_BINDING_MEAN_SHAPE) readonly buffer MeanShape { float x_bar[]; };         // 3S (eq. 7)
-layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer DisplacementBasis { vec4 U_u[]; };   // [3S][r_u4]
-layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };         // bit 0 deformable, 1 attached
-layout(std430, binding = PHASECAST_BINDING_REST_NORMALS) readonly buffer RestNormals { float normals[]; };     // 3S
-layout(std430, binding = PHASECAST_BINDING_REDUCED) readonly buffer Reduced { vec4 q[]; };                // [instance]: q_u (r_u4) then q_a (r_a4)
-layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) readonly buffer MeanDotted { vec4 M_dot[]; };         // [instance][S]: xyz = M_bar_c . L_c
-layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) readonly buffer BasisDotted { vec4 U_dot[]; };        // [instance][S][3][r_a4]: (U_a . L)_j
-
-// SH light, coefficient 16c + k in light[base + 4c + k / 4][k % 4]; base 0 is
-// the world light rotated into the instance's frame, base 12 the same light
-// rotated into its support frame.
-struct Instance {
-  mat4 placement;  // instance frame -> world
-  mat4 support;    // support frame -> world (the placement included)
-  vec4 light[24];
-};
-layout(std430, binding = PHASECAST_BINDING_INSTANCES) readonly buffer Instances { Instance instances[]; };
-
-uniform int r_u4;
-uniform int r_a4;
-// Scenes larger than one storage block are drawn a block of points at a
-// time, one instance at a time, with every per-point buffer bound from the
-// block's first point (low_rank_renderer.cpp, "point blocks"); otherwise
-// first_point and instance_base are 0 and dotted_stride is S rounded up to 64.
-uniform int first_point;    // gl_VertexID of the bound buffers' first point
-uniform int instance_base;  // added to gl_InstanceID
-uniform int dotted_stride;  // points per instance in the bound MeanDotted, BasisDotted
-uniform bool has_transfer;  // false: the scene has no appearance model (§4)
 uniform mat4 view_projection;
 
 out vec3 world_position;  // captured by transform feedback (--dump-vertices)
 out vec3 radiance;        // linear exit radiance, RGB
 
-// Eq. 7: x = x_bar + U_u q_u for deformable points.
-// v: the point's index in the bound per-point buffers.
-vec3 displaced_position(uint v, bool deformable, uint q0) {
-  uint row = 3u * v;
-  vec3 x = vec3(x_bar[row], x_bar[row + 1u], x_bar[row + 2u]);
-  if (deformable) {
-    uint n = uint(r_u4);
-    for (uint b = 0u; b < n; ++b) {
-      vec4 qb = q[q0 + b];
-      x += vec3(dot(U_u[row * n + b], qb), dot(U_u[(row + 1u) * n + b], qb), dot(U_u[(row + 2u) * n + b], qb));
-    }
-  }
-  return x;
-}
-
-// §4.2: exit radiance = (M_bar + U_a q_a) . L per colour channel, from the
-// light-dotted form (light_dot.vert): M_bar.L + sum_j (U_a.L)_j q_a[j].
-// v: the point's index in the bound dotted buffers.
-vec3 transfer_radiance(uint v, uint q0) {
-  vec3 rgb = M_dot[v].xyz;
-  uint n = uint(r_a4), qa = q0 + uint(r_u4);
-  for (uint c = 0u; c < 3u; ++c) {
-    for (uint b = 0u; b < n; ++b) rgb[c] += dot(U_dot[(3u * v + c) * n + b], q[qa + b]);
-  }
-  return rgb;
-}
-
-// Without an appearance model: unshadowed grey diffuse from the rest normal,
-// (rho/pi) sum_k A_l Y_k(n) L_k (Ramamoorthi & Hanrahan 2001), bands 0..2.
-vec3 fallback_radiance(uint v, uint i, int base) {
-  vec3 n = normalize(vec3(normals[3u * v], normals[3u * v + 1u], normals[3u * v + 2u]));
-  vec4 y0 = vec4(0.2820948, -0.4886025 * n.y, 0.4886025 * n.z, -0.4886025 * n.x);
-  vec4 y1 = vec4(1.0925484 * n.x * n.y, -1.0925484 * n.y * n.z, 0.9461747 * n.z * n.z - 0.3153916,
-                 -1.0925484 * n.x * n.z);
-  float y8 = 0.5462742 * (n.x * n.x - n.y * n.y);
-  vec4 a0 = vec4(3.1415927, 2.0943951, 2.0943951, 2.0943951);
-  const float a2 = 0.7853982;
-  vec3 rgb;
-  for (int c = 0; c < 3; ++c) {
-    rgb[c] = dot(a0 * y0, instances[i].light[base + 4 * c]) + a2 * dot(y1, instances[i].light[base + 4 * c + 1]) +
-             a2 * y8 * instances[i].light[base + 4 * c + 2].x;
-  }
-  return 0.7 / 3.1415927 * rgb;
-}
-
 void main() {
-  uint v = uint(gl_VertexID - first_point), i = uint(gl_InstanceID + instance_base);
-  uint q0 = i * uint(r_u4 + r_a4);
-  uint f = flags[v];
-  bool attached = (f & 2u) != 0u;
-  vec3 x = displaced_position(v, (f & 1u) != 0u, q0);
-  world_position = ((attached ? instances[i].support : instances[i].placement) * vec4(x, 1.0)).xyz;
-  int base = attached ? 12 : 0;
-  uint dotted = uint(gl_InstanceID * dotted_stride) + v;
-  radiance = has_transfer ? transfer_radiance(dotted, q0) : fallback_radiance(v, i, base);
+  evaluate_point(uint(gl_VertexID - first_point), uint(gl_InstanceID + instance_base), uint(gl_InstanceID),
+                 world_position, radiance);
   gl_Position = view_projection * vec4(world_position, 1.0);
 }

@@ -6,12 +6,14 @@
 // attached, r_u = 12 smooth modes and r_a = 7 transfer modes (the "12+7"
 // superposition of issue 7). PHASECAST_BENCH_BACKEND=egl picks another backend.
 
+#include "phasecast/client/camera.h"
 #include "phasecast/client/low_rank_renderer.h"
 
 #include <benchmark/benchmark.h>
 
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <cmath>
 #include <cstdlib>
@@ -80,9 +82,10 @@ std::string backend_name() {
   return name ? name : "osmesa";
 }
 
-// Args: grid side, width, height, mode (0: low-rank with the per-point pass,
-// 1: low-rank evaluated inside the triangle draw, 2: static mesh), read back
-// pixels (0/1), support rotating every frame (0/1).
+// Args: grid side, width, height, mode (0: low-rank with the per-point pass
+// by transform feedback, 1: low-rank evaluated inside the triangle draw, 2:
+// static mesh, 3: low-rank with the per-point pass as a compute shader), read
+// back pixels (0/1), support rotating every frame (0/1).
 void BM_Render(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0)), w = static_cast<int>(state.range(1)),
             h = static_cast<int>(state.range(2));
@@ -92,7 +95,9 @@ void BM_Render(benchmark::State& state) {
   const ClientBasis basis = grid_scene(n, r_u, r_a);
   auto backend = make_render_backend(backend_name(), w, h);
   LowRankRenderer renderer(*backend, basis, w, h);
-  renderer.set_evaluation(mode == 1 ? Evaluation::in_draw : Evaluation::per_point_pass);
+  const Evaluation paths[] = {Evaluation::per_point_pass, Evaluation::in_draw, Evaluation::per_point_pass,
+                              Evaluation::compute_pass};
+  renderer.set_evaluation(paths[mode]);
   if (static_mesh) renderer.set_static_mesh(renderer.evaluate(frame(0, r_u, r_a, false)));
   int t = 0;
   for (auto _ : state) {
@@ -111,9 +116,49 @@ void BM_Render(benchmark::State& state) {
       benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   state.counters["points"] = basis.points;
   state.counters["triangles"] = basis.triangle_count();
-  const char* names[] = {"low-rank 12+7, per-point pass", "low-rank 12+7, in draw", "static mesh"};
+  const char* names[] = {"low-rank 12+7, per-point pass", "low-rank 12+7, in draw", "static mesh",
+                         "low-rank 12+7, compute pass"};
   state.SetLabel(std::string(names[mode]) + (read_back ? " + read back" : "") +
                  (rotating && !static_mesh ? ", support rotating" : "") + " | " + backend_name());
+}
+
+// Many instances of the demo cloth's size (58^2 = 3.4k points, 12+7) in one
+// view on the default grid, each at its own point of the motion: one
+// instanced draw of low-rank evaluation against the same instances drawn as
+// static meshes. Args: instances, width, height, mode (0: low-rank, 2:
+// static), support rotating (0/1).
+void BM_Instances(benchmark::State& state) {
+  const int count = static_cast<int>(state.range(0)), w = static_cast<int>(state.range(1)),
+            h = static_cast<int>(state.range(2));
+  const bool static_mesh = state.range(3) == 2, rotating = state.range(4) != 0;
+  const int r_u = 12, r_a = 7;
+  const ClientBasis basis = grid_scene(58, r_u, r_a);
+  auto backend = make_render_backend(backend_name(), w, h);
+  LowRankRenderer renderer(*backend, basis, w, h);
+  const auto placements = grid_placements(rest_bounds(basis), count);
+  renderer.set_placements(placements);
+  renderer.set_camera(group_camera(scene_camera(basis), rest_bounds(basis), placements));
+  auto frames_at = [&](int t) {
+    std::vector<FrameState> frames;
+    for (int i = 0; i < count; ++i) frames.push_back(frame(t + 7 * i, r_u, r_a, rotating));
+    return frames;
+  };
+  if (static_mesh) renderer.set_static_mesh(renderer.evaluate(frames_at(0)));
+  int t = 0;
+  for (auto _ : state) {
+    if (static_mesh) {
+      renderer.draw_static();
+    } else {
+      renderer.draw(frames_at(t++));
+    }
+    renderer.finish();
+  }
+  state.counters["fps"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["points"] = static_cast<double>(count) * basis.points;
+  state.SetLabel(
+      std::string(static_mesh ? "static meshes" : "low-rank 12+7, one instanced draw, default path") +
+      (rotating && !static_mesh ? ", supports rotating" : "") + " | " + backend_name());
 }
 
 // Paper-sized meshes: 158^2 = 25k points / 49k triangles, 58^2 = 3.4k / 6.5k.
@@ -124,6 +169,7 @@ void Arguments(benchmark::internal::Benchmark* b) {
       b->Args({n, w, h, 0, 0, 0});  // low-rank, support still
       b->Args({n, w, h, 0, 0, 1});  // low-rank, support rotating
       b->Args({n, w, h, 1, 0, 0});  // low-rank inside the draw
+      b->Args({n, w, h, 3, 0, 0});  // low-rank, the per-point pass as a compute shader
       b->Args({n, w, h, 0, 1, 0});  // with pixel read-back (what PNG output costs)
     }
   }
@@ -132,6 +178,14 @@ void Arguments(benchmark::internal::Benchmark* b) {
 BENCHMARK(BM_Render)
     ->Apply(Arguments)
     ->ArgNames({"side", "w", "h", "mode", "readback", "rotating"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+BENCHMARK(BM_Instances)
+    ->ArgsProduct({{1, 16, 64}, {1280}, {720}, {2, 0}, {0}})
+    ->Args({16, 1280, 720, 0, 1})
+    ->Args({64, 1280, 720, 0, 1})
+    ->ArgNames({"instances", "w", "h", "mode", "rotating"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 

@@ -18,6 +18,7 @@
 #include <limits>
 #include <optional>
 #include <span>
+#include <string_view>
 #include <utility>
 
 namespace phasecast::client {
@@ -44,6 +45,7 @@ enum Binding : GLuint {
   kMeanDotted = PHASECAST_BINDING_MEAN_DOTTED,
   kBasisDotted = PHASECAST_BINDING_BASIS_DOTTED,
   kInstances = PHASECAST_BINDING_INSTANCES,
+  kEvaluated = PHASECAST_BINDING_EVALUATED,
   kBindingCount = PHASECAST_BINDING_COUNT
 };
 
@@ -149,12 +151,12 @@ struct LowRankRenderer::Impl {
   ClientBasis basis;  // sizes and flags; the bulk data lives on the GPU
   int width, height;
   float radius;
-  GlProgram program, static_program, dot_program;
+  GlProgram program, static_program, dot_program, eval_program;
   // Per instance: the lights its dotted form was made with.
   std::vector<std::optional<std::array<float, 96>>> dotted_lights;
   std::uint64_t light_dot_passes = 0;
   VertexArray vao, static_vao, evaluated_vao;
-  Evaluation evaluation = Evaluation::per_point_pass;
+  Evaluation evaluation = Evaluation::per_point_pass;  // as asked for; path() is what runs
   std::array<Buffer, kBindingCount> storage;
   Buffer index_buffer, feedback_buffer, static_buffer;
   Framebuffer framebuffer;
@@ -190,9 +192,22 @@ struct LowRankRenderer::Impl {
     program = detail::link_vertex_program(gl, shaders::low_rank_vert, "low_rank.vert", true);
     static_program = detail::link_vertex_program(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
     dot_program = detail::link_compute_program(gl, shaders::light_dot_comp, "light_dot.comp");
+    eval_program = detail::link_compute_program(gl, shaders::low_rank_comp, "low_rank.comp");
+    evaluation = default_evaluation();
     upload_bases();
     create_framebuffer();
     check("setting up the renderer");
+  }
+
+  // Point blocks evaluate once per point with transform feedback by range: a
+  // triangle may join points of two blocks.
+  Evaluation path() const { return split ? Evaluation::per_point_pass : evaluation; }
+
+  // The fastest measured path for the backend (docs/performance-client.md).
+  Evaluation default_evaluation() const {
+    const auto* renderer = reinterpret_cast<const char*>(gl.glGetString(GL_RENDERER));
+    const bool llvmpipe = renderer && std::string_view(renderer).find("llvmpipe") != std::string_view::npos;
+    return llvmpipe ? Evaluation::compute_pass : Evaluation::in_draw;
   }
 
   void set_backdrop(Backdrop b) {
@@ -371,7 +386,6 @@ struct LowRankRenderer::Impl {
           fmt::format("{} backend: {} points of {} bytes each exceed one shader storage block ({} bytes)",
                       backend.name(), kBlockAlign, widest, block_limit));
     }
-    evaluation = Evaluation::per_point_pass;  // a triangle may join points of different blocks
   }
 
   // Binds points [first, first + count) of every per-point buffer, and of
@@ -402,12 +416,7 @@ struct LowRankRenderer::Impl {
   // What only low_rank.vert reads: ranks, and per instance q, support,
   // placement and lights.
   void set_low_rank_uniforms(std::span<const FrameState> frames) {
-    gl.glUniform1i(program.uniform("r_u4"), r_u4);
-    gl.glUniform1i(program.uniform("r_a4"), r_a4);
-    gl.glUniform1i(program.uniform("first_point"), 0);
-    gl.glUniform1i(program.uniform("instance_base"), 0);
-    gl.glUniform1i(program.uniform("dotted_stride"), stride_points);
-    gl.glUniform1i(program.uniform("has_transfer"), has_transfer ? 1 : 0);
+    set_evaluation_uniforms(program);
     std::vector<float> instances(frames.size() * kInstanceFloats);
     for (std::size_t i = 0; i < frames.size(); ++i) {
       const Eigen::Matrix4f& placement = placements[i];
@@ -423,6 +432,18 @@ struct LowRankRenderer::Impl {
     gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kInstances].get());
     gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(instances), instances.data());
     upload_reduced(frames);
+  }
+
+  // What low_rank_eval.glsl reads, for the vertex or the compute program.
+  void set_evaluation_uniforms(const GlProgram& p) {
+    p.use();
+    gl.glUniform1i(p.uniform("r_u4"), r_u4);
+    gl.glUniform1i(p.uniform("r_a4"), r_a4);
+    gl.glUniform1i(p.uniform("first_point"), 0);
+    gl.glUniform1i(p.uniform("instance_base"), 0);
+    gl.glUniform1i(p.uniform("dotted_stride"), stride_points);
+    gl.glUniform1i(p.uniform("has_transfer"), has_transfer ? 1 : 0);
+    gl.glUniform1i(p.uniform("points"), basis.points);
   }
 
   // Per-frame upload: per instance q_u then q_a, each padded to vec4 blocks.
@@ -524,6 +545,26 @@ struct LowRankRenderer::Impl {
     gl.glDisable(GL_RASTERIZER_DISCARD);
   }
 
+  // The per-point pass as a compute shader, writing where transform feedback
+  // would (feedback_buffer), for the triangle draw's vertex attributes.
+  void compute_pass(std::span<const FrameState> frames) {
+    set_uniforms(program, frames);  // lights, dotted transfer, q and the instances' data
+    set_evaluation_uniforms(eval_program);
+    gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kEvaluated, feedback_buffer.get());
+    gl.glDispatchCompute(static_cast<GLuint>((basis.points + 63) / 64), static_cast<GLuint>(frames.size()),
+                         1);
+    gl.glMemoryBarrier(GL_VERTEX_ATTRIB_ARRAY_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+  }
+
+  // The evaluated points of every instance, by the drawing path's own pass.
+  void run_evaluation(std::span<const FrameState> frames) {
+    if (path() == Evaluation::compute_pass) {
+      compute_pass(frames);
+    } else {
+      evaluation_pass(frames);
+    }
+  }
+
   // Point blocks: each block of each instance captured where the instanced
   // draw would have put it (instance i's points start at i S).
   void evaluate_point_blocks(std::size_t instances) {
@@ -580,10 +621,10 @@ struct LowRankRenderer::Impl {
 
   void draw(std::span<const FrameState> frames) {
     check_frames(frames);
-    if (evaluation == Evaluation::per_point_pass) {
+    if (path() != Evaluation::in_draw) {
       // Each point is evaluated exactly once; the triangles then read the
       // results as plain vertex attributes (shared vertices are not re-run).
-      evaluation_pass(frames);
+      run_evaluation(frames);
       draw_triangles(static_program, evaluated_vao, frames);
     } else {
       draw_triangles(program, vao, frames);
@@ -606,7 +647,7 @@ struct LowRankRenderer::Impl {
 
   VertexDump evaluate(std::span<const FrameState> frames) {
     check_frames(frames);
-    evaluation_pass(frames);
+    run_evaluation(frames);
     const std::size_t points = frames.size() * static_cast<std::size_t>(basis.points);
     std::vector<float> captured(6 * points);
     gl.glBindBuffer(GL_TRANSFORM_FEEDBACK_BUFFER, feedback_buffer.get());
@@ -646,14 +687,16 @@ struct LowRankRenderer::Impl {
     if (ground) ground->cover(ground_centre, view_radius);
   }
 
+  // One mesh per placed instance, instance after instance (what evaluate() gives).
   void set_static_mesh(const VertexDump& d) {
-    if (d.positions.size() != 3 * static_cast<std::size_t>(basis.points) ||
-        d.radiance.size() != d.positions.size()) {
+    const std::size_t points = placements.size() * static_cast<std::size_t>(basis.points);
+    if (d.positions.size() != 3 * points || d.radiance.size() != d.positions.size()) {
       throw RenderError(
-          fmt::format("static mesh has {} positions and {} radiance values (expected 3S = {} each)",
-                      d.positions.size(), d.radiance.size(), 3 * basis.points));
+          fmt::format("static mesh has {} positions and {} radiance values (expected 3S = {} each per "
+                      "instance, {} instances)",
+                      d.positions.size(), d.radiance.size(), 3 * basis.points, placements.size()));
     }
-    const std::vector<float> interleaved = interleave(d, basis.points);
+    const std::vector<float> interleaved = interleave(d, static_cast<int>(points));
     if (!static_vao) {
       static_vao = VertexArray(gl);
       static_buffer = Buffer(gl);
@@ -668,8 +711,8 @@ struct LowRankRenderer::Impl {
   void draw_static() {
     if (!has_static)
       throw RenderError("draw_static: no static mesh was uploaded (call set_static_mesh first)");
-    const FrameState rest;
-    draw_triangles(static_program, static_vao, std::span(&rest, 1));
+    const std::vector<FrameState> rest(placements.size());
+    draw_triangles(static_program, static_vao, rest);
     check("drawing the static mesh");
   }
 };
@@ -691,8 +734,10 @@ std::uint64_t LowRankRenderer::light_dot_passes() const {
   return impl_->light_dot_passes;
 }
 void LowRankRenderer::set_evaluation(Evaluation evaluation) {
-  // Point blocks evaluate once per point: a triangle may join points of two blocks.
-  impl_->evaluation = impl_->split ? Evaluation::per_point_pass : evaluation;
+  impl_->evaluation = evaluation;
+}
+Evaluation LowRankRenderer::evaluation() const {
+  return impl_->path();
 }
 void LowRankRenderer::set_backdrop(Backdrop backdrop) {
   impl_->set_backdrop(backdrop);

@@ -1,0 +1,29 @@
+#version 450 core
+#include "bindings.glsl"
+#include "low_rank_eval.glsl"
+// The per-point pass as a compute shader (Evaluation::compute_pass): one
+// invocation per scene point (x) and instance (y), writing position and
+// radiance where transform feedback would (6 floats per point, instance
+// after instance), for the triangle draw to read as vertex attributes.
+// llvmpipe runs compute shaders on all its threads and vertex programs on
+// one, so there this is the fast path (docs/performance-client.md).
+
+layout(local_size_x = 64) in;
+
+layout(std430, binding = PHASECAST_BINDING_EVALUATED) writeonly buffer Evaluated { float evaluated[]; };
+
+uniform int points;  // S
+
+void main() {
+  uint v = gl_GlobalInvocationID.x, i = gl_GlobalInvocationID.y;
+  if (v >= uint(points)) return;
+  vec3 world, rgb;
+  evaluate_point(v, i, i, world, rgb);
+  uint at = 6u * (i * uint(points) + v);
+  evaluated[at] = world.x;
+  evaluated[at + 1u] = world.y;
+  evaluated[at + 2u] = world.z;
+  evaluated[at + 3u] = rgb.r;
+  evaluated[at + 4u] = rgb.g;
+  evaluated[at + 5u] = rgb.b;
+}
