@@ -88,6 +88,22 @@ function compare(a, b) {
   return { fractionOver: over / pixels, meanLevels: sum / (3 * pixels) };
 }
 
+// The fraction of each half's pixels (left, right) whose largest channel
+// difference exceeds TOLERANCE.level.
+function compareHalves(a, b) {
+  const over = { left: 0, right: 0 };
+  for (let y = 0; y < a.height; ++y) {
+    for (let x = 0; x < a.width; ++x) {
+      const i = 4 * (y * a.width + x);
+      let worst = 0;
+      for (let c = 0; c < 3; ++c) worst = Math.max(worst, Math.abs(a.data[i + c] - b.data[i + c]));
+      if (worst > TOLERANCE.level) ++over[2 * x < a.width ? 'left' : 'right'];
+    }
+  }
+  const half = (a.width * a.height) / 2;
+  return { left: over.left / half, right: over.right / half };
+}
+
 // Pixels that are not the clear colour: the scene covers enough of the view
 // for a comparison to mean something.
 function coverage(img) {
@@ -137,7 +153,8 @@ async function main() {
   mkdirSync(workDir, { recursive: true });
   const recording = path.join(workDir, 'stream.phcrec');
   const server = await start('phasecast-server',
-    [pkg, '--cmd', 'tcp://127.0.0.1:*', '--pub', 'tcp://127.0.0.1:*', '--record', recording], /listening cmd=(\S+)/);
+    [pkg, '--instances', '4', '--cmd', 'tcp://127.0.0.1:*', '--pub', 'tcp://127.0.0.1:*', '--record', recording],
+    /listening cmd=(\S+)/);
   const gateway = await start('phasecast-gateway',
     ['--connect', server.match[1], '--listen', '127.0.0.1:0', '--web-root', webRoot], /serving (http:\/\/\S+)/);
   const url = gateway.match[1];
@@ -209,6 +226,32 @@ async function main() {
     await waitFor(page, (n) => window.phasecast.framesRendered > n + 30, drawn, 'frames after the garbage message');
     const downloads = await page.evaluate(() => window.phasecast.basisDownloads);
     check(downloads === 1, `the page reconnected after its garbage message (${downloads} basis downloads)`);
+
+    // 4. Every instance in one view (instance=all, the native grid): the
+    // palette driven at instance 4 (right column, back row) changes the
+    // right half of the picture and leaves the left half (instance 1, come
+    // to rest after its 'open', and instance 3, never pushed) alone.
+    const field = await browser.newPage({ viewport: { width: 800, height: 600 } });
+    field.on('pageerror', (e) => consoleErrors.push(e.message));
+    await field.goto(`${url}?instance=all&size=${SIZE.width}x${SIZE.height}`);
+    await waitFor(field, () => window.phasecast.ready && window.phasecast.instances.length === 4, null,
+      'the page of all instances drawing');
+    await waitFor(field, () => window.phasecast.frame.palette_index === -1, null, 'instance 1 at rest', 60000);
+    await field.waitForTimeout(1500);  // its blend offset (eq. 12) decays too
+    const fieldBefore = await canvasPng(field, path.join(workDir, 'page_all_before.png'));
+    await field.selectOption('#target', '4');
+    await waitFor(field, () => window.phasecast.palette.find((p) => p.name === 'open')?.enabled, null, "'open' enabled for instance 4");
+    await field.click('[data-palette="open"]');
+    await waitFor(field, () => window.phasecast.lastImpulseReply?.instance === 4, null, 'the reply for instance 4');
+    const fieldReply = await field.evaluate(() => window.phasecast.lastImpulseReply);
+    check(fieldReply.ok, `the server refused 'open' for instance 4: ${fieldReply.error}`);
+    await waitFor(field, (at) => window.phasecast.frame.frame >= at + 20, fieldReply.at_frame, 'frames after opening instance 4');
+    const fieldAfter = await canvasPng(field, path.join(workDir, 'page_all_after.png'));
+    const halves = compareHalves(fieldBefore, fieldAfter);
+    figures.all_instances_right_half_changed = halves.right;
+    figures.all_instances_left_half_changed = halves.left;
+    check(halves.right > 0.005, `instance 4's door did not move the right half (${(100 * halves.right).toFixed(2)} % of its pixels)`);
+    check(halves.left <= 0.001, `the left half changed (${(100 * halves.left).toFixed(2)} % of its pixels) though only instance 4 moved`);
     check(consoleErrors.length === 0, `page errors: ${consoleErrors.join('; ')}`);
 
     check(await stop(gateway.child) === 0, 'the gateway did not stop cleanly on SIGINT');

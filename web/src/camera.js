@@ -178,3 +178,39 @@ export class OrbitCamera {
     element.addEventListener('dblclick', () => this.reset());
   }
 }
+
+// Where `count` instances stand on the native client's default grid
+// (camera.cpp grid_placements): columns along x, rows going back along -z,
+// ceil(sqrt(count)) to a row, 2.2 scene radii apart. Offsets [x, y, z].
+export function gridOffsets(radius, count) {
+  const columns = Math.ceil(Math.sqrt(count)), rows = Math.ceil(count / columns);
+  const spacing = 2.2 * radius;
+  const offsets = [];
+  for (let i = 0; i < count; ++i) {
+    offsets.push([spacing * ((i % columns) - (columns - 1) / 2), 0, spacing * ((rows - 1) / 2 - Math.floor(i / columns))]);
+  }
+  return offsets;
+}
+
+// The scene's camera moved to the group's centre, raised to look down on its
+// rows at least 30 degrees and backed off to take in every instance
+// (camera.cpp group_camera, with the group's bounding sphere). Returns
+// {camera, radius}: radius bounds the group, for the depth range.
+export function groupCamera(camera, radius, offsets) {
+  const lo = [0, 1, 2].map((k) => Math.min(...offsets.map((o) => o[k])));
+  const hi = [0, 1, 2].map((k) => Math.max(...offsets.map((o) => o[k])));
+  const centre = lo.map((v, k) => (v + hi[k]) / 2);
+  const groupRadius = radius + Math.hypot(...hi.map((v, k) => (v - lo[k]) / 2));
+  const norm = (v) => { const n = Math.hypot(...v); return v.map((x) => x / n); };
+  const up = norm(camera.up);
+  let back = norm(camera.eye.map((v, k) => v - camera.target[k]));
+  const minElevation = Math.sin(Math.PI / 6);
+  const along = back.reduce((s, v, k) => s + v * up[k], 0);
+  if (along < minElevation) {
+    const level = norm(back.map((v, k) => v - along * up[k]));
+    back = level.map((v, k) => v * Math.sqrt(1 - minElevation ** 2) + minElevation * up[k]);
+  }
+  const target = camera.target.map((v, k) => v + centre[k]);
+  const distance = groupRadius / Math.tan((camera.fov_y_deg * Math.PI) / 360) * 1.05;
+  return { camera: { ...camera, target, eye: target.map((v, k) => v + back[k] * distance) }, radius: groupRadius };
+}

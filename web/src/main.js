@@ -1,5 +1,6 @@
 // The page: follows one instance of a phasecast-server through
-// phasecast-gateway, as phasecast-render does natively. Bases are downloaded
+// phasecast-gateway, as phasecast-render does natively, or every instance of
+// a scene in one view (instance=all, or "all instances" in the picker). Bases are downloaded
 // once per scene (and again only when the package's content hash changed),
 // frames carry only q_u, q_a and the support transform.
 import descriptor from './generated/phasecast.json';
@@ -7,7 +8,7 @@ import { Protocol, asHex, asNumber, utf8 } from './protocol.js';
 import { GatewayConnection } from './gateway.js';
 import { downloadBasis, ContentHashChanged } from './basis.js';
 import { Renderer } from './renderer.js';
-import { OrbitCamera, sceneCamera, sceneRadius } from './camera.js';
+import { OrbitCamera, gridOffsets, groupCamera, sceneCamera, sceneRadius } from './camera.js';
 import { FrameFollower, RateMeter, frameProblem } from './frames.js';
 import { parseParams } from './params.js';
 import { Ui } from './ui.js';
@@ -21,6 +22,7 @@ const hooks = (window.phasecast = {
   framesRendered: 0,
   frozenFrame: null,
   instance: null,
+  instances: [],      // with every instance in view: their ids, in grid order
   missedFrames: 0,
   bytesReceived: 0,
   lastError: null,
@@ -33,7 +35,11 @@ const hooks = (window.phasecast = {
 class App {
   constructor(params) {
     this.params = params;
-    this.ui = new Ui({ onPickInstance: (id) => this.pick(id), onImpulse: (name) => this.impulse(name) });
+    this.ui = new Ui({
+      onPickInstance: (id) => this.pick(id),
+      onPickTarget: () => this.updatePalette(),
+      onImpulse: (name) => this.impulse(name),
+    });
     this.renderer = new Renderer(this.ui.canvas);
     this.follower = new FrameFollower(params.freeze);
     this.fps = new RateMeter();
@@ -41,7 +47,8 @@ class App {
     this.scenes = [];          // SceneInfo of list_scenes
     this.instances = [];       // InstanceInfo of list_instances
     this.gpuScenes = new Map(); // scene name -> {contentHash, gpu, camera, radius}
-    this.followed = null;      // {instance, scene: name, entry, info: SceneInfo}
+    this.followed = null;      // {instance, ids, offsets, radius, scene: name, entry, info: SceneInfo}
+    this.latestOf = new Map(); // instance -> its last frame, with several in view
     this.wanted = null;        // instance picked in #instance
     this.subscribed = false;   // on this connection
     this.following = Promise.resolve();  // follow() calls run one after another
@@ -108,6 +115,13 @@ class App {
     this.updatePalette();
   }
 
+  // Every instance of the first scene that has one, in id order (the grid's order).
+  allInstances() {
+    const scene = this.scenes.find((s) => this.instances.some((i) => i.scene === s.name));
+    if (!scene) throw new Error('the server has no instance of any scene');
+    return this.instances.filter((i) => i.scene === scene.name).map((i) => i.instance).sort((a, b) => a - b);
+  }
+
   // The first instance of the first scene, as phasecast-render.
   defaultInstance() {
     if (this.scenes.length === 0) throw new Error('the server has no scenes');
@@ -125,7 +139,9 @@ class App {
     return next;
   }
 
-  async followNow(id) {
+  async followNow(wanted) {
+    const ids = wanted === 'all' ? this.allInstances() : [wanted];
+    const id = ids[0];
     const info = this.instances.find((i) => i.instance === id);
     if (!info) {
       throw new Error(`instance=${id}: the server has no such instance (it has ` +
@@ -134,15 +150,22 @@ class App {
     const scene = this.scenes.find((s) => s.name === info.scene);
     if (!scene) throw new Error(`instance ${id} plays scene '${info.scene}', which list_scenes does not list`);
     const entry = await this.sceneOnGpu(scene);
-    if (this.followed?.scene !== scene.name) this.orbit = new OrbitCamera(entry.camera);
-    this.followed = { instance: id, scene: scene.name, entry, info: scene };
+    const offsets = gridOffsets(entry.radius, ids.length);
+    const view = ids.length > 1 ? groupCamera(entry.camera, entry.radius, offsets) : { camera: entry.camera, radius: entry.radius };
+    const same = this.followed?.scene === scene.name && this.followed.ids.join() === ids.join();
+    if (!same) this.orbit = new OrbitCamera(view.camera);
+    this.followed = { instance: id, ids, offsets, radius: view.radius, all: wanted === 'all', scene: scene.name, entry, info: scene };
+    this.latestOf.clear();
     this.renderer.useScene(entry.gpu);
     this.follower.follow(id);
     hooks.instance = id;
-    this.ui.setInstances(this.instances, id);
+    hooks.instances = ids.length > 1 ? ids : [];
+    this.ui.setInstances(this.instances, wanted);
+    this.ui.setTargets(ids.length > 1 ? ids : []);
     this.updatePalette();
-    this.subscribed = this.gateway.subscribe([id]);
-    this.ui.setStatus(`following instance ${id} of '${scene.name}'`);
+    this.subscribed = this.gateway.subscribe(ids);
+    this.ui.setStatus(ids.length > 1 ? `following ${ids.length} instances of '${scene.name}' in one view`
+      : `following instance ${id} of '${scene.name}'`);
   }
 
   // The scene's bases on the GPU: downloaded once per scene and content hash.
@@ -181,7 +204,7 @@ class App {
   }
 
   async pick(id) {
-    if (id === this.followed?.instance) return;
+    if (id === (this.followed?.all ? 'all' : this.followed?.instance)) return;
     this.wanted = id;
     try {
       this.ui.setError(null);
@@ -196,8 +219,10 @@ class App {
     this.polling = true;
     try {
       await this.listInstances();
-      // The instance was not there yet (or the session failed): try again.
-      if (!this.subscribed) {
+      // The instance was not there yet (or the session failed), or the
+      // instances of the scene in view came or went: follow again.
+      const moved = this.followed?.all && this.allInstances().join() !== this.followed.ids.join();
+      if (!this.subscribed || moved) {
         await this.follow(this.wantedInstance());
         this.ui.setError(null);
       }
@@ -211,15 +236,26 @@ class App {
   // One button per palette entry, enabled when the rules allow it next (allowed_now).
   updatePalette() {
     if (!this.followed) return;
-    const info = this.instances.find((i) => i.instance === this.followed.instance);
+    const target = this.followed.ids.length > 1 ? this.ui.targetValue() : 'all';
+    const shown = target === 'all' ? this.followed.instance : target;
+    const info = this.instances.find((i) => i.instance === shown);
     const allowed = new Set(info ? info.allowed_now : []);
     hooks.palette = this.followed.info.palette.map((p) => ({ name: p.name, index: p.index, enabled: allowed.has(p.index) }));
     this.ui.setPalette(hooks.palette);
   }
 
+  // The palette drives the instance followed, or with several in view the
+  // picked target: one of them, or all of them (one request each).
   async impulse(name) {
-    const instance = this.followed?.instance;
-    if (instance == null) return;
+    const f = this.followed;
+    if (!f) return;
+    const target = f.ids.length > 1 ? this.ui.targetValue() : f.instance;
+    const targets = target === 'all' ? f.ids : [target];
+    for (const instance of targets) await this.impulseTo(instance, name, targets.length);
+    this.poll();
+  }
+
+  async impulseTo(instance, name, of) {
     try {
       const reply = await this.gateway.request({ impulse: { instance, name: utf8(name) } });
       const accepted = reply.ok ? reply.impulse : null;
@@ -231,25 +267,27 @@ class App {
         palette_index: accepted ? accepted.palette_index : null,
         at_frame: accepted ? asNumber(accepted.at_frame) : null,
       };
+      const which = of > 1 ? ` (one of ${of})` : '';
       this.ui.setStatus(reply.ok
-        ? `impulse '${name}' accepted for instance ${instance}, frame ${asNumber(accepted.at_frame)}`
-        : `impulse '${name}' refused: ${reply.error}`);
+        ? `impulse '${name}' accepted for instance ${instance}${which}, frame ${asNumber(accepted.at_frame)}`
+        : `impulse '${name}' refused for instance ${instance}: ${reply.error}`);
     } catch (e) {
       hooks.lastImpulseReply = { ok: false, error: e.message, name, instance, palette_index: null, at_frame: null };
       this.ui.setStatus(`impulse '${name}' failed: ${e.message}`);
     }
-    this.poll();
   }
 
   onFrame(frame) {
     const f = this.followed;
-    if (!f || frame.instance !== f.instance) return;
+    if (!f || !f.ids.includes(frame.instance)) return;
     const problem = frameProblem(frame, f.info);
     if (problem) {
       this.error(`instance ${frame.instance}: ${problem}; frame not drawn`);
       this.recheck('a frame does not fit the bases');
       return;
     }
+    this.latestOf.set(frame.instance, frame);
+    if (frame.instance !== f.instance) return;  // sequence, freeze and restarts: the first one's
     const restarts = this.follower.restarts;
     this.follower.accept(frame);
     hooks.missedFrames = this.follower.missed;
@@ -276,8 +314,11 @@ class App {
     if (!frame || !this.followed) return;
     const camera = this.orbit;
     if (!resized && frame === this.drawn.frame && camera.version === this.drawn.cameraVersion) return;
+    const f = this.followed;
+    const frames = f.ids.length > 1 ? f.ids.map((id) => (id === f.instance ? frame : this.latestOf.get(id))) : [frame];
+    if (frames.some((x) => !x)) return;  // each instance in view draws from its first frame on
     try {
-      this.renderer.draw(frame, camera.camera(), this.followed.entry.radius);
+      this.renderer.drawMany(frames, f.offsets, camera.camera(), f.radius);
     } catch (e) {
       this.error(e.message);
       return;
@@ -310,7 +351,8 @@ class App {
       `${(this.bandwidth.rate(now) / 1024).toFixed(1)} KiB/s received`,
       `${this.follower.missed} frames missed (seq gaps)`,
       `first frame ${hooks.firstFrameMs === null ? '-' : `${hooks.firstFrameMs.toFixed(0)} ms`} after page load`,
-      f ? `instance ${f.instance} '${f.scene}', frame ${frame ? asNumber(frame.frame) : '-'}` +
+      f ? `${f.ids.length > 1 ? `${f.ids.length} instances from ` : ''}instance ${f.instance} '${f.scene}', ` +
+        `frame ${frame ? asNumber(frame.frame) : '-'}` +
         `${this.frozen ? ' (frozen)' : ''}` : 'no instance yet',
       f ? `bases ${(f.entry.gpu.textureBytes / 1048576).toFixed(2)} MiB on the GPU, downloaded in ${f.entry.downloadMs.toFixed(0)} ms` : '',
     ]);

@@ -1,5 +1,6 @@
-// URL parameters of the page (README.md): instance=N, size=WxH, freeze=F,
-// ws=URL. Pure, so tests run it in node.
+// URL parameters of the page (README.md): instance=N (or all: every instance
+// of the first scene in one view), size=WxH, freeze=F, ws=URL. Pure, so tests
+// run it in node.
 
 export class ParamError extends Error {}
 
@@ -24,7 +25,7 @@ export function parseParams(search, host, secure = false) {
   const get = (name) => (q.has(name) ? q.get(name) : null);
   const instance = get('instance'), size = get('size'), freeze = get('freeze'), ws = get('ws');
   return {
-    instance: instance === null ? null : parseCount(instance, 'instance', 0),
+    instance: instance === null ? null : instance === 'all' ? 'all' : parseCount(instance, 'instance', 0),
     size: size === null ? null : parseSize(size),
     freeze: freeze === null ? null : parseCount(freeze, 'freeze', 120),
     ws: ws ?? `${secure ? 'wss' : 'ws'}://${host}/ws`,

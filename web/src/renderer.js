@@ -18,6 +18,23 @@ import {
 
 export class RenderError extends Error {}
 
+// Column-major 4x4 helpers for placements.
+function translation([x, y, z]) {
+  return new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, x, y, z, 1]);
+}
+
+function multiply(a, b) {
+  const out = new Float32Array(16);
+  for (let c = 0; c < 4; ++c) {
+    for (let r = 0; r < 4; ++r) {
+      let sum = 0;
+      for (let k = 0; k < 4; ++k) sum += a[4 * k + r] * b[4 * c + k];
+      out[4 * c + r] = sum;
+    }
+  }
+  return out;
+}
+
 const CLEAR_COLOUR = [0.02, 0.02, 0.025, 1];  // low_rank_renderer.cpp begin_frame
 const TEXTURES = ['points', 'normals', 'U_u', 'M_bar', 'U_a'];
 
@@ -111,7 +128,7 @@ export class Renderer {
       r_u4: packed.r_u4,
       r_a4: packed.r_a4,
       program,
-      uniforms: uniforms(gl, program, ['q', 'support', 'light', ...TEXTURES.map((t) => `${t}_tex`)]),
+      uniforms: uniforms(gl, program, ['q', 'support', 'placement', 'light', ...TEXTURES.map((t) => `${t}_tex`)]),
       textures,
       q: new Float32Array(4 * (packed.r_u4 + packed.r_a4) + 4),
       indexCount: basis.triangles.length,
@@ -184,15 +201,25 @@ export class Renderer {
   // Draws `frame` ({q_u, q_a, support}) seen by `camera` (camera.js) into the
   // canvas's drawing buffer; radius: scene_radius for the depth range.
   draw(frame, camera, radius) {
+    this.drawMany([frame], [[0, 0, 0]], camera, radius);
+  }
+
+  // Several instances of the scene in one view: frame i drawn at offsets[i]
+  // (a translation, the native default grid), each evaluated and drawn in
+  // turn; readEvaluated() then holds the last one's points.
+  drawMany(frames, offsets, camera, radius) {
     const scene = this.scene;
     if (!scene) throw new RenderError('draw: no scene was loaded');
-    const support = supportMatrix(frame.support);
-    this.evaluatePoints(scene, frame, support);
-    this.drawTriangles(scene, camera, radius);
+    this.beginFrame();
+    frames.forEach((frame, i) => {
+      const placement = translation(offsets[i]);
+      this.evaluatePoints(scene, frame, multiply(placement, supportMatrix(frame.support)), placement);
+      this.drawTriangles(scene, camera, radius);
+    });
   }
 
   // Pass 1: the low-rank program once per point, captured into scene.evaluated.
-  evaluatePoints(scene, frame, support) {
+  evaluatePoints(scene, frame, support, placement) {
     const gl = this.gl;
     gl.useProgram(scene.program);
     const u = scene.uniforms;
@@ -203,6 +230,7 @@ export class Renderer {
     });
     gl.uniform4fv(u.q, packReduced(frame.q_u, frame.q_a ?? [], scene.r_u4, scene.r_a4, scene.q));
     gl.uniformMatrix4fv(u.support, false, support);
+    gl.uniformMatrix4fv(u.placement, false, placement);
     gl.uniform4fv(u.light, this.lights.forSupport(support));
     gl.enable(gl.RASTERIZER_DISCARD);
     gl.bindVertexArray(scene.pointVao);
@@ -217,13 +245,17 @@ export class Renderer {
   // Pass 2: clear, depth LESS, back faces culled (package triangles are
   // counter-clockwise seen from their normal's side; thin surfaces are two
   // layers of opposite winding, only the one facing the camera may draw).
+  beginFrame() {
+    const gl = this.gl;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.viewport(0, 0, gl.drawingBufferWidth, gl.drawingBufferHeight);
+    gl.clearColor(...CLEAR_COLOUR);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+  }
+
   drawTriangles(scene, camera, radius) {
     const gl = this.gl;
     const width = gl.drawingBufferWidth, height = gl.drawingBufferHeight;
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    gl.viewport(0, 0, width, height);
-    gl.clearColor(...CLEAR_COLOUR);
-    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     gl.enable(gl.DEPTH_TEST);
     gl.depthFunc(gl.LESS);
     gl.enable(gl.CULL_FACE);

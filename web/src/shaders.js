@@ -23,7 +23,8 @@ uniform sampler2D U_u_tex;      // [3S][r_u4]
 uniform sampler2D M_bar_tex;    // [S][3][4]: k in vec4s
 uniform sampler2D U_a_tex;      // [48S][r_a4]
 uniform vec4 q[R_U4 + R_A4 + 1];  // q_u (r_u4 vec4s), then q_a (r_a4)
-uniform mat4 support;           // support frame -> world
+uniform mat4 support;           // support frame -> world (the placement included)
+uniform mat4 placement;         // instance frame -> world: where the instance stands among others
 // SH light, coefficient 16c + k in light[base + 4c + k / 4][k % 4]; base 0 is
 // the world light, base 12 the same light rotated into the support frame.
 uniform vec4 light[24];
@@ -96,7 +97,7 @@ void main() {
   int flags = int(point.w);
   bool attached = (flags & 2) != 0;
   vec3 x = displaced_position(v, point.xyz, (flags & 1) != 0);
-  world_position = attached ? (support * vec4(x, 1.0)).xyz : x;
+  world_position = ((attached ? support : placement) * vec4(x, 1.0)).xyz;
   int base = attached ? 12 : 0;
 #if HAS_TRANSFER
   radiance = transfer_radiance(v, base);

@@ -5,29 +5,54 @@
 const $ = (id) => document.getElementById(id);
 
 export class Ui {
-  constructor({ onPickInstance, onImpulse }) {
+  constructor({ onPickInstance, onPickTarget, onImpulse }) {
     this.picker = $('instance');
+    this.target = $('target');  // with every instance in view: which one the palette drives
     this.palette = $('palette');
     this.status = $('status');
     this.error = $('error');
     this.progress = $('progress');
     this.hud = $('hud');
     this.canvas = $('view');
-    this.picker.addEventListener('change', () => onPickInstance(Number(this.picker.value)));
+    this.picker.addEventListener('change', () =>
+      onPickInstance(this.picker.value === 'all' ? 'all' : Number(this.picker.value)));
+    this.target.addEventListener('change', () => onPickTarget());
     this.palette.addEventListener('click', (e) => {
       const button = e.target.closest('button[data-palette]');
       if (button && !button.disabled) onImpulse(button.dataset.palette);
     });
   }
 
-  // instances: [{instance, scene}], followed: the id shown.
+  // instances: [{instance, scene}], followed: the id shown, or 'all'.
   setInstances(instances, followed) {
     const wanted = instances.map((i) => `${i.instance}:${i.scene}`).join();
     if (this.picker.dataset.list !== wanted) {
-      this.picker.replaceChildren(...instances.map((i) => new Option(`instance ${i.instance} — ${i.scene}`, String(i.instance))));
+      const scene = instances[0]?.scene;
+      const all = scene ? [new Option(`all instances of '${scene}'`, 'all')] : [];
+      this.picker.replaceChildren(...instances.map((i) => new Option(`instance ${i.instance} — ${i.scene}`, String(i.instance))),
+        ...all);
       this.picker.dataset.list = wanted;
     }
     if (followed !== null) this.picker.value = String(followed);
+  }
+
+  // ids: the instances in view when they are several (else none: no picker);
+  // the palette then drives `target`, one of them or 'all'.
+  setTargets(ids) {
+    const shown = ids.length > 1;
+    this.target.hidden = !shown;
+    this.target.labels.forEach((l) => { l.hidden = !shown; });
+    const wanted = ids.join();
+    if (this.target.dataset.list === wanted) return;
+    const keep = this.target.value;
+    this.target.replaceChildren(new Option('all of them', 'all'), ...ids.map((id) => new Option(`instance ${id}`, String(id))));
+    this.target.dataset.list = wanted;
+    if ([...this.target.options].some((o) => o.value === keep)) this.target.value = keep;
+  }
+
+  // The palette's target: 'all' or an instance id.
+  targetValue() {
+    return this.target.value === 'all' || this.target.value === '' ? 'all' : Number(this.target.value);
   }
 
   // entries: [{name, index, enabled}] of the followed instance's scene.

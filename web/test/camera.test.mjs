@@ -3,7 +3,8 @@
 // framed around x̄, and the orbit camera.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { viewProjection, sceneCamera, sceneRadius, OrbitCamera, DEFAULT_CAMERA } from '../src/camera.js';
+import { viewProjection, sceneCamera, sceneRadius, OrbitCamera, DEFAULT_CAMERA, gridOffsets, groupCamera } from '../src/camera.js';
+import { parseParams } from '../src/params.js';
 
 const close = (a, b, tol, what) => assert.ok(Math.abs(a - b) <= tol * Math.max(1, Math.abs(b)), `${what}: ${a} vs ${b}`);
 
@@ -91,4 +92,30 @@ test('orbit camera: starts as the scene camera, keeps the distance when rotating
   close(Math.hypot(...orbit.camera().eye), 10, 1e-9, 'zoomed');
   orbit.reset();
   assert.deepEqual(orbit.camera(), start);
+});
+
+test('gridOffsets: the native default grid (camera.cpp grid_placements), 2.2 radii apart, rows back along -z', () => {
+  assert.deepEqual(gridOffsets(1, 4).map((o) => o.map((v) => Math.round(v * 100) / 100)),
+    [[-1.1, 0, 1.1], [1.1, 0, 1.1], [-1.1, 0, -1.1], [1.1, 0, -1.1]]);
+  assert.deepEqual(gridOffsets(2, 1), [[0, 0, 0]]);
+  assert.equal(gridOffsets(1, 5).length, 5);
+  assert.equal(new Set(gridOffsets(1, 9).map((o) => o[0])).size, 3, 'ceil(sqrt(9)) = 3 columns');
+});
+
+test('groupCamera: centred on the group, looking down at least 30 degrees, every instance within the view', () => {
+  const camera = { eye: [0, 0, 3], target: [0, 0, 0], up: [0, 1, 0], fov_y_deg: 40 };
+  const offsets = gridOffsets(0.5, 16);
+  const { camera: c, radius } = groupCamera(camera, 0.5, offsets);
+  assert.deepEqual(c.target.map((v) => Math.abs(v) < 1e-12 ? 0 : v), [0, 0, 0]);
+  const back = c.eye.map((v, k) => v - c.target[k]);
+  const d = Math.hypot(...back);
+  close(back[1] / d, 0.5, 1e-9, 'sin of the elevation');
+  assert.ok(d * Math.tan((20 * Math.PI) / 180) >= radius, `distance ${d} frames radius ${radius}`);
+  close(radius, 0.5 + 1.5 * 1.1 * Math.SQRT2, 1e-12, 'the group radius: one scene radius beyond the farthest offset');
+});
+
+test('instance=all asks for every instance of the scene in one view', () => {
+  assert.equal(parseParams('?instance=all', 'h:1').instance, 'all');
+  assert.equal(parseParams('?instance=3', 'h:1').instance, 3);
+  assert.throws(() => parseParams('?instance=some', 'h:1'), /instance='some' is invalid/);
 });
