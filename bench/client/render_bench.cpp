@@ -44,7 +44,7 @@ ClientBasis grid_scene(int n, int r_u, int r_a) {
         const double mode = std::sin((k / 3 + 1) * kPi * x) * std::sin((k % 3 + 1) * kPi * y) / n;
         b.U_u[(3 * v + 2) * static_cast<std::size_t>(r_u) + static_cast<std::size_t>(k)] = float(mode);
       }
-      for (int c = 0; c < 48; ++c) {
+      for (int c = 0; c < 48 && r_a > 0; ++c) {
         b.mean_transfer.push_back(c % 16 == 0 ? 0.3f : 0.02f);
         for (int k = 0; k < r_a; ++k) {
           b.U_a[(48 * v + static_cast<std::size_t>(c)) * static_cast<std::size_t>(r_a) +
@@ -161,6 +161,37 @@ void BM_Instances(benchmark::State& state) {
       (rotating && !static_mesh ? ", supports rotating" : "") + " | " + backend_name());
 }
 
+// The 1 M-point plate (1000 x 1000, r_u = 30, no appearance) at
+// 1920x1080, static vs low-rank on the default path, no read-back. Its
+// bases take 0.4 GB and a minute to build, so it runs only with
+// PHASECAST_BENCH_LARGE=1 (bench/gpu/run sets it). Args: mode (0 low-rank, 2 static).
+void BM_LargePlate(benchmark::State& state) {
+  if (!std::getenv("PHASECAST_BENCH_LARGE")) {
+    state.SkipWithError("set PHASECAST_BENCH_LARGE=1 to build the 1 M-point plate");
+    return;
+  }
+  const bool static_mesh = state.range(0) == 2;
+  const ClientBasis basis = grid_scene(1000, 30, 0);
+  auto backend = make_render_backend(backend_name(), 1920, 1080);
+  LowRankRenderer renderer(*backend, basis, 1920, 1080);
+  auto frame_at = [](int t) { return frame(t, 30, 0, false); };
+  if (static_mesh) renderer.set_static_mesh(renderer.evaluate(frame_at(0)));
+  int t = 0;
+  for (auto _ : state) {
+    if (static_mesh) {
+      renderer.draw_static();
+    } else {
+      renderer.draw(frame_at(t++));
+    }
+    renderer.finish();
+  }
+  state.counters["fps"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["blocks"] = renderer.point_blocks();
+  state.SetLabel(std::string(static_mesh ? "static mesh" : "low-rank r_u = 30, default path") + " | " +
+                 backend_name());
+}
+
 // Paper-sized meshes: 158^2 = 25k points / 49k triangles, 58^2 = 3.4k / 6.5k.
 void Arguments(benchmark::internal::Benchmark* b) {
   for (int n : {158, 58}) {
@@ -180,6 +211,8 @@ BENCHMARK(BM_Render)
     ->ArgNames({"side", "w", "h", "mode", "readback", "rotating"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
+
+BENCHMARK(BM_LargePlate)->Arg(2)->Arg(0)->ArgNames({"mode"})->UseRealTime()->Unit(benchmark::kMillisecond);
 
 BENCHMARK(BM_Instances)
     ->ArgsProduct({{1, 16, 64}, {1280}, {720}, {2, 0}, {0}})
