@@ -13,8 +13,10 @@
 
 #include <sys/resource.h>
 
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <thread>
 
@@ -54,14 +56,28 @@ void announce(Server& server) {
 }
 
 // Every client connection is a descriptor: the soft limit (often 1024, or
-// lower in containers) goes up to the hard limit, and the line says so.
+// lower in containers) goes up to the hard limit, capped where the hard
+// limit is unlimited by what the kernel allows (fs/nr_open), and the line
+// says what happened.
 void raise_descriptor_limit() {
   rlimit limit{};
   if (getrlimit(RLIMIT_NOFILE, &limit) != 0 || limit.rlim_cur >= limit.rlim_max) return;
   const rlim_t before = limit.rlim_cur;
-  limit.rlim_cur = limit.rlim_max;
+  rlim_t wanted = limit.rlim_max;
+  if (wanted == RLIM_INFINITY) {
+    unsigned long long nr_open = 1u << 20;
+    if (std::FILE* f = std::fopen("/proc/sys/fs/nr_open", "r")) {
+      if (std::fscanf(f, "%llu", &nr_open) != 1) nr_open = 1u << 20;
+      std::fclose(f);
+    }
+    wanted = static_cast<rlim_t>(nr_open);
+  }
+  limit.rlim_cur = wanted;
   if (setrlimit(RLIMIT_NOFILE, &limit) == 0) {
-    fmt::print("phasecast-server: descriptor limit raised from {} to {}\n", before, limit.rlim_max);
+    fmt::print("phasecast-server: descriptor limit raised from {} to {}\n", before, wanted);
+  } else {
+    fmt::print("phasecast-server: descriptor limit stays {} (raising it to {} failed: {})\n", before, wanted,
+               std::strerror(errno));
   }
 }
 

@@ -111,15 +111,21 @@ class App {
 
   async listInstances() {
     this.instances = (await this.gateway.call({ list_instances: {} })).instances.instances;
-    this.ui.setInstances(this.instances, this.followed?.instance ?? null);
+    this.ui.setInstances(this.instances, this.followed ? (this.followed.all ? 'all' : this.followed.instance) : null,
+      this.allScene());
     this.updatePalette();
   }
 
-  // Every instance of the first scene that has one, in id order (the grid's order).
+  // The first scene, in list_scenes order, that has an instance: what "all" shows.
+  allScene() {
+    return this.scenes.find((s) => this.instances.some((i) => i.scene === s.name))?.name ?? null;
+  }
+
+  // Every instance of allScene(), in id order (the grid's order).
   allInstances() {
-    const scene = this.scenes.find((s) => this.instances.some((i) => i.scene === s.name));
+    const scene = this.allScene();
     if (!scene) throw new Error('the server has no instance of any scene');
-    return this.instances.filter((i) => i.scene === scene.name).map((i) => i.instance).sort((a, b) => a - b);
+    return this.instances.filter((i) => i.scene === scene).map((i) => i.instance).sort((a, b) => a - b);
   }
 
   // The first instance of the first scene, as phasecast-render.
@@ -160,7 +166,7 @@ class App {
     this.follower.follow(id);
     hooks.instance = id;
     hooks.instances = ids.length > 1 ? ids : [];
-    this.ui.setInstances(this.instances, wanted);
+    this.ui.setInstances(this.instances, wanted, this.allScene());
     this.ui.setTargets(ids.length > 1 ? ids : []);
     this.updatePalette();
     this.subscribed = this.gateway.subscribe(ids);

@@ -23,11 +23,12 @@ export class Ui {
     });
   }
 
-  // instances: [{instance, scene}], followed: the id shown, or 'all'.
-  setInstances(instances, followed) {
-    const wanted = instances.map((i) => `${i.instance}:${i.scene}`).join();
+  // instances: [{instance, scene}], followed: the id shown, or 'all';
+  // allScene: the scene "all instances" shows (null: no such entry).
+  setInstances(instances, followed, allScene) {
+    const wanted = `${instances.map((i) => `${i.instance}:${i.scene}`).join()}/${allScene}`;
     if (this.picker.dataset.list !== wanted) {
-      const scene = instances[0]?.scene;
+      const scene = allScene;
       const all = scene ? [new Option(`all instances of '${scene}'`, 'all')] : [];
       this.picker.replaceChildren(...instances.map((i) => new Option(`instance ${i.instance} — ${i.scene}`, String(i.instance))),
         ...all);

@@ -201,7 +201,12 @@ struct LowRankRenderer::Impl {
 
   // Point blocks evaluate once per point with transform feedback by range: a
   // triangle may join points of two blocks.
-  Evaluation path() const { return split ? Evaluation::per_point_pass : evaluation; }
+  Evaluation path() const {
+    if (!split) return evaluation;
+    const std::size_t output = 24 * allocated_instances * static_cast<std::size_t>(basis.points);
+    return evaluation == Evaluation::compute_pass && output <= block_limit ? Evaluation::compute_pass
+                                                                           : Evaluation::per_point_pass;
+  }
 
   // The fastest measured path for the backend (docs/performance-client.md).
   Evaluation default_evaluation() const {
@@ -551,8 +556,26 @@ struct LowRankRenderer::Impl {
     set_uniforms(program, frames);  // lights, dotted transfer, q and the instances' data
     set_evaluation_uniforms(eval_program);
     gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kEvaluated, feedback_buffer.get());
-    gl.glDispatchCompute(static_cast<GLuint>((basis.points + 63) / 64), static_cast<GLuint>(frames.size()),
-                         1);
+    auto dispatch = [&](int count, int out_base, int out_stride, std::size_t instances) {
+      gl.glUniform1i(eval_program.uniform("points"), count);
+      gl.glUniform1i(eval_program.uniform("out_base"), out_base);
+      gl.glUniform1i(eval_program.uniform("out_stride"), out_stride);
+      gl.glDispatchCompute(static_cast<GLuint>((count + 63) / 64), static_cast<GLuint>(instances), 1);
+    };
+    if (!split) {
+      dispatch(basis.points, 0, basis.points, frames.size());
+    } else {
+      gl.glUniform1i(eval_program.uniform("dotted_stride"), 0);
+      for (std::size_t i = 0; i < frames.size(); ++i) {
+        gl.glUniform1i(eval_program.uniform("instance_base"), static_cast<GLint>(i));
+        for (int first = 0; first < basis.points; first += block_points) {
+          const int count = std::min(block_points, basis.points - first);
+          bind_point_block(first, count, i);
+          dispatch(count, static_cast<int>(i) * basis.points + first, 0, 1);
+        }
+      }
+      bind_storage();
+    }
     gl.glMemoryBarrier(GL_VERTEX_ATTRIB_ARRAY_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
   }
 
@@ -669,7 +692,10 @@ struct LowRankRenderer::Impl {
       }
     }
     placements = std::move(next);
-    if (placements.size() != allocated_instances) allocate_instances(placements.size());
+    if (placements.size() != allocated_instances) {
+      allocate_instances(placements.size());
+      has_static = false;  // its meshes were as many as the old placements
+    }
     frame_group();
   }
 

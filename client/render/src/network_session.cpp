@@ -71,6 +71,9 @@ Subscription resolve(CommandClient& cmd, const RenderOptions& o, const std::vect
   sub.pub_endpoint = resolve_pub_endpoint(scenes.pub_endpoint(), cmd.endpoint());
   auto scene_of = scenes_of_instances(cmd);
   sub.instances = wanted_instances(cmd, o, created, scene_of, scenes);
+  // Id order: the grid's order, and the order of a scene's batches (the view
+  // is drawn when the last one's frame came).
+  std::sort(sub.instances.begin(), sub.instances.end());
   if (!scene_of.count(sub.instances.front())) scene_of = scenes_of_instances(cmd);  // made just now
   const std::string scene_name = scene_of[sub.instances.front()];
   for (const auto id : sub.instances) {

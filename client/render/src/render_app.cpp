@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <ostream>
 #include <sstream>
 #include <utility>
@@ -27,13 +28,23 @@ std::string blocks_note(const LowRankRenderer& renderer) {
   return n > 1 ? fmt::format(", bases bound in {} blocks of points (larger than one storage block)", n) : "";
 }
 
-// Per tick, one frame of each instance, while every instance has one.
+// Per frame number that every instance has, one frame of each, in the
+// first instance's order (instances made at different ticks, or with gaps,
+// stay in step).
 std::vector<std::vector<FrameState>> side_by_side(const std::vector<std::vector<FrameState>>& per_instance) {
-  std::size_t ticks = per_instance.front().size();
-  for (const auto& frames : per_instance) ticks = std::min(ticks, frames.size());
-  std::vector<std::vector<FrameState>> views(ticks);
-  for (std::size_t t = 0; t < ticks; ++t) {
-    for (const auto& frames : per_instance) views[t].push_back(frames[t]);
+  std::vector<std::map<std::uint64_t, const FrameState*>> by_frame(per_instance.size());
+  for (std::size_t i = 0; i < per_instance.size(); ++i) {
+    for (const auto& f : per_instance[i]) by_frame[i].emplace(f.frame, &f);
+  }
+  std::vector<std::vector<FrameState>> views;
+  for (const auto& f : per_instance.front()) {
+    std::vector<FrameState> view;
+    for (const auto& frames : by_frame) {
+      const auto it = frames.find(f.frame);
+      if (it == frames.end()) break;
+      view.push_back(*it->second);
+    }
+    if (view.size() == per_instance.size()) views.push_back(std::move(view));
   }
   return views;
 }

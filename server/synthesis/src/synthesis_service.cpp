@@ -137,7 +137,9 @@ v1::Reply SynthesisService::handle(const v1::Request& request, const std::string
     if (lock.owns_lock()) lock.unlock();
     // Listing 45 000 instances takes milliseconds: the tick does not wait for it.
     if (request.has_stats()) write_instances(rows, reply.mutable_stats()->mutable_instances());
-    if (request.has_list_instances()) write_instances(rows, reply.mutable_instances()->mutable_instances());
+    // With no instances the reply's result stays unset, as it always was.
+    if (request.has_list_instances() && !rows.empty())
+      write_instances(rows, reply.mutable_instances()->mutable_instances());
     if (closing) closing->close();  // record_stop's last write and fsync, while the tick goes on
     reply.set_ok(true);             // before its size is taken
     // Any large reply (a basis chunk, the stats or instance list of many
@@ -341,8 +343,7 @@ void SynthesisService::list_scenes(v1::SceneList& out) const {
   }
 }
 
-// Takes the whole reply because with no instances its result has always been
-// left unset rather than an empty list; replies stay byte-identical that way.
+// Rows only: handle() writes them into the reply after the lock is released.
 void SynthesisService::list_instances(std::vector<InstanceRow>& rows) const {
   rows.reserve(engine_.instances().size());
   for (const auto& [id, inst] : engine_.instances()) rows.push_back(instance_row(id));

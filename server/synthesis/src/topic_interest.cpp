@@ -23,9 +23,11 @@ void TopicInterest::set(std::set<std::string> prefixes) {
   }
 }
 
+// Each prefix of the topic looked up (topics are short), so many subscribed
+// prefixes cost no more than a few.
 bool TopicInterest::matches(std::string_view topic) const {
-  for (const auto& p : prefixes_) {
-    if (topic.starts_with(p)) return true;
+  for (std::size_t n = 0; n <= topic.size(); ++n) {
+    if (prefixes_.contains(std::string(topic.substr(0, n)))) return true;
   }
   return false;
 }
