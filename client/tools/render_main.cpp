@@ -49,6 +49,11 @@ int main(int argc, char** argv) {
   app.add_option("--instances", instances,
                  "several instances of one scene in one view, on a grid: a list (1,2,3), or all (every "
                  "instance of the first scene); network, or --replay with a list");
+  std::string layout;
+  app.add_option(
+      "--layout", layout,
+      "JSON file placing the instances in view: {\"placements\": [{\"translate\": [x, y, z], "
+      "\"rotate_y_deg\": a}, ...]}, one entry per instance in id (or copy) order (default: a grid)");
   app.add_option("--create", o.create, "create a new instance of this scene and follow it (--count of them)");
   app.add_option("--count", o.count,
                  "with --create: make this many instances and draw them in one view; local mode: draw this "
@@ -102,6 +107,7 @@ int main(int argc, char** argv) {
     o.height = wh[1];
     o.backdrop = phasecast::client::parse_on_off(backdrop, "--backdrop");
     if (*instance_opt) o.instance = instance;
+    if (!layout.empty()) o.layout = layout;
     if (instances == "all") {
       o.all_instances = true;
     } else if (!instances.empty()) {

@@ -16,6 +16,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cstdio>
+
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -204,6 +207,52 @@ TEST_F(RenderCli, CountDrawsCopiesOfTheIrfSideBySide) {
       }
     }
   }
+}
+
+// --layout places each copy where the file says: moved, and turned about y.
+TEST_F(RenderCli, LayoutPlacesEachInstanceWhereTheFileSays) {
+  const auto layout = path("layout.json");
+  std::ofstream(layout) << R"({"placements": [{"translate": [3, 0, 0]},
+                                              {"translate": [-1, 0, 0.5], "rotate_y_deg": 90}]})";
+  const auto file = path("placed.csv");
+  const auto r = testing::run_tool(
+      "phasecast-render", {"--package", path("plate.h5"), "--play-irf", "2", "--count", "2", "--layout",
+                           layout, "--size", "64x64", "--dump-vertices", "0", file});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream in(file);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::array<double, 3>> rows;
+  while (std::getline(in, line)) {
+    std::array<double, 3> p{};
+    std::sscanf(line.c_str(), "%lf,%lf,%lf", &p[0], &p[1], &p[2]);
+    rows.push_back(p);
+  }
+  ASSERT_EQ(rows.size(), 2u * 85);
+  const auto frames = portrait_frames(package_, 2);
+  const auto basis = basis_from_package(package_, 0);
+  const auto first = cpu_positions(basis, frames[0].q_u, frames[0].support);
+  const auto second = cpu_positions(basis, frames[frames.size() / 2].q_u, frames[frames.size() / 2].support);
+  for (std::size_t v = 0; v < 85; ++v) {
+    EXPECT_NEAR(rows[v][0], first[3 * v] + 3, 1e-5) << v;
+    EXPECT_NEAR(rows[v][2], first[3 * v + 2], 1e-5) << v;
+    // A quarter turn about y: (x, y, z) -> (z, y, -x).
+    EXPECT_NEAR(rows[85 + v][0], second[3 * v + 2] - 1, 1e-5) << v;
+    EXPECT_NEAR(rows[85 + v][1], second[3 * v + 1], 1e-5) << v;
+    EXPECT_NEAR(rows[85 + v][2], -second[3 * v] + 0.5, 1e-5) << v;
+  }
+  std::ofstream(path("short.json")) << R"({"placements": [{}]})";
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--count", "2", "--layout", path("short.json")}),
+            "phasecast-render: --layout " + path("short.json") +
+                ": places 1 instances, 2 are drawn (expected an entry for each)\n");
+  std::ofstream(path("typo.json")) << R"({"placements": [{"translat": [1, 2, 3]}]})";
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--layout", path("typo.json")}),
+            "phasecast-render: --layout " + path("typo.json") +
+                ": placements[0] has an unknown key 'translat' (expected translate, rotate_y_deg)\n");
+  std::ofstream(path("nan.json")) << R"({"placements": [{"translate": [1, "x", 3]}]})";
+  EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--layout", path("nan.json")}),
+            "phasecast-render: --layout " + path("nan.json") +
+                ": placements[0].translate[1] is not a finite number\n");
 }
 
 TEST_F(RenderCli, BadInputsGiveOneLineErrors) {

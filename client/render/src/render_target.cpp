@@ -45,7 +45,8 @@ void RenderTarget::make_renderer(const ClientBasis& basis, const RenderOptions& 
 
 void RenderTarget::set_instances(int count, const RenderOptions& o) {
   instances_ = count;
-  const auto placements = grid_placements(rest_, count);
+  const auto placements =
+      o.layout ? layout_placements(layout_, *o.layout, count) : grid_placements(rest_, count);
   renderer->set_placements(placements);
   renderer->set_camera(camera_for(group_camera(view_, rest_, placements), o));
 }

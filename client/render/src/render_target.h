@@ -5,6 +5,7 @@
 
 #include "phasecast/client/client_basis.h"
 #include "phasecast/client/frame_output.h"
+#include "phasecast/client/layout.h"
 #include "phasecast/client/low_rank_renderer.h"
 #include "phasecast/client/render_app.h"
 #include "phasecast/client/render_backend.h"
@@ -37,6 +38,7 @@ struct RenderTarget {
   RenderTarget(const ClientBasis& basis, const RenderOptions& o, const ShLight& light, double frame_rate,
                int instances = 1)
       : instances_(instances) {
+    if (o.layout) layout_ = read_layout(*o.layout);
     backend = make_render_backend(o.backend, o.width, o.height);
     make_renderer(basis, o, light);
     OutputOptions out;
@@ -65,8 +67,9 @@ struct RenderTarget {
   void make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light);
 
   int instances_ = 1;
-  Camera view_;               // the scene's own camera
-  Eigen::AlignedBox3f rest_;  // of x_bar: the grid's spacing
+  std::vector<Eigen::Matrix4f> layout_;  // --layout's placements; empty: the default grid
+  Camera view_;                          // the scene's own camera
+  Eigen::AlignedBox3f rest_;             // of x_bar: the grid's spacing
 };
 
 // "phasecast-render: N frames at WxH: ... frames/s render-only, ... end-to-end".
