@@ -13,11 +13,20 @@ layout(local_size_x = 64) in;
 
 layout(std430, binding = PHASECAST_BINDING_MEAN_TRANSFER) readonly buffer MeanTransfer { vec4 M_bar[]; };  // [S][3][4]: k in vec4s
 layout(std430, binding = PHASECAST_BINDING_TRANSFER_BASIS) readonly buffer TransferBasis { vec4 U_a[]; };  // [48S][r_a4]
+// The same buffer with --half: each vec4 as four 16-bit floats in two uints.
+layout(std430, binding = PHASECAST_BINDING_TRANSFER_BASIS) readonly buffer TransferBasisHalf { uvec2 U_a_half[]; };
 layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };     // bit 1 attached
 layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [instance][S]: xyz = M_bar_c . L_c
 layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [instance][S][3][r_a4]: (U_a . L)_j
 
 uniform int r_a4;
+uniform bool half_bases;  // U_a holds 16-bit floats (--half)
+
+vec4 U_a_at(uint i) {
+  if (!half_bases) return U_a[i];
+  uvec2 h = U_a_half[i];
+  return vec4(unpackHalf2x16(h.x), unpackHalf2x16(h.y));
+}
 uniform vec4 light[24];  // the instance's, as in low_rank.vert: its frame at 0, its support frame at 12
 uniform int points;      // points to dot: S, or the block's (low_rank.vert, "point blocks")
 uniform int out_base;    // where the instance's dotted values start (each instance sees the light its own way)
@@ -37,8 +46,8 @@ void main() {
       for (int kb = 0; kb < 4; ++kb) {
         vec4 L = light[base + 4 * c + kb];
         uint row = 48u * v + uint(16 * c + 4 * kb);
-        acc += U_a[row * n + b] * L.x + U_a[(row + 1u) * n + b] * L.y + U_a[(row + 2u) * n + b] * L.z +
-               U_a[(row + 3u) * n + b] * L.w;
+        acc += U_a_at(row * n + b) * L.x + U_a_at((row + 1u) * n + b) * L.y + U_a_at((row + 2u) * n + b) * L.z +
+               U_a_at((row + 3u) * n + b) * L.w;
       }
       U_dot[(3u * out_v + uint(c)) * n + b] = acc;
     }

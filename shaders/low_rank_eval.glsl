@@ -9,6 +9,8 @@
 
 layout(std430, binding = PHASECAST_BINDING_MEAN_SHAPE) readonly buffer MeanShape { float x_bar[]; };         // 3S (eq. 7)
 layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer DisplacementBasis { vec4 U_u[]; };   // [3S][r_u4]
+// The same buffer with --half: each vec4 as four 16-bit floats in two uints.
+layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer DisplacementBasisHalf { uvec2 U_u_half[]; };
 layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };         // bit 0 deformable, 1 attached
 layout(std430, binding = PHASECAST_BINDING_REST_NORMALS) readonly buffer RestNormals { float normals[]; };     // 3S
 layout(std430, binding = PHASECAST_BINDING_REDUCED) readonly buffer Reduced { vec4 q[]; };                // [instance]: q_u (r_u4) then q_a (r_a4)
@@ -35,6 +37,13 @@ uniform int first_point;    // gl_VertexID of the bound buffers' first point
 uniform int instance_base;  // added to gl_InstanceID
 uniform int dotted_stride;  // points per instance in the bound MeanDotted, BasisDotted
 uniform bool has_transfer;  // false: the scene has no appearance model (§4)
+uniform bool half_bases;    // U_u holds 16-bit floats (--half)
+
+vec4 U_u_at(uint i) {
+  if (!half_bases) return U_u[i];
+  uvec2 h = U_u_half[i];
+  return vec4(unpackHalf2x16(h.x), unpackHalf2x16(h.y));
+}
 
 // Eq. 7: x = x_bar + U_u q_u for deformable points.
 // v: the point's index in the bound per-point buffers.
@@ -45,7 +54,7 @@ vec3 displaced_position(uint v, bool deformable, uint q0) {
     uint n = uint(r_u4);
     for (uint b = 0u; b < n; ++b) {
       vec4 qb = q[q0 + b];
-      x += vec3(dot(U_u[row * n + b], qb), dot(U_u[(row + 1u) * n + b], qb), dot(U_u[(row + 2u) * n + b], qb));
+      x += vec3(dot(U_u_at(row * n + b), qb), dot(U_u_at((row + 1u) * n + b), qb), dot(U_u_at((row + 2u) * n + b), qb));
     }
   }
   return x;

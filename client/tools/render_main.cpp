@@ -81,6 +81,10 @@ int main(int argc, char** argv) {
                  "on|off: a ground plane at the scene's lowest point, fading into a dark grey background "
                  "(default on); off: the scene alone on a near-black background. The scene's own "
                  "evaluation (--dump-vertices) is the same either way");
+  app.add_flag(
+      "--half", o.half,
+      "upload U_u and U_a as 16-bit floats: half their bytes on the GPU, about 5e-4 of the displacement "
+      "in error (docs/performance-client.md)");
   app.add_option("--exposure", o.exposure, "multiplies the exit radiance before display (default 1)");
   app.add_option("--dump-vertices", dump,
                  "FRAME PATH: write the GPU-computed positions and radiance of that frame "

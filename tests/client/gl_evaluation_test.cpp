@@ -447,6 +447,45 @@ TEST(GlEvaluation, BasesLargerThanOneStorageBlockAreDrawnInBlocks) {
   EXPECT_EQ(max_channel_difference(whole.render(frames), blocks.render(frames)), 0);
 }
 
+// --half stores U_u and U_a as 16-bit floats: the points move and shine as
+// with 32-bit bases up to half precision's relative error (2^-11) on the
+// displacement and the transfer, and the GPU holds fewer bytes per point.
+TEST(GlEvaluation, HalfBasesAddOnlyHalfPrecisionsError) {
+  const auto package = testing::make_plate_package();
+  const auto basis = basis_from_package(package, 1);
+  auto backend = make_render_backend("osmesa", 64, 64);
+  LowRankRenderer full(*backend, basis, 64, 64);
+  LowRankRenderer half(*backend, basis, 64, 64, BasisPrecision::float16);
+  EXPECT_LT(half.gpu_bytes_per_point(), full.gpu_bytes_per_point());
+  const auto r_u4 = static_cast<std::size_t>((basis.rank_u + 3) / 4),
+             r_a4 = static_cast<std::size_t>((basis.rank_a + 3) / 4);
+  EXPECT_EQ(full.gpu_bytes_per_point() - half.gpu_bytes_per_point(), 24 * r_u4 + 384 * r_a4);
+  double worst_position = 0, worst_radiance = 0;
+  for (int irf : {0, 3}) {
+    for (const auto& f : portrait_frames(package, irf)) {
+      if (f.frame % 10 != 5) continue;
+      const VertexDump a = full.evaluate(f), b = half.evaluate(f);
+      const FrameState rest{f.frame, std::vector<float>(f.q_u.size()), f.q_a, f.support};
+      const VertexDump undeformed = full.evaluate(rest);
+      double displacement = 1e-9, brightest = 1e-9;
+      for (std::size_t k = 0; k < a.positions.size(); ++k) {
+        displacement = std::max(displacement, double(std::abs(a.positions[k] - undeformed.positions[k])));
+        brightest = std::max(brightest, double(std::abs(a.radiance[k])));
+      }
+      for (std::size_t k = 0; k < a.positions.size(); ++k) {
+        worst_position = std::max(worst_position, std::abs(a.positions[k] - b.positions[k]) / displacement);
+        worst_radiance = std::max(worst_radiance, std::abs(a.radiance[k] - b.radiance[k]) / brightest);
+      }
+    }
+  }
+  ::testing::Test::RecordProperty("half_relative_position_error", std::to_string(worst_position));
+  ::testing::Test::RecordProperty("half_relative_radiance_error", std::to_string(worst_radiance));
+  EXPECT_GT(worst_position, 0) << "the 16-bit bases are in use";
+  EXPECT_LT(worst_position, 4e-3) << "of the largest displacement";
+  EXPECT_GT(worst_radiance, 0);
+  EXPECT_LT(worst_radiance, 4e-3) << "of the brightest radiance";
+}
+
 TEST(GlEvaluation, StaticMeshDrawsTheSameImage) {
   const auto package = testing::make_plate_package();
   const auto basis = basis_from_package(package, 1);

@@ -60,6 +60,14 @@ std::vector<float> pad_columns(const std::vector<float>& m, int cols) {
   return out;
 }
 
+// IEEE binary16 values of a float matrix (--half); the shaders read them in
+// pairs with unpackHalf2x16.
+std::vector<std::uint16_t> to_half(const std::vector<float>& m) {
+  std::vector<std::uint16_t> out(m.size());
+  for (std::size_t i = 0; i < m.size(); ++i) out[i] = Eigen::half(m[i]).x;
+  return out;
+}
+
 // Bit 0: deformable, bit 1: attached (shaders/low_rank.vert).
 std::vector<std::uint32_t> point_flags(const ClientBasis& basis) {
   std::vector<std::uint32_t> flags(static_cast<std::size_t>(basis.points));
@@ -181,9 +189,15 @@ struct LowRankRenderer::Impl {
   int block_points = 0;
   int stride_points = 0;  // S rounded up to kBlockAlign: an instance's share of the dotted buffers
   bool split = false;
+  bool half = false;  // U_u and U_a as 16-bit floats (--half)
 
-  Impl(RenderBackend& b, const ClientBasis& bases, int w, int h)
-      : backend(b), gl(detail::load_gl_functions(b)), basis(bases), width(w), height(h) {
+  Impl(RenderBackend& b, const ClientBasis& bases, int w, int h, BasisPrecision precision)
+      : backend(b),
+        gl(detail::load_gl_functions(b)),
+        basis(bases),
+        width(w),
+        height(h),
+        half(precision == BasisPrecision::float16) {
     basis.validate("renderer");
     radius = scene_radius(basis);
     view_radius = radius;
@@ -269,9 +283,14 @@ struct LowRankRenderer::Impl {
     block_limit = storage_block_limit(gl);
     stride_points = round_up(basis.points, kBlockAlign);
     upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
-    upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
+    if (half) {
+      upload_storage(kDisplacementBasis, to_half(pad_columns(basis.U_u, basis.rank_u)), "U_u");
+      upload_storage(kTransferBasis, to_half(pad_columns(basis.U_a, basis.rank_a)), "U_a");
+    } else {
+      upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
+      upload_storage(kTransferBasis, pad_columns(basis.U_a, basis.rank_a), "U_a");
+    }
     upload_storage(kMeanTransfer, basis.mean_transfer, "mean_transfer");
-    upload_storage(kTransferBasis, pad_columns(basis.U_a, basis.rank_a), "U_a");
     upload_storage(kPointFlags, point_flags(basis), "flags");
     upload_storage(kRestNormals, basis.normals, "normals");
     allocate_instances(placements.size());
@@ -361,9 +380,10 @@ struct LowRankRenderer::Impl {
   std::array<std::size_t, kBindingCount> bytes_per_point() const {
     std::array<std::size_t, kBindingCount> b{};
     b[kMeanShape] = 12;
-    b[kDisplacementBasis] = 48 * static_cast<std::size_t>(r_u4);
+    const std::size_t scalar = half ? 2 : 4;  // bytes per basis value
+    b[kDisplacementBasis] = 12 * scalar * static_cast<std::size_t>(r_u4);
     b[kMeanTransfer] = has_transfer ? 192 : 0;
-    b[kTransferBasis] = has_transfer ? 768 * static_cast<std::size_t>(r_a4) : 0;
+    b[kTransferBasis] = has_transfer ? 192 * scalar * static_cast<std::size_t>(r_a4) : 0;
     b[kPointFlags] = 4;
     b[kRestNormals] = 12;
     b[kMeanDotted] = 16;
@@ -448,6 +468,7 @@ struct LowRankRenderer::Impl {
     gl.glUniform1i(p.uniform("instance_base"), 0);
     gl.glUniform1i(p.uniform("dotted_stride"), stride_points);
     gl.glUniform1i(p.uniform("has_transfer"), has_transfer ? 1 : 0);
+    gl.glUniform1i(p.uniform("half_bases"), half ? 1 : 0);
     gl.glUniform1i(p.uniform("points"), basis.points);
   }
 
@@ -486,6 +507,7 @@ struct LowRankRenderer::Impl {
     if (dotted && *dotted == lights) return;
     dot_program.use();
     gl.glUniform1i(dot_program.uniform("r_a4"), r_a4);
+    gl.glUniform1i(dot_program.uniform("half_bases"), half ? 1 : 0);
     gl.glUniform4fv(dot_program.uniform("light"), 24, lights.data());
     auto dispatch = [&](int count, int out_base) {
       gl.glUniform1i(dot_program.uniform("points"), count);
@@ -743,8 +765,9 @@ struct LowRankRenderer::Impl {
   }
 };
 
-LowRankRenderer::LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height)
-    : impl_(std::make_unique<Impl>(backend, basis, width, height)) {}
+LowRankRenderer::LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height,
+                                 BasisPrecision precision)
+    : impl_(std::make_unique<Impl>(backend, basis, width, height, precision)) {}
 LowRankRenderer::~LowRankRenderer() = default;
 
 void LowRankRenderer::set_light(const ShLight& world_light) {
@@ -799,6 +822,16 @@ void LowRankRenderer::set_static_mesh(const VertexDump& vertices) {
 }
 void LowRankRenderer::draw_static() {
   impl_->draw_static();
+}
+std::size_t LowRankRenderer::gpu_bytes_per_point() const {
+  const auto& i = *impl_;
+  const auto bpp = i.bytes_per_point();
+  std::size_t bytes = 0;
+  for (std::size_t b = 0; b < bpp.size(); ++b) {
+    const bool dotted = b == kMeanDotted || b == kBasisDotted;
+    bytes += bpp[b] * (dotted ? i.allocated_instances : 1);
+  }
+  return bytes;
 }
 int LowRankRenderer::point_blocks() const {
   const auto& i = *impl_;

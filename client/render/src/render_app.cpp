@@ -22,10 +22,13 @@
 namespace phasecast::client {
 namespace {
 
-// ", bases bound in 3 blocks of points" when they exceed one storage block.
-std::string blocks_note(const LowRankRenderer& renderer) {
+// What the GPU holds: ", 312 bytes per point on the GPU (16-bit bases), bases
+// bound in 3 blocks of points" (the blocks only when they exceed one storage block).
+std::string gpu_note(const LowRankRenderer& renderer, bool half) {
   const int n = renderer.point_blocks();
-  return n > 1 ? fmt::format(", bases bound in {} blocks of points (larger than one storage block)", n) : "";
+  return fmt::format(
+      ", {} bytes per point on the GPU{}{}", renderer.gpu_bytes_per_point(), half ? " (16-bit bases)" : "",
+      n > 1 ? fmt::format(", bases bound in {} blocks of points (larger than one storage block)", n) : "");
 }
 
 // Per frame number that every instance has, one frame of each, in the
@@ -170,7 +173,7 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log,
   fmt::print(log, "phasecast-render: {} ({}), scene '{}', {} points, r_u = {}, r_a = {}, {} frames{}{}\n",
              target.renderer->gl_description(), o.backend, basis.scene, basis.points, basis.rank_u,
              basis.rank_a, views.size(), instances > 1 ? fmt::format(", {} instances", instances) : "",
-             blocks_note(*target.renderer));
+             gpu_note(*target.renderer, o.half));
   for (const auto& view : views) {
     if (interrupted || !target.backend->open()) break;
     target.output->render(view);

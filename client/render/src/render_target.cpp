@@ -34,7 +34,8 @@ Camera camera_for(const Camera& view, const RenderOptions& o) {
 }
 
 void RenderTarget::make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
-  renderer = std::make_unique<LowRankRenderer>(*backend, basis, o.width, o.height);
+  renderer = std::make_unique<LowRankRenderer>(*backend, basis, o.width, o.height,
+                                               o.half ? BasisPrecision::float16 : BasisPrecision::float32);
   renderer->set_light(light);
   view_ = scene_camera(basis);
   rest_ = rest_bounds(basis);

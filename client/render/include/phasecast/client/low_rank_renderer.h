@@ -59,10 +59,16 @@ inline constexpr std::array<float, 3> kPlainBackground{0.02f, 0.02f, 0.025f};
 inline constexpr std::array<float, 3> kBackdropBackground{0.11f, 0.12f, 0.14f};
 inline constexpr std::array<double, 3> kGroundAlbedo{0.3, 0.3, 0.3};
 
+// How U_u and U_a are stored on the GPU: 32-bit floats, or 16-bit ones
+// (--half: half the bytes per point, the error measured in
+// docs/performance-client.md); everything else stays 32-bit.
+enum class BasisPrecision { float32, float16 };
+
 class LowRankRenderer {
  public:
   // The backend's context must stay current and alive while the renderer lives.
-  LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height);
+  LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height,
+                  BasisPrecision precision = BasisPrecision::float32);
   ~LowRankRenderer();
   LowRankRenderer(const LowRankRenderer&) = delete;
   LowRankRenderer& operator=(const LowRankRenderer&) = delete;
@@ -106,6 +112,9 @@ class LowRankRenderer {
   // block may span, GL_MAX_SHADER_STORAGE_BLOCK_SIZE or the lower
   // PHASECAST_MAX_STORAGE_BLOCK_BYTES from the environment.
   int point_blocks() const;
+  // Bytes the GPU holds per scene point: the bases, the rest shape and
+  // normals, and each instance's light-dotted transfer.
+  std::size_t gpu_bytes_per_point() const;
   // Waits until the GPU finished (timing).
   void finish();
   Image read_pixels();

@@ -27,6 +27,7 @@ struct RenderOptions {
   std::string create;  // network: create an instance of this scene (--count of them)
   int count = 1;       // --create: instances made; local mode: copies of the IRF, each further on
   std::optional<std::filesystem::path> layout;  // where several instances stand (layout.h); default: a grid
+  bool half = false;                            // U_u and U_a as 16-bit floats on the GPU (--half)
   std::optional<std::filesystem::path> replay;  // recording file
   std::optional<std::filesystem::path> package;
   std::optional<int> play_irf;  // local mode: IRF to play (default 0)
