@@ -18,12 +18,17 @@ import sys
 import tomllib
 
 
-def main(scene_file):
+def load(path, what):
+    """The TOML file at `path`, or one line naming it and exit status 1."""
     try:
-        with open(scene_file, "rb") as f:
-            scene = tomllib.load(f)
+        with open(path, "rb") as f:
+            return tomllib.load(f)
     except (OSError, tomllib.TOMLDecodeError) as e:
-        sys.exit(f"{scene_file}: cannot read the scene file ({e})")
+        sys.exit(f"{path}: cannot read the {what} file ({e})")
+
+
+def main(scene_file):
+    scene = load(scene_file, "scene")
     demo = scene.get("demo")
     if not isinstance(demo, dict) or not isinstance(demo.get("script"), str):
         sys.exit(f"{scene_file}: [demo] script: expected the example Lua script to play "
@@ -60,11 +65,7 @@ def make_blend(scene_file):
 
 
 def field(field_file):
-    try:
-        with open(field_file, "rb") as f:
-            spec = tomllib.load(f)
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        sys.exit(f"{field_file}: cannot read the field file ({e})")
+    spec = load(field_file, "field")
     section = spec.get("field")
     if not isinstance(section, dict) or not isinstance(section.get("scene"), str):
         sys.exit(f"{field_file}: [field] scene: expected the name of the scene its instances play")
