@@ -255,6 +255,20 @@ TEST_F(RenderCli, LayoutPlacesEachInstanceWhereTheFileSays) {
                 ": placements[0].translate[1] is not a finite number\n");
 }
 
+// The window's pacing: frame k shown at start + k period; a renderer that
+// fell behind by more than a period starts again from then, not rushing.
+TEST(FramePacer, ShowsFramesAtTheStreamsRateAndDoesNotRushAfterAStall) {
+  using namespace std::chrono_literals;
+  FramePacer pacer(0.02);
+  const FramePacer::Clock::time_point t0{};
+  EXPECT_EQ(pacer.wait(t0), 0ms) << "the first frame at once";
+  EXPECT_EQ(pacer.wait(t0 + 5ms), 15ms) << "the second 20 ms after the first";
+  EXPECT_EQ(pacer.wait(t0 + 21ms), 19ms) << "the third at 40 ms";
+  EXPECT_EQ(pacer.wait(t0 + 45ms), 15ms) << "due at 60 ms";
+  EXPECT_EQ(pacer.wait(t0 + 200ms), 0ms) << "late by more than a period: shown now";
+  EXPECT_EQ(pacer.wait(t0 + 201ms), 19ms) << "and paced from there, not caught up in a burst";
+}
+
 TEST_F(RenderCli, BadInputsGiveOneLineErrors) {
   EXPECT_EQ(one_line_error({"--package", path("plate.h5"), "--backend", "vulkan"}),
             "phasecast-render: render backend 'vulkan' is unknown (expected one of osmesa, egl, window)\n");

@@ -35,6 +35,14 @@ std::filesystem::path find_ffmpeg() {
   return {};
 }
 
+FramePacer::Clock::duration FramePacer::wait(Clock::time_point now) {
+  const auto period = std::chrono::duration_cast<Clock::duration>(period_);
+  if (!next_ || now - *next_ > period) next_ = now;  // the first frame, or fallen behind: from now
+  const auto due = *next_;
+  *next_ += period;
+  return due > now ? due - now : Clock::duration::zero();
+}
+
 FrameOutput::FrameOutput(LowRankRenderer& renderer, int width, int height, OutputOptions options)
     : renderer_(&renderer), width_(width), height_(height), options_(std::move(options)) {
   if (options_.dump_frame) check_vertex_dump_path(options_.dump_path);

@@ -17,6 +17,7 @@
 #include <map>
 #include <ostream>
 #include <sstream>
+#include <thread>
 #include <utility>
 
 namespace phasecast::client {
@@ -174,8 +175,11 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log,
              target.renderer->gl_description(), o.backend, basis.scene, basis.points, basis.rank_u,
              basis.rank_a, views.size(), instances > 1 ? fmt::format(", {} instances", instances) : "",
              gpu_note(*target.renderer, o.half));
+  // On a screen the frames play at the scene's rate; files take them as fast as they come.
+  FramePacer pacer(package.attributes.dt);
   for (const auto& view : views) {
     if (interrupted || !target.backend->open()) break;
+    if (target.backend->shows_frames()) std::this_thread::sleep_for(pacer.wait(FramePacer::Clock::now()));
     target.output->render(view);
     report_progress(log, target.output->stats(), view.front().frame, views.size());
   }

@@ -32,6 +32,22 @@ struct RenderStats {
   double end_to_end_fps() const { return wall_seconds > 0 ? double(frames) / wall_seconds : 0; }
 };
 
+// Shows frames at the stream's own rate on a screen (window backend, local
+// and replay modes, which have every frame at once): frame k is due at
+// start + k period. A renderer that falls behind by more than a period
+// starts again from now rather than rushing to catch up.
+class FramePacer {
+ public:
+  using Clock = std::chrono::steady_clock;
+  explicit FramePacer(double period_s) : period_(std::chrono::duration<double>(period_s)) {}
+  // How long to wait before showing the next frame, seen at `now`.
+  Clock::duration wait(Clock::time_point now);
+
+ private:
+  std::chrono::duration<double> period_;
+  std::optional<Clock::time_point> next_;
+};
+
 // Path of ffmpeg on PATH, or empty.
 std::filesystem::path find_ffmpeg();
 
