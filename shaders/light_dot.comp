@@ -20,12 +20,14 @@ layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) writeonly buffer MeanDot
 layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [instance][S][3][r_a4]: (U_a . L)_j
 
 uniform int r_a4;
-uniform bool half_bases;  // U_a holds 16-bit floats (--half)
 
 vec4 U_a_at(uint i) {
-  if (!half_bases) return U_a[i];
+#ifdef PHASECAST_HALF_BASES  // --half: defined by low_rank_renderer.cpp, one program per precision
   uvec2 h = U_a_half[i];
   return vec4(unpackHalf2x16(h.x), unpackHalf2x16(h.y));
+#else
+  return U_a[i];
+#endif
 }
 uniform vec4 light[24];  // the instance's, as in low_rank.vert: its frame at 0, its support frame at 12
 uniform int points;      // points to dot: S, or the block's (low_rank.vert, "point blocks")

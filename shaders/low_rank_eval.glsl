@@ -37,12 +37,14 @@ uniform int first_point;    // gl_VertexID of the bound buffers' first point
 uniform int instance_base;  // added to gl_InstanceID
 uniform int dotted_stride;  // points per instance in the bound MeanDotted, BasisDotted
 uniform bool has_transfer;  // false: the scene has no appearance model (§4)
-uniform bool half_bases;    // U_u holds 16-bit floats (--half)
 
 vec4 U_u_at(uint i) {
-  if (!half_bases) return U_u[i];
+#ifdef PHASECAST_HALF_BASES  // --half: defined by low_rank_renderer.cpp, one program per precision
   uvec2 h = U_u_half[i];
   return vec4(unpackHalf2x16(h.x), unpackHalf2x16(h.y));
+#else
+  return U_u[i];
+#endif
 }
 
 // Eq. 7: x = x_bar + U_u q_u for deformable points.

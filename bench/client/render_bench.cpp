@@ -122,6 +122,26 @@ void BM_Render(benchmark::State& state) {
                  (rotating && !static_mesh ? ", support rotating" : "") + " | " + backend_name());
 }
 
+// The timed loop of the instance and large-plate benchmarks: frames_at(t)
+// drawn low-rank, or frames_at(0) drawn as static meshes every iteration,
+// waited for each time; then the frames/s counter.
+template <class Frames>
+void draw_frames(benchmark::State& state, LowRankRenderer& renderer, bool static_mesh,
+                 const Frames& frames_at) {
+  if (static_mesh) renderer.set_static_mesh(renderer.evaluate(frames_at(0)));
+  int t = 0;
+  for (auto _ : state) {
+    if (static_mesh) {
+      renderer.draw_static();
+    } else {
+      renderer.draw(frames_at(t++));
+    }
+    renderer.finish();
+  }
+  state.counters["fps"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
 // Many instances of the demo cloth's size (58^2 = 3.4k points, 12+7) in one
 // view on the default grid, each at its own point of the motion: one
 // instanced draw of low-rank evaluation against the same instances drawn as
@@ -143,18 +163,7 @@ void BM_Instances(benchmark::State& state) {
     for (int i = 0; i < count; ++i) frames.push_back(frame(t + 7 * i, r_u, r_a, rotating));
     return frames;
   };
-  if (static_mesh) renderer.set_static_mesh(renderer.evaluate(frames_at(0)));
-  int t = 0;
-  for (auto _ : state) {
-    if (static_mesh) {
-      renderer.draw_static();
-    } else {
-      renderer.draw(frames_at(t++));
-    }
-    renderer.finish();
-  }
-  state.counters["fps"] =
-      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  draw_frames(state, renderer, static_mesh, frames_at);
   state.counters["points"] = static_cast<double>(count) * basis.points;
   state.SetLabel(
       std::string(static_mesh ? "static meshes" : "low-rank 12+7, one instanced draw, default path") +
@@ -175,18 +184,7 @@ void BM_LargePlate(benchmark::State& state) {
   auto backend = make_render_backend(backend_name(), 1920, 1080);
   LowRankRenderer renderer(*backend, basis, 1920, 1080);
   auto frame_at = [](int t) { return frame(t, 30, 0, false); };
-  if (static_mesh) renderer.set_static_mesh(renderer.evaluate(frame_at(0)));
-  int t = 0;
-  for (auto _ : state) {
-    if (static_mesh) {
-      renderer.draw_static();
-    } else {
-      renderer.draw(frame_at(t++));
-    }
-    renderer.finish();
-  }
-  state.counters["fps"] =
-      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  draw_frames(state, renderer, static_mesh, frame_at);
   state.counters["blocks"] = renderer.point_blocks();
   state.SetLabel(std::string(static_mesh ? "static mesh" : "low-rank r_u = 30, default path") + " | " +
                  backend_name());

@@ -162,6 +162,13 @@ struct LowRankRenderer::Impl {
   GlProgram program, static_program, dot_program, eval_program;
   // Per instance: the lights its dotted form was made with.
   std::vector<std::optional<std::array<float, 96>>> dotted_lights;
+  // Per instance: the rotations its lights were last turned by, and those lights
+  // (rotating SH coefficients costs more than a frame's upload; supports are often still).
+  struct TurnedLights {
+    Eigen::Matrix3f placement, support;
+    std::array<float, 96> lights;
+  };
+  std::vector<std::optional<TurnedLights>> turned_lights;
   std::uint64_t light_dot_passes = 0;
   VertexArray vao, static_vao, evaluated_vao;
   Evaluation evaluation = Evaluation::per_point_pass;  // as asked for; path() is what runs
@@ -203,10 +210,13 @@ struct LowRankRenderer::Impl {
     view_radius = radius;
     camera = scene_camera(basis);
     light = light_probe("grace");
-    program = detail::link_vertex_program(gl, shaders::low_rank_vert, "low_rank.vert", true);
+    program =
+        detail::link_vertex_program(gl, precision_defined(shaders::low_rank_vert), "low_rank.vert", true);
     static_program = detail::link_vertex_program(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
-    dot_program = detail::link_compute_program(gl, shaders::light_dot_comp, "light_dot.comp");
-    eval_program = detail::link_compute_program(gl, shaders::low_rank_comp, "low_rank.comp");
+    dot_program =
+        detail::link_compute_program(gl, precision_defined(shaders::light_dot_comp), "light_dot.comp");
+    eval_program =
+        detail::link_compute_program(gl, precision_defined(shaders::low_rank_comp), "low_rank.comp");
     evaluation = default_evaluation();
     upload_bases();
     create_framebuffer();
@@ -220,6 +230,15 @@ struct LowRankRenderer::Impl {
     const std::size_t output = 24 * allocated_instances * static_cast<std::size_t>(basis.points);
     return evaluation == Evaluation::compute_pass && output <= block_limit ? Evaluation::compute_pass
                                                                            : Evaluation::per_point_pass;
+  }
+
+  // A shader reading the bases, with PHASECAST_HALF_BASES defined after its
+  // #version line for --half: the precision is fixed per renderer, so no
+  // branch runs per basis value.
+  std::string precision_defined(std::string_view source) const {
+    std::string out(source);
+    if (half) out.insert(out.find('\n') + 1, "#define PHASECAST_HALF_BASES\n");
+    return out;
   }
 
   // The fastest measured path for the backend (docs/performance-client.md).
@@ -308,6 +327,7 @@ struct LowRankRenderer::Impl {
                    "U_a.L");
     upload_storage(kInstances, std::vector<float>(n * kInstanceFloats), "instances");
     dotted_lights.assign(n, std::nullopt);
+    turned_lights.assign(n, std::nullopt);
     allocated_instances = n;
     if (feedback_buffer) create_feedback_buffer();
   }
@@ -446,7 +466,7 @@ struct LowRankRenderer::Impl {
     for (std::size_t i = 0; i < frames.size(); ++i) {
       const Eigen::Matrix4f& placement = placements[i];
       const Eigen::Matrix4f support = placement * support_matrix(frames[i]);
-      const auto lights = instance_lights(placement, support);
+      const auto& lights = lights_of(i, placement, support);
       float* out = &instances[i * kInstanceFloats];
       std::copy_n(placement.data(), 16, out);
       std::copy_n(support.data(), 16, out + 16);
@@ -468,7 +488,6 @@ struct LowRankRenderer::Impl {
     gl.glUniform1i(p.uniform("instance_base"), 0);
     gl.glUniform1i(p.uniform("dotted_stride"), stride_points);
     gl.glUniform1i(p.uniform("has_transfer"), has_transfer ? 1 : 0);
-    gl.glUniform1i(p.uniform("half_bases"), half ? 1 : 0);
     gl.glUniform1i(p.uniform("points"), basis.points);
   }
 
@@ -484,6 +503,16 @@ struct LowRankRenderer::Impl {
     }
     gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kReduced].get());
     if (!q.empty()) gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(q), q.data());
+  }
+
+  // instance_lights, again only when the instance's rotations changed.
+  const std::array<float, 96>& lights_of(std::size_t i, const Eigen::Matrix4f& placement,
+                                         const Eigen::Matrix4f& support) {
+    auto& seen = turned_lights[i];
+    const Eigen::Matrix3f p = placement.topLeftCorner<3, 3>(), r = support.topLeftCorner<3, 3>();
+    if (!seen || seen->placement != p || seen->support != r)
+      seen = {p, r, instance_lights(placement, support)};
+    return seen->lights;
   }
 
   // The world light as an instance's points see it (§5.3): rotated into the
@@ -507,7 +536,6 @@ struct LowRankRenderer::Impl {
     if (dotted && *dotted == lights) return;
     dot_program.use();
     gl.glUniform1i(dot_program.uniform("r_a4"), r_a4);
-    gl.glUniform1i(dot_program.uniform("half_bases"), half ? 1 : 0);
     gl.glUniform4fv(dot_program.uniform("light"), 24, lights.data());
     auto dispatch = [&](int count, int out_base) {
       gl.glUniform1i(dot_program.uniform("points"), count);
@@ -772,6 +800,7 @@ LowRankRenderer::~LowRankRenderer() = default;
 
 void LowRankRenderer::set_light(const ShLight& world_light) {
   impl_->light = world_light;
+  std::fill(impl_->turned_lights.begin(), impl_->turned_lights.end(), std::nullopt);
 }
 void LowRankRenderer::set_camera(const Camera& camera) {
   impl_->camera = camera;
