@@ -5,6 +5,8 @@
 #include "phasecast/client/render_app.h"
 #include "phasecast/client/render_backend.h"
 #include "phasecast/client/sh_light.h"
+#include "phasecast/client/simulation_view.h"
+#include "phasecast/core/progress.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -26,6 +28,32 @@ extern "C" void on_interrupt(int) {
   g_interrupted = true;
 }
 
+// --simulation: the orbit store's frames as they were simulated, chunk by chunk.
+void render_simulation(const phasecast::client::RenderOptions& o, const std::string& store,
+                       const std::string& scene_file) {
+  using namespace phasecast::client;
+  phasecast::core::ProgressBar bar("rest transfer");
+  const SimulationView view(
+      store, scene_file.empty() ? std::nullopt : std::optional<std::filesystem::path>(scene_file),
+      [&bar, last = std::string()](const char* pass, long done, long total) mutable {
+        if (pass != last) bar.restart(fmt::format("rest transfer, {}", last = pass));
+        bar.update(done, total);
+      });
+  bar.finish();
+  FrameChunks chunks;
+  chunks.source = store;
+  chunks.description = fmt::format("simulation {} of scene '{}' ({}), drawn as simulated", store,
+                                   view.scene(), view.scene_file().string());
+  chunks.dt = view.dt();
+  chunks.frames = o.max_frames > 0 ? std::min<std::uint64_t>(o.max_frames, view.frames()) : view.frames();
+  chunks.chunks = view.chunks(chunks.frames);
+  chunks.chunk = [&view, &chunks](int index) {
+    auto c = view.chunk(index, chunks.frames);
+    return FrameChunk{std::move(c.basis), std::move(c.frames)};
+  };
+  render_chunks(o, chunks, std::cout, g_interrupted);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -33,8 +61,8 @@ int main(int argc, char** argv) {
   RenderOptions o;
   CLI::App app{
       "phasecast-render: renders a Phasecast scene from its reduced state (q_u, q_a) with the bases "
-      "on the GPU. Frame sources: a server (--connect), a recording (--replay with --package) or the "
-      "package's own phase portrait (--package [--play-irf I])."};
+      "on the GPU. Frame sources: a server (--connect), a recording (--replay with --package), the "
+      "package's own phase portrait (--package [--play-irf I]) or a simulation (--simulation run.h5)."};
   std::string size = "512x512";
   std::vector<std::string> dump;
   std::uint32_t instance = 0;
@@ -59,6 +87,12 @@ int main(int argc, char** argv) {
                  "with --create: make this many instances and draw them in one view; local mode: draw this "
                  "many copies of the IRF, each further on in it (default 1)");
   app.add_option("--replay", replay, "render a recorded stream (needs --package)");
+  std::string simulation, scene_file;
+  app.add_option("--simulation", simulation,
+                 "render an orbit store (phasecast-precompute simulate's output) as it was simulated: the "
+                 "scene's points, colours and light, nothing reduced");
+  app.add_option("--scene-file", scene_file,
+                 "with --simulation: the scene file (default: the one the store was made from)");
   app.add_option("--package", package, "scene package (.h5): local mode, or the bases for --replay");
   auto* irf_opt =
       app.add_option("--play-irf", play_irf, "local mode: play this IRF of the package (default 0)");
@@ -142,7 +176,13 @@ int main(int argc, char** argv) {
     // Progress and the summary go to stdout; stderr carries only the error line.
     std::signal(SIGINT, on_interrupt);
     std::signal(SIGTERM, on_interrupt);
-    phasecast::client::run_render(o, std::cout, g_interrupted);
+    if (!scene_file.empty() && simulation.empty())
+      throw std::invalid_argument("--scene-file is for --simulation run.h5");
+    if (!simulation.empty()) {
+      render_simulation(o, simulation, scene_file);
+    } else {
+      phasecast::client::run_render(o, std::cout, g_interrupted);
+    }
   } catch (const std::exception& e) {
     std::cerr << "phasecast-render: " << e.what() << "\n";
     return 1;

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <ostream>
 #include <sstream>
 #include <thread>
@@ -143,6 +144,11 @@ std::vector<std::vector<FrameState>> portrait_views(const core::ScenePackage& pa
   return side_by_side(per_instance);
 }
 
+void finish_output(RenderTarget& target, std::ostream& log, const RenderOptions& o) {
+  target.output->finish();
+  report(log, target.output->stats(), o.width, o.height);
+}
+
 void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log,
                const std::atomic<bool>& interrupted) {
   const core::ScenePackage package = core::read_package(*o.package);
@@ -183,8 +189,7 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log,
     target.output->render(view);
     report_progress(log, target.output->stats(), view.front().frame, views.size());
   }
-  target.output->finish();
-  report(log, target.output->stats(), o.width, o.height);
+  finish_output(target, log, o);
 }
 
 }  // namespace
@@ -218,6 +223,67 @@ bool parse_on_off(const std::string& value, const std::string& option) {
   if (value == "on") return true;
   if (value == "off") return false;
   throw std::invalid_argument(fmt::format("{} '{}' is invalid (expected on or off)", option, value));
+}
+
+namespace {
+
+// A source of chunks is the only frame source; the others' options would be ignored.
+void check_chunk_options(const RenderOptions& o, const FrameChunks& chunks) {
+  const std::pair<bool, const char*> others[] = {{!o.connect.empty(), "--connect"},
+                                                 {o.replay.has_value(), "--replay"},
+                                                 {o.package.has_value(), "--package"},
+                                                 {o.instance.has_value(), "--instance"},
+                                                 {!o.instances.empty() || o.all_instances, "--instances"},
+                                                 {!o.create.empty(), "--create"},
+                                                 {o.count != 1, "--count"},
+                                                 {o.layout.has_value(), "--layout"},
+                                                 {o.play_irf.has_value(), "--play-irf"},
+                                                 {!o.server_key.empty(), "--server-key"},
+                                                 {!o.client_key.empty(), "--client-key"}};
+  for (const auto& [given, name] : others) {
+    if (given) {
+      throw std::invalid_argument(fmt::format(
+          "{} is not for {} (expected it alone as the frame source, with output and view options)", name,
+          chunks.source));
+    }
+  }
+  if (!(o.exposure > 0) || !std::isfinite(o.exposure)) {
+    throw std::invalid_argument(
+        fmt::format("--exposure {} is invalid (expected a positive number)", o.exposure));
+  }
+  if (o.dump_frame && *o.dump_frame >= chunks.frames) {
+    throw std::invalid_argument(
+        fmt::format("--dump-vertices {}: no such frame (expected 0..{})", *o.dump_frame, chunks.frames - 1));
+  }
+}
+
+}  // namespace
+
+void render_chunks(const RenderOptions& o, const FrameChunks& chunks, std::ostream& log,
+                   const std::atomic<bool>& interrupted) {
+  check_chunk_options(o, chunks);
+  const ShLight light = light_probe(o.light);
+  std::unique_ptr<RenderTarget> target;
+  FramePacer pacer(chunks.dt);
+  for (int c = 0; c < chunks.chunks && !interrupted; ++c) {
+    const FrameChunk chunk = chunks.chunk(c);
+    chunk.basis.validate(chunks.source);
+    if (!target) {
+      target = std::make_unique<RenderTarget>(chunk.basis, o, light, 1.0 / chunks.dt);
+      fmt::print(log, "phasecast-render: {} ({}), {}, {} points, {} frames{}\n",
+                 target->renderer->gl_description(), o.backend, chunks.description, chunk.basis.points,
+                 chunks.frames, gpu_note(*target->renderer, o.half));
+    } else {
+      target->replace_bases(chunk.basis, o, light);
+    }
+    for (const auto& frame : chunk.frames) {
+      if (interrupted || !target->backend->open()) return finish_output(*target, log, o);
+      if (target->backend->shows_frames()) std::this_thread::sleep_for(pacer.wait(FramePacer::Clock::now()));
+      target->output->render(std::vector<FrameState>{frame});
+      report_progress(log, target->output->stats(), frame.frame, chunks.frames);
+    }
+  }
+  if (target) finish_output(*target, log, o);
 }
 
 void run_render(const RenderOptions& o, std::ostream& log, const std::atomic<bool>& interrupted) {

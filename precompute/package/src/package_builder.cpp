@@ -145,8 +145,9 @@ std::string listed(const std::vector<std::string>& names) {
   return "[" + out + "]";
 }
 
-// A store of another scene is refused naming each field that differs.
-void check_matches(const Scene& scene, const OrbitIndex& o) {
+}  // namespace
+
+void check_orbit_store_matches(const Scene& scene, const OrbitIndex& o) {
   std::vector<std::string> names;
   for (const auto& e : scene.palette) names.push_back(e.name);
   std::string differs;
@@ -173,8 +174,6 @@ void check_matches(const Scene& scene, const OrbitIndex& o) {
                   "scene '{}': {}",
                   o.scene, o.vertices, o.palette_names.size(), o.dt, scene.name, differs));
 }
-
-}  // namespace
 
 OrbitIndex read_orbit_index(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw OrbitStoreError(fmt::format("{}: no such file", path.string()));
@@ -285,7 +284,7 @@ void check_package_options(const PackageOptions& o) {
 PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const OrbitIndex& orbits,
                            const DisplacementBasis& basis, const PackageOptions& o) {
   check_package_options(o);
-  check_matches(scene, orbits);
+  check_orbit_store_matches(scene, orbits);
   PackageBuild out;
   core::ScenePackage& pkg = out.package;
   // Eq. 8 and beta over every sampled node, then filtering in that metric.

@@ -6,6 +6,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <sstream>
 
 namespace phasecast::precompute {
@@ -53,6 +54,8 @@ OrbitStore empty_orbit_store(const Scene& scene) {
   OrbitStore s;
   s.scene = scene.name;
   s.source = "phasecast-simulator";
+  if (!scene.source.empty())
+    s.scene_file = std::filesystem::absolute(scene.source).lexically_normal().string();
   s.dt = scene.simulation.frame_dt;
   const auto& m = scene.model;
   s.rest_positions = Eigen::Map<const RowMatrix<double>>(m.rest.data(), m.vertices(), 3).cast<float>();

@@ -90,6 +90,7 @@ void write_header(h5::File& f, const OrbitStore& s) {
   f.write_attribute("format_version", std::int32_t{kOrbitStoreVersion});
   f.write_attribute("scene", s.scene);
   f.write_attribute("source", s.source);
+  if (!s.scene_file.empty()) f.write_attribute("scene_file", s.scene_file);
   f.write_attribute("dt", s.dt);
   f.write("/mesh/rest_positions", s.rest_positions);
   f.write("/mesh/triangles", s.triangles);
@@ -115,6 +116,7 @@ OrbitStore read_header(const h5::File& f, const h5::Reader& r) {
   OrbitStore s;
   s.scene = f.read_attribute_string("scene");
   s.source = f.read_attribute_string("source");
+  if (f.has_attribute("scene_file")) s.scene_file = f.read_attribute_string("scene_file");
   s.dt = f.read_attribute_number("dt");
   s.rest_positions = r.matrix<float>("/mesh/rest_positions");
   s.triangles = r.matrix<std::uint32_t>("/mesh/triangles");

@@ -3,9 +3,13 @@
 // the frame source (server, recording or the package's own portrait), set up
 // backend, renderer, camera and light, render, report.
 
+#include "phasecast/client/client_basis.h"
+#include "phasecast/client/frame_state.h"
+
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <iosfwd>
 #include <optional>
 #include <string>
@@ -65,5 +69,29 @@ bool parse_on_off(const std::string& value, const std::string& option);
 // session ends, with its summary, once `interrupted` is set (the tool's
 // SIGINT and SIGTERM handlers set it).
 void run_render(const RenderOptions& options, std::ostream& log, const std::atomic<bool>& interrupted);
+
+// Frames that bring their own bases, a chunk at a time: a simulation drawn
+// as it was simulated (phasecast-render --simulation, simulation_view.h).
+// Each chunk's bases replace the last ones on the same context; the window,
+// PNG numbering and video go on.
+struct FrameChunk {
+  ClientBasis basis;
+  std::vector<FrameState> frames;
+};
+struct FrameChunks {
+  std::string source;       // named in the log and in errors
+  std::string description;  // the log's first line says what is drawn
+  double dt = 0;            // s between frames
+  int chunks = 0;
+  std::uint64_t frames = 0;  // in all the chunks
+  std::function<FrameChunk(int index)> chunk;
+};
+
+// Renders `chunks` with the options' backend, size, camera, light, outputs
+// and --frames; the frame-source options (--connect, --replay, --package,
+// --instances, --create, --count, --layout, --play-irf, CURVE keys) are
+// refused, one line naming the option. Otherwise as run_render.
+void render_chunks(const RenderOptions& options, const FrameChunks& chunks, std::ostream& log,
+                   const std::atomic<bool>& interrupted);
 
 }  // namespace phasecast::client

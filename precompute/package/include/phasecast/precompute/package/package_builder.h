@@ -31,6 +31,11 @@ struct OrbitIndex {
 // Throws OrbitStoreError naming the file and dataset.
 OrbitIndex read_orbit_index(const std::filesystem::path& store);
 
+// Throws std::invalid_argument if the orbit store does not belong to the
+// scene, naming each field that differs (vertex count, palette names and
+// order, a support range the store names, dt) with both values.
+void check_orbit_store_matches(const Scene& scene, const OrbitIndex& orbits);
+
 inline constexpr double kDefaultBlendLambda = 4.0;  // 1/s: an IRF blend offset halves in ~0.17 s (eq. 12)
 
 struct PackageOptions {

@@ -29,6 +29,7 @@ class OrbitStoreError : public std::runtime_error {
 struct OrbitStore {
   std::string scene;
   std::string source;                // "phasecast-simulator" or "import"
+  std::string scene_file;            // absolute path of the scene file that made it (empty: not known)
   double dt = 0;                     // s between frames
   MatrixXfR rest_positions;          // V x 3
   MatrixXuR triangles;               // F x 3 surface triangles
