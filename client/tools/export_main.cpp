@@ -32,8 +32,8 @@ int main(int argc, char** argv) {
                      "recorded instance to animate (default: the first instance of the package's scene)");
   instance_opt->needs(recording_opt);
   app.add_option("--light", o.light,
-                 fmt::format("SH light probe the vertex colours are lit by: {} (default grace, as "
-                             "phasecast-render)",
+                 fmt::format("SH light probe the vertex colours are lit by: {} (default: the scene's [view] "
+                             "light, else grace, as phasecast-render)",
                              fmt::join(phasecast::client::light_probe_names(), ", ")));
   // Bad usage exits 2, as opposed to 1, a failed export.
   if (const auto status = phasecast::core::parse_command_line(app, argc, argv, "phasecast-export"))

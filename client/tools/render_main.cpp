@@ -108,18 +108,21 @@ int main(int argc, char** argv) {
       "no file is replaced");
   app.add_option("--video", video, "write an MP4 through ffmpeg");
   app.add_option("--light", o.light,
-                 fmt::format("SH light probe: {} (default grace)",
+                 fmt::format("SH light probe: {} (default: the scene's [view] light, else grace)",
                              fmt::join(phasecast::client::light_probe_names(), ", ")));
-  std::string backdrop = "on";
+  std::string backdrop;
   app.add_option("--backdrop", backdrop,
-                 "on|off: a ground plane at the scene's lowest point, fading into a dark grey background "
-                 "(default on); off: the scene alone on a near-black background. The scene's own "
+                 "on|off: a ground plane at the scene's floor height (default: its rest mesh's lowest "
+                 "point), fading into a dark grey background (default: on unless the scene's [view] says "
+                 "floor = \"none\"); off: the scene alone on a near-black background. The scene's own "
                  "evaluation (--dump-vertices) is the same either way");
   app.add_flag(
       "--half", o.half,
       "upload U_u and U_a as 16-bit floats: half their bytes on the GPU, about 5e-4 of the displacement "
       "in error (docs/performance-client.md)");
-  app.add_option("--exposure", o.exposure, "multiplies the exit radiance before display (default 1)");
+  float exposure = 1;
+  auto* exposure_opt = app.add_option(
+      "--exposure", exposure, "multiplies the exit radiance before display (default: the scene's, else 1)");
   app.add_option("--dump-vertices", dump,
                  "FRAME PATH: write the GPU-computed positions and radiance of that frame "
                  "(.npy or .csv)")
@@ -143,7 +146,8 @@ int main(int argc, char** argv) {
     const auto wh = phasecast::client::parse_size(size);
     o.width = wh[0];
     o.height = wh[1];
-    o.backdrop = phasecast::client::parse_on_off(backdrop, "--backdrop");
+    if (!backdrop.empty()) o.backdrop = phasecast::client::parse_on_off(backdrop, "--backdrop");
+    if (*exposure_opt) o.exposure = exposure;
     if (*instance_opt) o.instance = instance;
     if (!layout.empty()) o.layout = layout;
     if (instances == "all") {

@@ -47,6 +47,21 @@ int stored_format_version(const Reader& r) {
 }
 
 // Read into today's version: the in-memory package knows no other.
+// The [view] attributes besides the camera; each optional.
+void read_view(const Reader& r, PackageAttributes& a) {
+  const auto& f = r.file();
+  if (f.has_attribute("floor")) a.floor = r.number("floor") != 0;
+  if (f.has_attribute("floor_height")) {
+    a.floor_height = static_cast<float>(r.number("floor_height"));
+    if (!std::isfinite(*a.floor_height)) r.fail("/@floor_height", "expected a finite height");
+  }
+  if (f.has_attribute("light")) a.light = r.text("light");
+  if (f.has_attribute("exposure")) {
+    a.exposure = static_cast<float>(r.number("exposure"));
+    if (!(*a.exposure > 0) || !std::isfinite(*a.exposure)) r.fail("/@exposure", "expected a positive number");
+  }
+}
+
 PackageAttributes read_attributes(const Reader& r) {
   PackageAttributes a;
   a.format_version = kFormatVersion;
@@ -64,6 +79,7 @@ PackageAttributes read_attributes(const Reader& r) {
     std::copy(c.begin(), c.end(), cam.begin());
     a.camera = cam;
   }
+  read_view(r, a);
   return a;
 }
 
@@ -290,6 +306,10 @@ void write_to(h5::File& f, const ScenePackage& pkg) {
   f.write_attribute("eps_u", a.eps_u);
   f.write_attribute("eps_a", a.eps_a);
   if (a.camera) f.write_attribute("camera", std::vector<float>(a.camera->begin(), a.camera->end()));
+  if (!a.floor) f.write_attribute("floor", std::int32_t{0});
+  if (a.floor_height) f.write_attribute("floor_height", *a.floor_height);
+  if (!a.light.empty()) f.write_attribute("light", a.light);
+  if (a.exposure) f.write_attribute("exposure", *a.exposure);
 
   f.write("/mesh/rest_positions", pkg.mesh.rest_positions);
   f.write("/mesh/triangles", pkg.mesh.triangles);

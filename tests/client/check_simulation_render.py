@@ -4,7 +4,8 @@ reader: h5py reads the orbit store that `phasecast-precompute simulate`
 wrote, and the positions the GPU computed for a frame past the first chunk of
 frames must be the simulated ones, taken to the world by that frame's support
 transform (float64 here). The door swings in the PNG frames; a store of
-another scene is refused in one line naming what differs."""
+another scene is refused in one line naming what differs; the scene's [view]
+draws what the same flags draw."""
 import subprocess
 import sys
 from pathlib import Path
@@ -15,6 +16,31 @@ import numpy as np
 
 def run(args, **kw):
     return subprocess.run(args, capture_output=True, text=True, **kw)
+
+
+def check_view(precompute: str, render: str, scenes: Path, work: Path) -> None:
+    """The scene's [view] is what the flags would say: the same pixels."""
+    viewed = work / "viewed.toml"
+    viewed.write_text((scenes / "cloth_door.toml").read_text() + "\n[view]\neye = [1.5, 1.2, 2.5]\n"
+                      "target = [0, 0.6, 0]\nfov = 35\nfloor = \"none\"\nlight = \"sun\"\nexposure = 1.3\n")
+    store = work / "viewed.h5"
+    r = run([precompute, "simulate", str(viewed), "--schedule", "open 0.3", "-o", str(store)])
+    assert r.returncode == 0, r.stderr
+    common = ["--simulation", str(store), "--frames", "10", "--size", "64x64", "--dump-vertices", "9"]
+    r = run([render, *common, str(work / "view_scene.npy"), "--out", str(work / "view_scene")])
+    assert r.returncode == 0, r.stderr
+    r = run([render, *common, str(work / "view_flags.npy"), "--out", str(work / "view_flags"), "--eye",
+             "1.5,1.2,2.5", "--target", "0,0.6,0", "--fov", "35", "--backdrop", "off", "--light", "sun",
+             "--exposure", "1.3"])
+    assert r.returncode == 0, r.stderr
+    r = run([render, *common, str(work / "view_default.npy"), "--out", str(work / "view_default"),
+             "--light", "grace"])
+    assert r.returncode == 0, r.stderr
+    same = (work / "view_scene/frame_000009.png").read_bytes() == (work / "view_flags/frame_000009.png").read_bytes()
+    assert same, "the scene's [view] and the same view given as flags draw different pixels"
+    assert (work / "view_scene/frame_000009.png").read_bytes() != (work / "view_default/frame_000009.png").read_bytes()
+    light = np.load(work / "view_scene.npy")[:, 3:]
+    assert np.abs(light - np.load(work / "view_default.npy")[:, 3:]).max() > 1e-3, "--light overrides the scene's"
 
 
 def main(precompute: str, render: str, source_dir: str, workdir: str) -> None:
@@ -47,6 +73,7 @@ def main(precompute: str, render: str, source_dir: str, workdir: str) -> None:
     r = run([render, "--simulation", str(store), "--scene-file", str(scenes / "plant_pot.toml"), "--frames", "1"])
     lines = r.stderr.strip().splitlines()
     assert r.returncode == 1 and len(lines) == 1 and "does not belong" in lines[0] and "vertices" in lines[0], r.stderr
+    check_view(precompute, render, scenes, work)
     print(f"simulation drawn as simulated: {len(world)} simulated vertices, worst position error {err.max():.3g} m")
 
 

@@ -70,13 +70,16 @@ TEST(Service, ServesSeveralScenesWithTheirOwnRanks) {
 }
 
 // The package's held-out playback figures (/fidelity/) reach clients in the scene list.
-TEST(Service, SceneListCarriesThePackagesFidelity) {
+TEST(Service, SceneListCarriesThePackagesFidelityAndView) {
   const auto dir = testing::scratch_dir("server_svc_fidelity");
   auto p = testing::make_plate_package();
   core::PlaybackFidelity& f = p.fidelity.emplace();
   f.schedules = 20, f.items = 4, f.seed = 99;
   f.median_nrmse = 0.11f, f.p90_nrmse = 0.21f;
   f.moving = 40, f.moving_within = 37, f.switches = 60, f.switches_within = 58;
+  p.attributes.floor = false;
+  p.attributes.light = "sky";
+  p.attributes.exposure = 1.5f;
   core::write_package(p, dir / "fidelity.h5");
   const TwoScenes plain("fidelity_plain");
   SynthesisService s(60);
@@ -96,6 +99,13 @@ TEST(Service, SceneListCarriesThePackagesFidelity) {
   EXPECT_EQ(got.switches_within(), 58u);
   EXPECT_FALSE(got.adaptive());
   EXPECT_FALSE(scenes.scenes(1).has_fidelity()) << "a package without /fidelity/ has none";
+  // The scene's [view], read back from the package file.
+  const auto& view = scenes.scenes(0).view();
+  EXPECT_TRUE(view.no_floor());
+  EXPECT_FALSE(view.has_floor_height());
+  EXPECT_EQ(view.light(), "sky");
+  EXPECT_FLOAT_EQ(view.exposure(), 1.5f);
+  EXPECT_FALSE(scenes.scenes(1).has_view()) << "a package without a view says nothing";
 }
 
 TEST(Service, CreateInstanceIsBounded) {

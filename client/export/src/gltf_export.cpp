@@ -541,13 +541,16 @@ void expect_glb_path(const fs::path& out) {
 
 GltfExportSummary export_gltf(const GltfExportOptions& o) {
   expect_glb_path(o.out);
-  const ShLight light = light_probe(o.light);  // before the reading: a typo fails fast
+  if (!o.light.empty()) light_probe(o.light);  // before the reading: a typo fails fast
   if (o.instance && !o.recording) {
     throw std::invalid_argument(
         "--instance needs --recording session.phcrec (a package alone has no instances)");
   }
   const core::ScenePackage package = core::read_package(o.package);
   const ClientBasis basis = basis_from_package(package, core::file_content_hash(o.package));
+  const ShLight light = light_probe(!o.light.empty()       ? o.light
+                                    : !basis.light.empty() ? basis.light
+                                                           : "grace");
   std::optional<Session> session;
   if (o.recording) session = read_session(o, basis);
   const double dt = package.attributes.dt;

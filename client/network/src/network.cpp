@@ -153,6 +153,13 @@ ClientBasis basis_header(const v1::SceneInfo& scene) {
     std::copy(scene.camera().begin(), scene.camera().end(), camera.begin());
     b.camera = camera;
   }
+  if (scene.has_view()) {
+    const auto& v = scene.view();
+    b.floor = !v.no_floor();
+    if (v.has_floor_height()) b.floor_height = v.floor_height();
+    b.light = v.light();
+    if (v.has_exposure()) b.exposure = v.exposure();
+  }
   return b;
 }
 

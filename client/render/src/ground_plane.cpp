@@ -37,7 +37,7 @@ GroundPlane::GroundPlane(const GlFunctions& gl, const ClientBasis& basis, float 
     lo = lo.cwiseMin(x);
     hi = hi.cwiseMax(x);
   }
-  height_ = lo.y();
+  height_ = basis.floor_height.value_or(lo.y());
   centre_ = {0.5f * (lo.x() + hi.x()), 0.5f * (lo.z() + hi.z())};
 }
 

@@ -139,10 +139,9 @@ std::chrono::milliseconds milliseconds_of(double seconds) {
 
 }  // namespace
 
-NetworkSession::NetworkSession(const RenderOptions& o, const ShLight& light, std::ostream& log,
+NetworkSession::NetworkSession(const RenderOptions& o, std::ostream& log,
                                const std::atomic<bool>& interrupted)
     : o_(o),
-      light_(light),
       log_(log),
       interrupted_(interrupted),
       curve_(load_curve_client_keys(o.server_key, o.client_key)),
@@ -152,7 +151,7 @@ NetworkSession::NetworkSession(const RenderOptions& o, const ShLight& light, std
   sub_ = resolve(*cmd_, o, created_);
   if (!o.create.empty()) created_ = sub_.instances;
   basis_ = download(*cmd_, sub_.scene, log);
-  target_ = std::make_unique<RenderTarget>(basis_, o, light, 1.0 / sub_.scene.dt(),
+  target_ = std::make_unique<RenderTarget>(basis_, o, 1.0 / sub_.scene.dt(),
                                            static_cast<int>(sub_.instances.size()));
   keep_sizes_only(basis_);
   fmt::print(log, "phasecast-render: {} ({}), following {} of '{}' on {}{}\n",
@@ -323,7 +322,7 @@ bool NetworkSession::adopt(const Subscription& next, bool resubscribe, bool anno
     fmt::print(log_, "phasecast-render: bases changed (hash {:016x} -> {:016x}); downloading again\n",
                basis_.content_hash, next.scene.content_hash());
     ClientBasis fresh = download(*cmd_, next.scene, log_);
-    target_->replace_bases(fresh, o_, light_);
+    target_->replace_bases(fresh, o_);
     keep_sizes_only(fresh);
     basis_ = std::move(fresh);
   } else if (announce) {

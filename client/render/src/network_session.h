@@ -38,8 +38,7 @@ struct Subscription {
 // the time without a rendered frame, whatever the reason.
 class NetworkSession {
  public:
-  NetworkSession(const RenderOptions& o, const ShLight& light, std::ostream& log,
-                 const std::atomic<bool>& interrupted);
+  NetworkSession(const RenderOptions& o, std::ostream& log, const std::atomic<bool>& interrupted);
   void run();
   void finish();
 
@@ -80,7 +79,6 @@ class NetworkSession {
   void check_give_up();
 
   const RenderOptions& o_;
-  const ShLight& light_;
   std::ostream& log_;
   const std::atomic<bool>& interrupted_;
   const CurveClientKeys curve_;

@@ -54,6 +54,15 @@ std::vector<std::vector<FrameState>> side_by_side(const std::vector<std::vector<
   return views;
 }
 
+// --exposure and --light, before anything is read or drawn.
+void check_view_options(const RenderOptions& o) {
+  if (o.exposure && (!(*o.exposure > 0) || !std::isfinite(*o.exposure))) {
+    throw std::invalid_argument(
+        fmt::format("--exposure {} is invalid (expected a positive number)", *o.exposure));
+  }
+  if (!o.light.empty()) light_probe(o.light);
+}
+
 void check_source(const RenderOptions& o) {
   const int sources = (!o.connect.empty() ? 1 : 0) + (o.replay ? 1 : 0) + (o.package && !o.replay ? 1 : 0);
   if (sources != 1) {
@@ -108,10 +117,7 @@ void check_source(const RenderOptions& o) {
           fmt::format("{} {} is invalid (expected a positive number of seconds)", name, value));
     }
   }
-  if (!(o.exposure > 0) || !std::isfinite(o.exposure)) {
-    throw std::invalid_argument(
-        fmt::format("--exposure {} is invalid (expected a positive number)", o.exposure));
-  }
+  check_view_options(o);
 }
 
 // Replay of several instances: their frames side by side, tick by tick, as
@@ -149,8 +155,7 @@ void finish_output(RenderTarget& target, std::ostream& log, const RenderOptions&
   report(log, target.output->stats(), o.width, o.height);
 }
 
-void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log,
-               const std::atomic<bool>& interrupted) {
+void run_local(const RenderOptions& o, std::ostream& log, const std::atomic<bool>& interrupted) {
   const core::ScenePackage package = core::read_package(*o.package);
   const ClientBasis basis = basis_from_package(package, core::file_content_hash(*o.package));
   std::vector<std::vector<FrameState>> views;  // per tick, one frame per instance
@@ -176,7 +181,7 @@ void run_local(const RenderOptions& o, const ShLight& light, std::ostream& log,
                                             views.back().front().frame));
   }
   const int instances = views.empty() ? 1 : static_cast<int>(views.front().size());
-  RenderTarget target(basis, o, light, 1.0 / package.attributes.dt, instances);
+  RenderTarget target(basis, o, 1.0 / package.attributes.dt, instances);
   fmt::print(log, "phasecast-render: {} ({}), scene '{}', {} points, r_u = {}, r_a = {}, {} frames{}{}\n",
              target.renderer->gl_description(), o.backend, basis.scene, basis.points, basis.rank_u,
              basis.rank_a, views.size(), instances > 1 ? fmt::format(", {} instances", instances) : "",
@@ -247,10 +252,7 @@ void check_chunk_options(const RenderOptions& o, const FrameChunks& chunks) {
           chunks.source));
     }
   }
-  if (!(o.exposure > 0) || !std::isfinite(o.exposure)) {
-    throw std::invalid_argument(
-        fmt::format("--exposure {} is invalid (expected a positive number)", o.exposure));
-  }
+  check_view_options(o);
   if (o.dump_frame && *o.dump_frame >= chunks.frames) {
     throw std::invalid_argument(
         fmt::format("--dump-vertices {}: no such frame (expected 0..{})", *o.dump_frame, chunks.frames - 1));
@@ -262,19 +264,18 @@ void check_chunk_options(const RenderOptions& o, const FrameChunks& chunks) {
 void render_chunks(const RenderOptions& o, const FrameChunks& chunks, std::ostream& log,
                    const std::atomic<bool>& interrupted) {
   check_chunk_options(o, chunks);
-  const ShLight light = light_probe(o.light);
   std::unique_ptr<RenderTarget> target;
   FramePacer pacer(chunks.dt);
   for (int c = 0; c < chunks.chunks && !interrupted; ++c) {
     const FrameChunk chunk = chunks.chunk(c);
     chunk.basis.validate(chunks.source);
     if (!target) {
-      target = std::make_unique<RenderTarget>(chunk.basis, o, light, 1.0 / chunks.dt);
+      target = std::make_unique<RenderTarget>(chunk.basis, o, 1.0 / chunks.dt);
       fmt::print(log, "phasecast-render: {} ({}), {}, {} points, {} frames{}\n",
                  target->renderer->gl_description(), o.backend, chunks.description, chunk.basis.points,
                  chunks.frames, gpu_note(*target->renderer, o.half));
     } else {
-      target->replace_bases(chunk.basis, o, light);
+      target->replace_bases(chunk.basis, o);
     }
     for (const auto& frame : chunk.frames) {
       if (interrupted || !target->backend->open()) return finish_output(*target, log, o);
@@ -288,12 +289,11 @@ void render_chunks(const RenderOptions& o, const FrameChunks& chunks, std::ostre
 
 void run_render(const RenderOptions& o, std::ostream& log, const std::atomic<bool>& interrupted) {
   check_source(o);
-  const ShLight light = light_probe(o.light);
   if (o.connect.empty()) {
-    run_local(o, light, log, interrupted);
+    run_local(o, log, interrupted);
     return;
   }
-  NetworkSession session(o, light, log, interrupted);
+  NetworkSession session(o, log, interrupted);
   session.run();
   session.finish();
 }

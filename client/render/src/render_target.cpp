@@ -33,14 +33,18 @@ Camera camera_for(const Camera& view, const RenderOptions& o) {
   return c;
 }
 
-void RenderTarget::make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
+ShLight light_for(const ClientBasis& basis, const RenderOptions& o) {
+  return light_probe(!o.light.empty() ? o.light : !basis.light.empty() ? basis.light : "grace");
+}
+
+void RenderTarget::make_renderer(const ClientBasis& basis, const RenderOptions& o) {
   renderer = std::make_unique<LowRankRenderer>(*backend, basis, o.width, o.height,
                                                o.half ? BasisPrecision::float16 : BasisPrecision::float32);
-  renderer->set_light(light);
+  renderer->set_light(light_for(basis, o));
   view_ = scene_camera(basis);
   rest_ = rest_bounds(basis);
-  renderer->set_exposure(o.exposure);
-  renderer->set_backdrop(o.backdrop ? Backdrop::ground : Backdrop::none);
+  renderer->set_exposure(o.exposure.value_or(basis.exposure.value_or(1.0f)));
+  renderer->set_backdrop(o.backdrop.value_or(basis.floor) ? Backdrop::ground : Backdrop::none);
   set_instances(instances_, o);
 }
 

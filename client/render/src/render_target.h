@@ -25,6 +25,9 @@ inline Camera camera_for(const ClientBasis& basis, const RenderOptions& o) {
   return camera_for(scene_camera(basis), o);
 }
 
+// The light the options name, else the scene's, else grace.
+ShLight light_for(const ClientBasis& basis, const RenderOptions& o);
+
 // Backend, renderer and outputs. The renderer holds one set of bases; the
 // backend and the outputs last the whole run.
 struct RenderTarget {
@@ -35,12 +38,11 @@ struct RenderTarget {
   // `frame_rate`: frames per second of the stream (1 / dt), for the video.
   // `instances`: how many instances of the scene stand in the view, on the
   // default grid.
-  RenderTarget(const ClientBasis& basis, const RenderOptions& o, const ShLight& light, double frame_rate,
-               int instances = 1)
+  RenderTarget(const ClientBasis& basis, const RenderOptions& o, double frame_rate, int instances = 1)
       : instances_(instances) {
     if (o.layout) layout_ = read_layout(*o.layout);
     backend = make_render_backend(o.backend, o.width, o.height);
-    make_renderer(basis, o, light);
+    make_renderer(basis, o);
     OutputOptions out;
     out.png_dir = o.out_dir;
     out.video = o.video;
@@ -52,9 +54,9 @@ struct RenderTarget {
 
   // New bases (the server came back with another package): a new renderer on
   // the same context; the window, the PNG numbering and the video go on.
-  void replace_bases(const ClientBasis& basis, const RenderOptions& o, const ShLight& light) {
+  void replace_bases(const ClientBasis& basis, const RenderOptions& o) {
     renderer.reset();  // frees the old bases' GPU buffers first
-    make_renderer(basis, o, light);
+    make_renderer(basis, o);
     output->set_renderer(*renderer);
   }
 
@@ -64,7 +66,7 @@ struct RenderTarget {
   int instances() const { return instances_; }
 
  private:
-  void make_renderer(const ClientBasis& basis, const RenderOptions& o, const ShLight& light);
+  void make_renderer(const ClientBasis& basis, const RenderOptions& o);
 
   int instances_ = 1;
   std::vector<Eigen::Matrix4f> layout_;  // --layout's placements; empty: the default grid

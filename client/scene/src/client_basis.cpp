@@ -92,8 +92,16 @@ ClientBasis basis_from_package(const core::ScenePackage& p, std::uint64_t conten
     b.mean_transfer = copy_of(p.appearance->mean_transfer.data(), p.appearance->mean_transfer.size());
     b.U_a = copy_of(p.appearance->U_a.data(), p.appearance->U_a.size());
   }
-  b.camera = p.attributes.camera;
+  set_view(b, p.attributes);
   return b;
+}
+
+void set_view(ClientBasis& b, const core::PackageAttributes& a) {
+  b.camera = a.camera;
+  b.floor = a.floor;
+  b.floor_height = a.floor_height;
+  b.light = a.light;
+  b.exposure = a.exposure;
 }
 
 std::vector<double> cpu_positions(const ClientBasis& b, const std::vector<float>& q_u,

@@ -57,6 +57,11 @@ ClientBasis rest_basis(const pre::Scene& scene,
   b.deformable = mesh.deformable;
   b.attached = mesh.attached;
   b.mean_transfer.assign(T.data(), T.data() + T.size());
+  if (scene.view) {
+    core::PackageAttributes view;
+    pre::apply_view(*scene.view, view);
+    set_view(b, view);
+  }
   return b;
 }
 

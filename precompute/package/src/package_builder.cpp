@@ -175,6 +175,19 @@ void check_orbit_store_matches(const Scene& scene, const OrbitIndex& o) {
                   o.scene, o.vertices, o.palette_names.size(), o.dt, scene.name, differs));
 }
 
+void apply_view(const ViewSettings& view, core::PackageAttributes& a) {
+  const auto f = [](double v) { return static_cast<float>(v); };
+  if (view.eye) {
+    const auto &e = *view.eye, &t = *view.target, &u = view.up;
+    a.camera = std::array<float, 10>{f(e.x()), f(e.y()), f(e.z()), f(t.x()), f(t.y()),
+                                     f(t.z()), f(u.x()), f(u.y()), f(u.z()), f(view.fov_y_deg)};
+  }
+  a.floor = view.floor;
+  if (view.floor_height) a.floor_height = f(*view.floor_height);
+  a.light = view.light;
+  if (view.exposure) a.exposure = f(*view.exposure);
+}
+
 OrbitIndex read_orbit_index(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw OrbitStoreError(fmt::format("{}: no such file", path.string()));
   try {
@@ -337,6 +350,7 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
   a.beta = beta;
   a.blend_lambda = o.blend_lambda;
   a.eps_u = basis.eps_u;
+  if (scene.view) apply_view(*scene.view, a);
   core::validate_package(pkg, scene.name);
   return out;
 }

@@ -7,12 +7,14 @@
 #include "scene_blender.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <utility>
@@ -516,6 +518,36 @@ DemoDefaults read_demo(Fields d, const std::filesystem::path& folder) {
   return demo;
 }
 
+ViewSettings read_view(Fields v) {
+  ViewSettings view;
+  if (v.has("eye") != v.has("target")) v.fail(v.has("eye") ? "target" : "eye", "eye and target together");
+  if (v.has("eye")) {
+    view.eye = v.vec3("eye");
+    view.target = v.vec3("target");
+    if (!((*view.eye - *view.target).norm() > 0)) v.fail("target", "a point other than eye");
+  }
+  view.up = v.vec3("up", view.up);
+  view.fov_y_deg = v.number("fov", view.fov_y_deg);
+  if (!(view.fov_y_deg > 0 && view.fov_y_deg < 180))
+    v.fail("fov", "a vertical field of view in (0, 180) degrees");
+  if (view.eye && !((*view.target - *view.eye).normalized().cross(view.up).norm() > 1e-6))
+    v.fail("up", "a vector across the view direction");
+  if (v.is_string("floor")) {
+    if (v.string("floor") != "none") v.fail("floor", "a height (y, m) or \"none\"");
+    view.floor = false;
+  } else if (v.has("floor")) {
+    view.floor_height = v.number("floor");
+  }
+  if (v.has("light")) {
+    view.light = v.string("light");
+    if (std::ranges::find(kLightProbeNames, view.light) == std::end(kLightProbeNames))
+      v.fail("light", fmt::format("one of {}", fmt::join(kLightProbeNames, ", ")));
+  }
+  if (v.has("exposure")) view.exposure = v.positive("exposure");
+  v.finish();
+  return view;
+}
+
 // [simulation], [support], [contact], bodies, braces and obstacles: the
 // model the built-in simulator integrates.
 void read_builtin_model(Fields& top, Scene& scene) {
@@ -606,6 +638,7 @@ Scene load_scene_file(const std::filesystem::path& path) {
     v.finish();
   }
   if (top.has("demo")) scene.demo = read_demo(top.table("demo"), path.parent_path());
+  if (top.has("view")) scene.view = read_view(top.table("view"));
   top.finish();
   return scene;
 }

@@ -67,6 +67,11 @@ bool Fields::has(const std::string& key) const {
   return table_->contains(key);
 }
 
+bool Fields::is_string(const std::string& key) const {
+  const toml::node* n = table_->get(key);
+  return n && n->is_string();
+}
+
 std::string Fields::got(const std::string& key) const {
   if (const toml::node* n = table_->get(key)) return describe(*n);
   // A key of the file nobody asked for, a typo away: the likely cause.

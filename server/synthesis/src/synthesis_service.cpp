@@ -267,6 +267,16 @@ void SynthesisService::impulse(const v1::Impulse& r, v1::ImpulseAccepted& out) {
 
 namespace {
 
+// The package's view besides the camera, only when it says anything.
+void describe_view(const core::PackageAttributes& a, v1::SceneInfo& info) {
+  if (a.floor && !a.floor_height && a.light.empty() && !a.exposure) return;
+  auto& v = *info.mutable_view();
+  v.set_no_floor(!a.floor);
+  if (a.floor_height) v.set_floor_height(*a.floor_height);
+  v.set_light(a.light);
+  if (a.exposure) v.set_exposure(*a.exposure);
+}
+
 void describe_fidelity(const core::PlaybackFidelity& f, v1::Fidelity& out) {
   const auto count = [](std::int32_t n) { return static_cast<std::uint32_t>(std::max(n, 0)); };
   out.set_schedules(count(f.schedules));
@@ -305,6 +315,7 @@ void SynthesisService::list_scenes(v1::SceneList& out) const {
     info.set_dt(p.attributes.dt);
     if (p.attributes.camera)
       info.mutable_camera()->Assign(p.attributes.camera->begin(), p.attributes.camera->end());
+    describe_view(p.attributes, info);
     if (p.fidelity) describe_fidelity(*p.fidelity, *info.mutable_fidelity());
     const auto& pal = p.palette;
     for (int d = 0; d < pal.size(); ++d) {

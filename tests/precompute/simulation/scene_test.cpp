@@ -139,6 +139,33 @@ TEST(Scene, DemoSectionNamesTheScriptAndTheSeed) {
             std::string::npos);
 }
 
+// [view]: the camera, floor, light and exposure clients use where their flags are absent.
+TEST(Scene, ViewSectionSetsCameraFloorLightAndExposure) {
+  const auto with_view = [](const std::string& body) { return kValid + "\n[view]\n" + body + "\n"; };
+  EXPECT_FALSE(load_scene_file(write_scene("no_view", kValid)).view);
+  const Scene s = load_scene_file(write_scene(
+      "view_ok", with_view("eye = [0, 1, 3]\ntarget = [0, 0.5, 0]\nfov = 30\nfloor = -1.5\nlight = \"sun\"\n"
+                           "exposure = 1.4")));
+  ASSERT_TRUE(s.view && s.view->eye && s.view->target);
+  EXPECT_EQ(*s.view->eye, Eigen::Vector3d(0, 1, 3));
+  EXPECT_EQ(s.view->up, Eigen::Vector3d::UnitY());
+  EXPECT_EQ(s.view->fov_y_deg, 30);
+  EXPECT_TRUE(s.view->floor);
+  EXPECT_EQ(s.view->floor_height, -1.5);
+  EXPECT_EQ(s.view->light, "sun");
+  EXPECT_EQ(s.view->exposure, 1.4);
+  EXPECT_FALSE(load_scene_file(write_scene("view_none", with_view("floor = \"none\""))).view->floor);
+  EXPECT_EQ(rejection("view_floor", with_view("floor = \"off\"")),
+            ": field 'view.floor': expected a height (y, m) or \"none\", got string \"off\"");
+  EXPECT_EQ(rejection("view_light", with_view("light = \"moon\"")),
+            ": field 'view.light': expected one of grace, sky, sun, white, got string \"moon\"");
+  EXPECT_EQ(rejection("view_eye", with_view("eye = [0, 1, 3]")),
+            ": field 'view.target': expected eye and target together, got nothing (missing)");
+  EXPECT_EQ(rejection("view_fov", with_view("fov = 200")),
+            ": field 'view.fov': expected a vertical field of view in (0, 180) degrees, got integer 200");
+  EXPECT_NE(rejection("view_key", with_view("exposur = 2")).find("view.exposur"), std::string::npos);
+}
+
 TEST(SceneErrors, MissingField) {
   EXPECT_EQ(rejection("missing", edited(kValid, "frame_dt = 0.02", "")),
             ": field 'simulation.frame_dt': expected a positive number, got nothing (missing)");

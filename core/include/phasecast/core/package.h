@@ -44,6 +44,12 @@ struct PackageAttributes {
   double eps_u = 0;                             // displacement rank tolerance (§2.3.1)
   double eps_a = 0;                             // appearance rank tolerance (§4.2)
   std::optional<std::array<float, 10>> camera;  // eye(3) target(3) up(3) fov_y_deg
+  // The rest of the scene's [view] (docs/scenes.md): clients use each where
+  // their own flags are absent.
+  bool floor = true;                  // false: no floor ([view] floor = "none")
+  std::optional<float> floor_height;  // y of the floor; absent: the rest mesh's lowest point
+  std::string light;                  // SH light probe; empty: the client's default
+  std::optional<float> exposure;      // absent: the client's default (1)
 };
 
 // Scene points: deformable and static, double-sided surfaces duplicated.

@@ -21,7 +21,8 @@ struct GltfExportOptions {
   std::filesystem::path out;                       // binary glTF (.glb)
   std::optional<std::filesystem::path> recording;  // session to animate (.phcrec)
   std::optional<std::uint32_t> instance;           // recorded instance (default: the first of the scene)
-  std::string light = "grace";                     // light probe the vertex colours are lit by
+  std::string
+      light;  // light probe the vertex colours are lit by (empty: the scene's [view] light, else grace)
 };
 
 struct GltfExportSummary {

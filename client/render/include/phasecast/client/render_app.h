@@ -41,9 +41,11 @@ struct RenderOptions {
   std::uint64_t max_frames = 0;  // 0: all (local/replay) or until interrupted (network)
   std::optional<std::filesystem::path> out_dir;
   std::optional<std::filesystem::path> video;
-  std::string light = "grace";
-  bool backdrop = true;  // the ground behind the scene (--backdrop on|off)
-  float exposure = 1;
+  // The view: each absent option is the scene's ([view] in the package),
+  // else grace, a floor under the rest mesh, and 1.
+  std::string light;
+  std::optional<bool> backdrop;  // the ground behind the scene (--backdrop on|off)
+  std::optional<float> exposure;
   std::optional<std::uint64_t> dump_frame;
   std::filesystem::path dump_path;
   std::string eye, target, up;  // "x,y,z" overrides of the scene camera

@@ -29,6 +29,12 @@ struct ClientBasis {
   std::vector<float> mean_transfer;             // 48S (empty when r_a == 0 and no transfer)
   std::vector<float> U_a;                       // 48S x r_a row-major
   std::optional<std::array<float, 10>> camera;  // eye, target, up, fov_y_deg
+  // The rest of the scene's view (core::PackageAttributes): used where the
+  // client's own flags are absent.
+  bool floor = true;
+  std::optional<float> floor_height;  // absent: under the rest mesh's lowest point
+  std::string light;                  // empty: the client's default
+  std::optional<float> exposure;
 
   int triangle_count() const { return static_cast<int>(triangles.size() / 3); }
   bool has_transfer() const { return !mean_transfer.empty(); }
@@ -37,6 +43,9 @@ struct ClientBasis {
   // Throws std::invalid_argument naming `source`, the part and what was expected.
   void validate(const std::string& source) const;
 };
+
+// The package's view (camera, floor, light, exposure) onto `basis`.
+void set_view(ClientBasis& basis, const core::PackageAttributes& attributes);
 
 // The bases of a package held in memory (local mode, tests).
 ClientBasis basis_from_package(const core::ScenePackage& package, std::uint64_t content_hash);

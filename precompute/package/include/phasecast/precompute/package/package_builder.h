@@ -72,6 +72,10 @@ Embedding scene_point_embedding(const Scene& scene);
 // or prop's `albedo` in the scene file (docs/scenes.md). S x 3.
 MatrixXfR scene_point_albedo(const Scene& scene);
 
+// The scene's [view] as package attributes: the camera (eye, target, up,
+// fov), the floor, the light and the exposure it names.
+void apply_view(const ViewSettings& view, core::PackageAttributes& attributes);
+
 // Throws std::invalid_argument naming --beta, --blend-lambda, --dead-end-fraction, --min-irf-frames.
 void check_package_options(const PackageOptions& options);
 

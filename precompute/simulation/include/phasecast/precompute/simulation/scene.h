@@ -80,6 +80,22 @@ struct DemoDefaults {
   int seed = 1;
 };
 
+// [view]: how the clients show the scene where their own flags are absent
+// (phasecast-render, the browser page, scripts/demo, the glTF camera); the
+// package stores it (docs/package-format.md, root attributes).
+struct ViewSettings {
+  std::optional<Eigen::Vector3d> eye, target;  // the camera: both or neither
+  Eigen::Vector3d up = Eigen::Vector3d::UnitY();
+  double fov_y_deg = 40;
+  bool floor = true;                   // floor = "none": no floor
+  std::optional<double> floor_height;  // floor = y; absent: under the rest mesh's lowest point
+  std::string light;                   // SH light probe; empty: the client's default
+  std::optional<double> exposure;
+};
+
+// The light probes a client knows (client/scene sh_light.h light_probe_names).
+inline constexpr const char* kLightProbeNames[] = {"grace", "sky", "sun", "white"};
+
 struct Scene {
   std::string name;
   std::filesystem::path source;
@@ -94,6 +110,7 @@ struct Scene {
   // plays by default ("open 0.8; stop 1.5; ..."); parsed where it is used.
   std::string standard_schedule;
   std::optional<DemoDefaults> demo;
+  std::optional<ViewSettings> view;
   // [simulator] kind = "blender": Blender steps the .blend (the model then
   // holds only what Blender described: points, triangles, drawn boxes).
   std::optional<BlenderSettings> blender;

@@ -21,6 +21,7 @@ class Fields {
   Fields(const toml::table& table, std::string file, std::string prefix);
 
   bool has(const std::string& key) const;
+  bool is_string(const std::string& key) const;  // present and a string
   std::string path(const std::string& key) const { return prefix_ + key; }
   [[noreturn]] void fail(const std::string& key, const std::string& expected) const;
 
