@@ -45,6 +45,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   namespace tools = phasecast::precompute::tools;
   tools::add_simulate_command(app);
+  tools::add_check_command(app);
   tools::add_import_command(app);
   tools::add_transfer_command(app);
   tools::add_sample_command(app);

@@ -7,6 +7,7 @@
 #include "phasecast/precompute/simulation/self_collision.h"
 #include "run_tool.h"
 #include "scene_files.h"
+#include "source_tree.h"
 
 #include <gtest/gtest.h>
 
@@ -35,6 +36,26 @@ std::vector<std::string> args(std::vector<std::string> head, const std::vector<s
 
 bool one_line(const std::string& s) {
   return !s.empty() && s.find('\n') == s.size() - 1;
+}
+
+// check as a user runs it: the flag's neutral mode fails it in one line;
+// with a package, IRFs per entry and a fidelity estimate.
+TEST(PipelineCli, CheckNamesTheNeutralModeAndReadsAPackage) {
+  const auto flag =
+      run_tool("phasecast-precompute",
+               {"check", (testing::source_dir() / "tests/data/scenes/flag_pole.toml").string()});
+  EXPECT_EQ(flag.exit_code, 1);
+  EXPECT_NE(flag.out.find("a neutral mode: 'flag' turned"), std::string::npos) << flag.out;
+  EXPECT_NE(flag.err.find("1 problem found"), std::string::npos) << flag.err;
+  const auto door =
+      run_tool("phasecast-precompute",
+               {"check", tiny_scene_path().string(), "--package",
+                (testing::source_dir() / "tests/data/packages/cloth_door.h5").string(), "--schedules", "2"});
+  EXPECT_EQ(door.exit_code, 0) << door.err;
+  EXPECT_NE(door.out.find("palette 'open': 3 IRFs in the package"), std::string::npos) << door.out;
+  EXPECT_NE(door.out.find("fidelity (2 random schedules of 4 entries, seed 7): median NRMSE"),
+            std::string::npos)
+      << door.out;
 }
 
 TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
