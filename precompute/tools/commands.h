@@ -8,6 +8,7 @@ namespace phasecast::precompute::tools {
 
 void add_simulate_command(CLI::App& app);
 void add_check_command(CLI::App& app);
+void add_init_command(CLI::App& app);
 void add_import_command(CLI::App& app);
 void add_sample_command(CLI::App& app);
 void add_reduce_command(CLI::App& app);

@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
       "transfer, build scene packages."};
   app.require_subcommand(1);
   namespace tools = phasecast::precompute::tools;
+  tools::add_init_command(app);
   tools::add_simulate_command(app);
   tools::add_check_command(app);
   tools::add_import_command(app);

@@ -18,11 +18,10 @@
 namespace phasecast::precompute {
 namespace {
 
-// No impulse, no forcing, no support pulse: the scene is left alone.
+// No impulse and no forcing (a jolt's pulse is alpha_I high): the scene is left alone.
 bool quiet(const Scene& scene, int entry) {
   const auto& e = scene.palette[static_cast<size_t>(entry)];
-  return e.alpha_impulse.isZero() && e.alpha_forcing.isZero() &&
-         entry_kinematics(scene, entry).pulse_tau == 0;
+  return e.alpha_impulse.isZero() && e.alpha_forcing.isZero();
 }
 
 double rest_radius(const Scene& scene) {
@@ -212,7 +211,7 @@ std::vector<std::string> SceneCheck::report(const SceneCheckOptions& o) const {
                               mm(radius), mm(o.still_speed * radius), mm(o.displaced * radius)));
   if (quiet.empty()) {
     lines.push_back(
-        "no quiet palette entry (zero alpha_impulse and alpha_forcing, no pulse): the rest and the return to "
+        "no quiet palette entry (zero alpha_impulse and alpha_forcing): the rest and the return to "
         "it "
         "are not checked; add a 'stop' entry");
   } else {

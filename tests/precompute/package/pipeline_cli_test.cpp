@@ -58,6 +58,41 @@ TEST(PipelineCli, CheckNamesTheNeutralModeAndReadsAPackage) {
       << door.out;
 }
 
+// Every template of init simulates its [validation] schedule as written and
+// passes check (its rest is a rest, every entry returns to it).
+TEST(PipelineCli, InitTemplatesSimulateAsWrittenAndPassCheck) {
+  const auto dir = scratch_dir("pipeline_init");
+  for (const std::string name : {"door-cloth", "hanging-banner", "pushed-plant", "jolted-solid"}) {
+    const std::string scene = (dir / (name + ".toml")).string();
+    const auto init = run_tool("phasecast-precompute", {"init", "--template", name, scene, "--force"});
+    ASSERT_EQ(init.exit_code, 0) << init.err;
+    EXPECT_NE(init.out.find("next: phasecast-precompute simulate " + scene + " --schedule"),
+              std::string::npos);
+    const auto check = run_tool("phasecast-precompute", {"check", scene});
+    EXPECT_EQ(check.exit_code, 0) << name << ": " << check.out << check.err;
+    EXPECT_EQ(check.out.find("no quiet palette entry"), std::string::npos)
+        << name << ": every template has one";
+    // The [validation] schedule init names as the next step, simulated as written.
+    const auto from = init.out.find("--schedule \"") + 12;
+    const std::string schedule = init.out.substr(from, init.out.find('"', from) - from);
+    const auto sim = run_tool("phasecast-precompute", {"simulate", scene, "--schedule", schedule, "-o",
+                                                       (dir / (name + ".h5")).string()});
+    EXPECT_EQ(sim.exit_code, 0) << name << ": " << sim.err;
+  }
+  const auto again = run_tool("phasecast-precompute",
+                              {"init", "--template", "door-cloth", (dir / "door-cloth.toml").string()});
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_TRUE(one_line(again.err)) << again.err;
+  EXPECT_NE(again.err.find("exists (expected a new file, or --force to replace it)"), std::string::npos);
+  const auto unknown =
+      run_tool("phasecast-precompute", {"init", "--template", "flag", (dir / "flag.toml").string()});
+  EXPECT_NE(unknown.exit_code, 0);
+  EXPECT_NE(unknown.err.find("--template 'flag' is unknown (expected one of door-cloth, hanging-banner, "
+                             "pushed-plant, jolted-solid)"),
+            std::string::npos)
+      << unknown.err;
+}
+
 TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
   const auto dir = scratch_dir("cli_run");
   const auto pkg = (dir / "tiny.h5").string();
