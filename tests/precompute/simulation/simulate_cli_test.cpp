@@ -45,6 +45,27 @@ TEST(SimulateCli, WritesOrbitStoreAndObjFrames) {
       << r.out;
 }
 
+// The store names the scene file that made it, and phasecast-inspect
+// summarises it (an orbit store, not a package) instead of refusing it.
+TEST(SimulateCli, InspectSummarisesTheOrbitStore) {
+  const auto dir = testing::scratch_dir("cli_simulate_inspect");
+  const auto scene = kScenes / "tiny/cloth_door.toml";
+  ASSERT_EQ(run_tool("phasecast-precompute", {"simulate", scene.string(), "--schedule", "open 0.5; stop 0.3",
+                                              "-o", (dir / "run.h5").string()})
+                .exit_code,
+            0);
+  EXPECT_EQ(read_orbit_store(dir / "run.h5").scene_file, std::filesystem::absolute(scene).lexically_normal());
+  const auto text = run_tool("phasecast-inspect", {(dir / "run.h5").string()});
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("an orbit store (not a package"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("40 frames (0.80 s at dt 0.02 s) in 2 IRFs"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("see it: phasecast-render --simulation"), std::string::npos) << text.out;
+  const auto json = run_tool("phasecast-inspect", {(dir / "run.h5").string(), "--json"});
+  ASSERT_EQ(json.exit_code, 0) << json.err;
+  EXPECT_NE(json.out.find("\"kind\": \"orbit store\""), std::string::npos) << json.out;
+  EXPECT_NE(json.out.find("\"open\": 1"), std::string::npos) << json.out;
+}
+
 // The least det F of a solid's tets, against a second reader: signed volumes
 // from triple products of the stored positions over those of the rest shape.
 TEST(SimulateCli, ReportsHowFarTheSolidsTetsWereSquashed) {
