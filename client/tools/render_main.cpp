@@ -88,11 +88,13 @@ int main(int argc, char** argv) {
                  "many copies of the IRF, each further on in it (default 1)");
   app.add_option("--replay", replay, "render a recorded stream (needs --package)");
   std::string simulation, scene_file;
-  app.add_option("--simulation", simulation,
-                 "render an orbit store (phasecast-precompute simulate's output) as it was simulated: the "
-                 "scene's points, colours and light, nothing reduced");
+  auto* simulation_opt = app.add_option(
+      "--simulation", simulation,
+      "render an orbit store (phasecast-precompute simulate's output) as it was simulated: the "
+      "scene's points, colours and light, nothing reduced");
   app.add_option("--scene-file", scene_file,
-                 "with --simulation: the scene file (default: the one the store was made from)");
+                 "with --simulation: the scene file (default: the one the store was made from)")
+      ->needs(simulation_opt);
   app.add_option("--package", package, "scene package (.h5): local mode, or the bases for --replay");
   auto* irf_opt =
       app.add_option("--play-irf", play_irf, "local mode: play this IRF of the package (default 0)");
@@ -180,8 +182,6 @@ int main(int argc, char** argv) {
     // Progress and the summary go to stdout; stderr carries only the error line.
     std::signal(SIGINT, on_interrupt);
     std::signal(SIGTERM, on_interrupt);
-    if (!scene_file.empty() && simulation.empty())
-      throw std::invalid_argument("--scene-file is for --simulation run.h5");
     if (!simulation.empty()) {
       render_simulation(o, simulation, scene_file);
     } else {

@@ -25,7 +25,18 @@ void run_check(const CheckOptions& o) {
   const Scene scene = load_scene_file(o.scene);
   make_palette_rules(scene);  // the palette's rules first: a broken rule is the first thing to fix
   std::optional<core::ScenePackage> package;
-  if (!o.package.empty()) package = core::read_package(o.package);
+  if (!o.package.empty()) {
+    package = core::read_package(o.package);
+    std::vector<std::string> names;
+    for (const auto& e : scene.palette) names.push_back(e.name);
+    if (package->attributes.scene != scene.name || package->palette.names != names) {
+      throw std::invalid_argument(fmt::format(
+          "--package {} is of scene '{}' with {} palette entries; {} is scene '{}' with {} (expected "
+          "a package of this scene, its palette names in the same order)",
+          o.package, package->attributes.scene, package->palette.names.size(), o.scene, scene.name,
+          names.size()));
+    }
+  }
   core::ProgressBar bar("check");
   std::string last;
   const SceneCheck c = check_scene(scene, package ? &*package : nullptr, o.check,

@@ -36,10 +36,13 @@ std::string filled(std::string text, const std::string& key, const std::string& 
   return text;
 }
 
-void write_new(const std::filesystem::path& path, const std::string& text, bool force) {
+void refuse_existing(const std::filesystem::path& path, bool force) {
   if (std::filesystem::exists(path) && !force)
     throw std::invalid_argument(
         fmt::format("{} exists (expected a new file, or --force to replace it)", path.string()));
+}
+
+void write_file(const std::filesystem::path& path, const std::string& text) {
   std::ofstream out(path);
   out << text;
   out.close();
@@ -52,10 +55,19 @@ void run_init(const InitOptions& o) {
   if (path.extension() != ".toml")
     throw std::invalid_argument(fmt::format("{}: expected a scene file name ending in .toml", o.output));
   const std::string stem = path.stem().string();
+  if (stem.empty() ||
+      stem.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") !=
+          std::string::npos)
+    throw std::invalid_argument(fmt::format(
+        "{}: the file name is the scene's name (expected letters, digits, '_' and '-' before .toml)",
+        o.output));
   const std::string mesh = stem + "_block.obj";
   std::string scene = filled(filled(filled(t.scene, "@NAME@", stem), "@FILE@", o.output), "@MESH@", mesh);
-  if (*t.mesh) write_new(path.parent_path() / mesh, t.mesh, o.force);
-  write_new(path, scene, o.force);
+  const auto mesh_path = path.parent_path() / mesh;
+  refuse_existing(path, o.force);
+  if (*t.mesh) refuse_existing(mesh_path, o.force);
+  if (*t.mesh) write_file(mesh_path, t.mesh);
+  write_file(path, scene);
   const Scene loaded = load_scene_file(path);  // a template that does not load is a bug here, not the user's
   fmt::print(
       "wrote {} ({}: {} vertices, palette {}){}\n", o.output, t.summary, loaded.model.vertices(),

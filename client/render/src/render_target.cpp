@@ -34,7 +34,13 @@ Camera camera_for(const Camera& view, const RenderOptions& o) {
 }
 
 ShLight light_for(const ClientBasis& basis, const RenderOptions& o) {
-  return light_probe(!o.light.empty() ? o.light : !basis.light.empty() ? basis.light : "grace");
+  if (!o.light.empty()) return light_probe(o.light);
+  if (basis.light.empty()) return light_probe("grace");
+  try {
+    return light_probe(basis.light);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(fmt::format("scene '{}' [view] light: {}", basis.scene, e.what()));
+  }
 }
 
 void RenderTarget::make_renderer(const ClientBasis& basis, const RenderOptions& o) {

@@ -1,8 +1,8 @@
 #include "phasecast/client/simulation_view.h"
 
+#include "phasecast/precompute/appearance/appearance_stage.h"
 #include "phasecast/precompute/appearance/transfer.h"
 #include "phasecast/precompute/package/package_builder.h"
-#include "phasecast/precompute/pipeline/stages.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
 #include "phasecast/precompute/simulation/scene.h"
 
@@ -45,7 +45,11 @@ std::filesystem::path scene_file_of(const pre::OrbitStore& store, const std::fil
 ClientBasis rest_basis(const pre::Scene& scene,
                        const std::function<void(const char*, long, long)>& progress) {
   const core::SceneMesh mesh = pre::scene_mesh(scene);
-  pre::TransferOptions transfer = pre::appearance_stage_options(scene, {}).transfer;
+  // The appearance stage's transfer with the scene's rays and albedo (as
+  // appearance_stage_options, without the pipeline section and its MPI).
+  pre::TransferOptions transfer = pre::AppearanceStageOptions::default_stage_transfer();
+  if (scene.appearance.rays > 0) transfer.rays = scene.appearance.rays;
+  transfer.point_albedo = pre::scene_point_albedo(scene);
   transfer.progress = progress;
   const MatrixXfR T = pre::compute_transfer(mesh.rest_positions, mesh.triangles, mesh.normals, transfer);
   ClientBasis b;
@@ -81,10 +85,9 @@ SimulationView::SimulationView(const std::filesystem::path& store,
     impl_->store = pre::read_orbit_store(store);
     impl_->scene = pre::load_scene_file(scene_file_of(impl_->store, store, scene_file));
     pre::check_orbit_store_matches(impl_->scene, pre::read_orbit_index(store));
-  } catch (const std::invalid_argument&) {
-    throw;
   } catch (const std::exception& e) {
-    throw std::invalid_argument(e.what());
+    const std::string what = e.what();
+    throw std::invalid_argument(what.starts_with(store.string()) ? what : store.string() + ": " + what);
   }
   if (impl_->store.frames() == 0)
     throw std::invalid_argument(fmt::format("{}: the orbit store holds no frames", store.string()));

@@ -18,6 +18,10 @@
 namespace phasecast::precompute {
 namespace {
 
+// A turn smaller than this is a slide (its axis is noise); a rigid motion
+// explains a displacement that it leaves at most this share of unexplained.
+constexpr double kLeastTurnDeg = 3, kUnexplainedShare = 0.3;
+
 // No impulse and no forcing (a jolt's pulse is alpha_I high): the scene is left alone.
 bool quiet(const Scene& scene, int entry) {
   const auto& e = scene.palette[static_cast<size_t>(entry)];
@@ -51,7 +55,8 @@ std::optional<RigidMotion> rigid_motion_of(const Scene& scene, const std::string
   const auto& v = it->vertices;
   RigidMotion m = fit_rigid_motion(from(v, Eigen::all), to(v, Eigen::all));
   m.body = body;
-  m.explains = (m.angle_deg > 3 || m.translation.norm() > displaced) && m.residual <= 0.3 * m.rms;
+  m.explains = (m.angle_deg > kLeastTurnDeg || m.translation.norm() > displaced) &&
+               m.residual <= kUnexplainedShare * m.rms;
   return m;
 }
 
@@ -71,6 +76,12 @@ RestTrial run_trial(const Scene& scene, const std::vector<ScheduleItem>& schedul
   const Eigen::VectorXd distance = (end - start).rowwise().norm();
   t.max_displacement = distance.maxCoeff(&t.worst_vertex);
   t.max_speed = speed.rowwise().norm().maxCoeff();
+  t.start_speed = store.velocities.row(0)
+                      .cast<double>()
+                      .reshaped<Eigen::RowMajor>(store.vertices(), 3)
+                      .rowwise()
+                      .norm()
+                      .maxCoeff();
   t.worst_body = body_of(scene, t.worst_vertex);
   t.moving = t.max_speed > o.still_speed * radius;
   t.displaced = t.max_displacement > o.displaced * radius;
@@ -110,7 +121,7 @@ std::string trial_line(const RestTrial& t, double seconds, const char* label) {
     mode += fmt::format(
         " (no rigid motion of '{}' explains it: the best turns {:.0f} deg and leaves {} of {} RMS)",
         t.rigid->body, t.rigid->angle_deg, mm(t.rigid->residual), mm(t.rigid->rms));
-  } else if (t.rigid && t.rigid->angle_deg > 3) {
+  } else if (t.rigid && t.rigid->angle_deg > kLeastTurnDeg) {
     mode = fmt::format("a neutral mode: '{}' turned {:.0f} deg about {} through {} and stays there",
                        t.rigid->body, t.rigid->angle_deg, vec(t.rigid->axis), vec(t.rigid->through));
   } else if (t.rigid) {
@@ -119,8 +130,7 @@ std::string trial_line(const RestTrial& t, double seconds, const char* label) {
   }
   return fmt::format(
       "{} '{}': comes to rest {} from the settled rest ({}, at {}/s): {}; the served scene has one rest, so "
-      "it "
-      "snaps back to it. Fix: pin vertices off that axis or add a brace against the motion, stiffen it "
+      "it snaps back to it. Fix: pin vertices off that axis or add a brace against the motion, stiffen it "
       "(bending, young), or give the scene a rest it returns to (settle, gravity across the free motion)",
       label, t.schedule, mm(t.max_displacement), where, mm(t.max_speed), mode);
 }
@@ -142,7 +152,7 @@ RigidMotion fit_rigid_motion(const Eigen::MatrixX3d& from, const Eigen::MatrixX3
   m.rms = std::sqrt((to - from).rowwise().squaredNorm().mean());
   const Eigen::MatrixX3d fitted = (from * R.transpose()).rowwise() + t.transpose();
   m.residual = std::sqrt((fitted - to).rowwise().squaredNorm().mean());
-  if (m.angle_deg > 1e-6) {
+  if (m.angle_deg > kLeastTurnDeg) {
     // q = R (p - c) + c + s a: s from t along a, c from the rest (min-norm, so across a).
     const double s = m.axis.dot(t);
     const Eigen::Vector3d c = (Eigen::Matrix3d::Identity() - R)
@@ -151,7 +161,9 @@ RigidMotion fit_rigid_motion(const Eigen::MatrixX3d& from, const Eigen::MatrixX3
     m.through = c + m.axis.dot(pc.transpose() - c) * m.axis;
     m.translation = s * m.axis;
   } else {
-    m.translation = t;
+    // Below a noticeable turn the axis is noise: a slide of the centroid.
+    m.translation = (qc - pc).transpose();
+    m.through = pc.transpose();
   }
   return m;
 }
@@ -211,11 +223,11 @@ std::vector<std::string> SceneCheck::report(const SceneCheckOptions& o) const {
                               mm(radius), mm(o.still_speed * radius), mm(o.displaced * radius)));
   if (quiet.empty()) {
     lines.push_back(
-        "no quiet palette entry (zero alpha_impulse and alpha_forcing): the rest and the return to "
-        "it "
+        "no quiet palette entry (zero alpha_impulse and alpha_forcing): the rest and the return to it "
         "are not checked; add a 'stop' entry");
   } else {
-    lines.push_back(trial_line(*rest, stop_seconds, "rest:"));
+    const std::string label = fmt::format("rest (settled, first frame at {}/s):", mm(rest->start_speed));
+    lines.push_back(trial_line(*rest, stop_seconds, label.c_str()));
     for (const auto& t : returns) lines.push_back(trial_line(t, stop_seconds, "return:"));
   }
   for (const auto& e : irfs) {

@@ -526,6 +526,9 @@ ViewSettings read_view(Fields v) {
     view.target = v.vec3("target");
     if (!((*view.eye - *view.target).norm() > 0)) v.fail("target", "a point other than eye");
   }
+  for (const char* key : {"up", "fov"}) {
+    if (v.has(key) && !view.eye) v.fail(key, "eye and target with it (they make the camera together)");
+  }
   view.up = v.vec3("up", view.up);
   view.fov_y_deg = v.number("fov", view.fov_y_deg);
   if (!(view.fov_y_deg > 0 && view.fov_y_deg < 180))

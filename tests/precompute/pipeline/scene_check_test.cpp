@@ -32,6 +32,18 @@ TEST(SceneCheck, RigidFitRecoversATurnAboutAnAxisAndASlideAlongIt) {
   EXPECT_LT(m.residual, 1e-12);
 }
 
+// A slide in float32 positions has a turn of noise: it stays a slide, of the right length.
+TEST(SceneCheck, RigidFitTakesANoisySlideForASlide) {
+  Eigen::MatrixX3d from(6, 3);
+  from << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0.3, 0.7, 0.2, 0.9, 0.1, 0.5;
+  Eigen::MatrixX3d to = from.rowwise() + Eigen::RowVector3d(0.1, 0, 0.05);
+  to = to.cast<float>().cast<double>();  // as an orbit store holds them
+  const RigidMotion m = fit_rigid_motion(from, to);
+  EXPECT_LT(m.angle_deg, 0.01);
+  EXPECT_LT((m.translation - Eigen::Vector3d(0.1, 0, 0.05)).norm(), 1e-6);
+  EXPECT_LT(m.residual, 1e-6);
+}
+
 TEST(SceneCheck, NamesTheNeutralTurnOfAFlagAboutItsPole) {
   const Scene scene = load_scene_file(testing::source_dir() / "tests/data/scenes/flag_pole.toml");
   const SceneCheck c = check_scene(scene, nullptr, {});

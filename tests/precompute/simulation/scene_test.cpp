@@ -161,7 +161,10 @@ TEST(Scene, ViewSectionSetsCameraFloorLightAndExposure) {
             ": field 'view.light': expected one of grace, sky, sun, white, got string \"moon\"");
   EXPECT_EQ(rejection("view_eye", with_view("eye = [0, 1, 3]")),
             ": field 'view.target': expected eye and target together, got nothing (missing)");
-  EXPECT_EQ(rejection("view_fov", with_view("fov = 200")),
+  EXPECT_EQ(
+      rejection("view_fov_alone", with_view("fov = 30")),
+      ": field 'view.fov': expected eye and target with it (they make the camera together), got integer 30");
+  EXPECT_EQ(rejection("view_fov", with_view("eye = [0, 1, 3]\ntarget = [0, 0, 0]\nfov = 200")),
             ": field 'view.fov': expected a vertical field of view in (0, 180) degrees, got integer 200");
   EXPECT_NE(rejection("view_key", with_view("exposur = 2")).find("view.exposur"), std::string::npos);
 }

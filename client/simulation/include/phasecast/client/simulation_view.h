@@ -38,7 +38,8 @@ class SimulationView {
   // Reads the store and the scene that made it: `scene_file`, else the
   // scene file the store names. Refuses a store of another scene naming each
   // field that differs. Computes the rest transfer, reporting (pass, done,
-  // total) to `progress`. Throws std::invalid_argument (one line) naming the file.
+  // total) to `progress`. Throws std::invalid_argument, one line that starts
+  // with the store's path.
   SimulationView(const std::filesystem::path& store, const std::optional<std::filesystem::path>& scene_file,
                  const std::function<void(const char* pass, long done, long total)>& progress = {});
   ~SimulationView();

@@ -47,6 +47,7 @@ struct RestTrial {
   std::string schedule;         // "carry 0.5; stop 3"
   double max_displacement = 0;  // m, largest vertex distance from the settled rest at the end
   double max_speed = 0;         // m/s, largest vertex speed at the end (support frame)
+  double start_speed = 0;       // m/s, largest vertex speed at the first frame (after settle and one step)
   int worst_vertex = 0;
   std::string worst_body;
   std::optional<RigidMotion> rigid;  // the best rigid motion of the worst body, when displaced
