@@ -5,6 +5,7 @@
 #include "phasecast/precompute/validation/playback.h"
 #include "error_of.h"
 #include "phasecast/precompute/package/package_builder.h"
+#include "phasecast/server/synthesis_engine.h"
 #include "run_tool.h"
 #include "scene_files.h"
 #include "source_tree.h"
@@ -159,6 +160,42 @@ TEST(Playback, RandomSchedulesObeyTheRulesAndTheRange) {
             schedule_text(scene(), random_schedule(rules, 0.02, 1, 3, 6)));
   EXPECT_NE(schedule_text(scene(), random_schedule(rules, 0.02, 1, 3, 6)),
             schedule_text(scene(), random_schedule(rules, 0.02, 2, 3, 6)));
+}
+
+// validate --random draws only what the server accepts, its stop at the
+// range's end included: 300 random schedules of 8 entries per tiny scene,
+// played through the real synthesis engine alone (no simulation), are refused
+// nothing.
+TEST(Playback, RandomSchedulesAreNeverRefusedByTheServer) {
+  for (const std::string name : {"cloth_door", "plant_pot", "toy_dashboard"}) {
+    const Scene s = load_scene_file(phasecast::testing::scenes_dir() / ("tiny/" + name + ".toml"));
+    const auto p = std::make_shared<const core::ScenePackage>(
+        core::read_package(phasecast::testing::source_dir() / ("tests/data/packages/" + name + ".h5")));
+    const auto rules = make_palette_rules(s);
+    int refused = 0, items = 0;
+    std::string first;
+    for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+      for (int k = 0; k < 100; ++k) {
+        server::SynthesisEngine engine;
+        engine.add_scene(p, "refusals", 0);
+        const std::uint32_t id = engine.create_instance(p->attributes.scene);
+        std::uint64_t frame = 0;
+        for (const auto& item : random_schedule(rules, s.simulation.frame_dt, seed, k, 8)) {
+          ++items;
+          try {
+            engine.schedule_impulse(id, item.entry, frame);
+          } catch (const server::EngineError& e) {
+            if (refused++ == 0) first = e.what();
+          }
+          for (int f = 0; f < schedule_frames(item.duration, s.simulation.frame_dt); ++f, ++frame) {
+            for (const auto& r : engine.tick().refused)
+              if (refused++ == 0) first = r.error;
+          }
+        }
+      }
+    }
+    EXPECT_EQ(refused, 0) << name << ": " << refused << " of " << items << " refused; first: " << first;
+  }
 }
 
 TEST(Playback, AForbiddenEntryIsReportedWithTheRuleItBreaks) {
