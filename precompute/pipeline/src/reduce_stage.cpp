@@ -59,6 +59,20 @@ AppearanceReport run_appearance(const Scene& scene, AppearanceStageOptions stage
   return report;
 }
 
+// Per palette entry: sampled, kept and dropped IRFs with the reason.
+std::vector<EntryIrfCounts> entry_irf_counts(const OrbitIndex& index, const OrbitFilterResult& filter) {
+  std::vector<EntryIrfCounts> counts;
+  for (const auto& name : index.palette_names) counts.push_back({name});
+  const auto of = [&](int irf) -> EntryIrfCounts& {
+    return counts.at(static_cast<size_t>(index.irfs.palette.at(static_cast<size_t>(irf))));
+  };
+  for (size_t i = 0; i < index.irfs.size(); ++i) ++of(static_cast<int>(i)).sampled;
+  for (const int i : filter.kept) ++of(i).kept;
+  for (const int i : filter.short_irfs) ++of(i).dropped_short;
+  for (const int i : filter.dead_end_irfs) ++of(i).dropped_dead_end;
+  return counts;
+}
+
 }  // namespace
 
 ReduceReport run_reduce_stage(const Scene& scene, const ReduceStageOptions& a,
@@ -83,6 +97,7 @@ ReduceReport run_reduce_stage(const Scene& scene, const ReduceStageOptions& a,
   report.dropped_short = built.filter.dropped_short;
   report.dropped_dead_end = built.filter.dropped_dead_end;
   report.dropped = built.filter.messages;
+  report.entries = entry_irf_counts(index, built.filter);
   if (report.writer)
     for (const auto& line : report.dropped) fmt::print(stderr, "dropped {}\n", line);
   if (!appearance.skip)

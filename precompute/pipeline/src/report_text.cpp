@@ -177,6 +177,14 @@ std::string reduce_report_text(const ReduceReport& r) {
       r.package_path.string(), p.portrait.nodes(), p.portrait.irf_count(), r.dropped_short,
       r.dropped_dead_end, p.rank_u(), core::displacement_error_at_rank(p, p.rank_u()), p.rank_a(),
       p.attributes.beta);
+  std::string entries;
+  for (const auto& e : r.entries) {
+    entries +=
+        fmt::format("{}'{}' {} sampled, {} kept", entries.empty() ? "" : "; ", e.entry, e.sampled, e.kept);
+    if (e.dropped_short + e.dropped_dead_end > 0)
+      entries += fmt::format(" ({} short, {} dead ends dropped)", e.dropped_short, e.dropped_dead_end);
+  }
+  if (!entries.empty()) out += fmt::format("IRFs per palette entry: {}\n", entries);
   return out;
 }
 

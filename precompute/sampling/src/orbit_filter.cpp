@@ -48,6 +48,7 @@ OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, d
     if (irfs.length[i] < o.min_frames && !last_of_its_entry(irfs, alive, i)) {
       alive[i] = 0;
       ++r.dropped_short;
+      r.short_irfs.push_back(static_cast<int>(i));
       r.messages.push_back(fmt::format("IRF {} ({}): {} nodes, shorter than the minimum {}", i,
                                        entry_of(o, irfs.palette[i]), irfs.length[i], o.min_frames));
     }
@@ -70,6 +71,7 @@ OrbitFilterResult filter_orbits(const MatrixXfR& q_u, const MatrixXfR& qdot_u, d
           alive[i] = 0;
           changed = true;
           ++r.dropped_dead_end;
+          r.dead_end_irfs.push_back(static_cast<int>(i));
           r.messages.push_back(
               fmt::format("IRF {} ({}): dead end, last node {:.4g} from the nearest IRF start "
                           "(threshold {:.4g}, eq. 9)",

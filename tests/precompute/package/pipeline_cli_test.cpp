@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include <sys/wait.h>
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <thread>
@@ -106,6 +107,15 @@ TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
   EXPECT_NE(inspect.out.find("displacement r_u = "), std::string::npos) << inspect.out;
   const auto p = core::read_package(pkg);
   EXPECT_EQ(p.portrait.irf_count(), 6);
+  // Per entry, the kept IRFs are the package's: counted again from /portrait/irf_palette.
+  for (int e = 0; e < p.palette.size(); ++e) {
+    const auto kept = std::count(p.portrait.irf_palette.begin(), p.portrait.irf_palette.end(), e);
+    EXPECT_NE(r.out.find(fmt::format("'{}' ", p.palette.names[static_cast<size_t>(e)])), std::string::npos);
+    EXPECT_NE(r.out.find(fmt::format("'{}' {} sampled, {} kept", p.palette.names[static_cast<size_t>(e)],
+                                     kept, kept)),
+              std::string::npos)
+        << "nothing is dropped from this sample: " << r.out;
+  }
 }
 
 // One IRF from rest cannot be a 'stop' (it follows open or close): run writes

@@ -85,12 +85,19 @@ struct AppearanceReport {
   double peak_mib = 0;  // resident memory so far
 };
 
+// One palette entry's IRFs through the filter (§3.5: short ones and dead ends are dropped).
+struct EntryIrfCounts {
+  std::string entry;
+  int sampled = 0, kept = 0, dropped_short = 0, dropped_dead_end = 0;
+};
+
 struct ReduceReport {
   bool writer = false;  // this rank wrote the package (rank 0): the one that reports
   std::filesystem::path package_path;
   core::ScenePackage package;
   int dropped_short = 0, dropped_dead_end = 0;
-  std::vector<std::string> dropped;  // one line per IRF the filter dropped, naming its entry and why
+  std::vector<std::string> dropped;     // one line per IRF the filter dropped, naming its entry and why
+  std::vector<EntryIrfCounts> entries;  // per palette entry, in palette order
   std::optional<AppearanceReport> appearance;  // absent: skipped
 };
 

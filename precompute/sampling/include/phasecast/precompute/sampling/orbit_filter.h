@@ -36,7 +36,8 @@ struct OrbitFilterResult {
   std::vector<int> kept;  // indices into the input IRF list, in order
   int dropped_short = 0;
   int dropped_dead_end = 0;
-  std::vector<std::string> messages;  // one line per dropped IRF, saying why
+  std::vector<int> short_irfs, dead_end_irfs;  // indices into the input IRF list, per reason
+  std::vector<std::string> messages;           // one line per dropped IRF, saying why
 };
 
 // Portrait radius: max_j sqrt(||q^j||^2 + beta ||qdot^j||^2), the scale dead_end_fraction refers to.
