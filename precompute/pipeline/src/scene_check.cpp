@@ -194,6 +194,16 @@ SceneCheck check_scene(const Scene& scene, const core::ScenePackage* package, co
       c.returns.push_back(run_trial(scene, {{d, trial_seconds(e)}, {quiet_entry, stop}}, &rest, c.radius, o,
                                     stage(fmt::format("return trial '{}'", e.name))));
     }
+  } else {
+    // Jolts (no forcing) leave the scene alone once their pulse is over: each
+    // is its own quiet time, measured against its own first frame.
+    const double stop = c.stop_seconds = o.stop_seconds > 0 ? o.stop_seconds : 3.0;
+    for (int d = 0; d < static_cast<int>(scene.palette.size()); ++d) {
+      const auto& e = scene.palette[static_cast<size_t>(d)];
+      if (!e.alpha_forcing.isZero()) continue;
+      c.returns.push_back(run_trial(scene, {{d, trial_seconds(e) + stop}}, nullptr, c.radius, o,
+                                    stage(fmt::format("return trial '{}'", e.name))));
+    }
   }
   if (package) {
     for (const auto& e : scene.palette) c.irfs.push_back({e.name, 0});
@@ -222,9 +232,12 @@ std::vector<std::string> SceneCheck::report(const SceneCheckOptions& o) const {
   lines.push_back(fmt::format("scene '{}': rest mesh radius {}; moving above {}/s, displaced above {}", scene,
                               mm(radius), mm(o.still_speed * radius), mm(o.displaced * radius)));
   if (quiet.empty()) {
-    lines.push_back(
-        "no quiet palette entry (zero alpha_impulse and alpha_forcing): the rest and the return to it "
-        "are not checked; add a 'stop' entry");
+    lines.push_back(fmt::format(
+        "no quiet palette entry (zero alpha_impulse and alpha_forcing): the rest is not checked{}; add a "
+        "'stop' entry",
+        returns.empty() ? ", nor the return to it"
+                        : ", the jolts (no forcing) are each followed by their own quiet"));
+    for (const auto& t : returns) lines.push_back(trial_line(t, stop_seconds, "return:"));
   } else {
     const std::string label = fmt::format("rest (settled, first frame at {}/s):", mm(rest->start_speed));
     lines.push_back(trial_line(*rest, stop_seconds, label.c_str()));

@@ -65,6 +65,20 @@ TEST(SceneCheck, NamesTheNeutralTurnOfAFlagAboutItsPole) {
   EXPECT_NE(lines.back().find("a neutral mode: 'flag' turned"), std::string::npos) << lines.back();
 }
 
+// Without a quiet entry, each jolt is followed by its own quiet time.
+TEST(SceneCheck, TheTinyToysJoltsEachReturnToRest) {
+  const Scene scene = load_scene_file(testing::source_dir() / "scenes/tiny/toy_dashboard.toml");
+  const SceneCheck c = check_scene(scene, nullptr, {});
+  EXPECT_TRUE(c.quiet.empty());
+  EXPECT_FALSE(c.rest);
+  ASSERT_EQ(c.returns.size(), 5u);  // forward, back, left, right, up
+  for (const auto& t : c.returns) {
+    EXPECT_FALSE(t.moving || t.displaced)
+        << t.schedule << ": " << t.max_displacement << " m, " << t.max_speed;
+  }
+  EXPECT_EQ(c.problems(), 0);
+}
+
 TEST(SceneCheck, TheTinyClothDoorReturnsToItsRest) {
   const Scene scene = load_scene_file(testing::source_dir() / "scenes/tiny/cloth_door.toml");
   const SceneCheck c = check_scene(scene, nullptr, {});
