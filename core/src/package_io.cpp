@@ -46,7 +46,6 @@ int stored_format_version(const Reader& r) {
   return static_cast<int>(version);
 }
 
-// Read into today's version: the in-memory package knows no other.
 // The [view] attributes besides the camera; each optional.
 void read_view(const Reader& r, PackageAttributes& a) {
   const auto& f = r.file();
@@ -62,6 +61,7 @@ void read_view(const Reader& r, PackageAttributes& a) {
   }
 }
 
+// Read into today's version: the in-memory package knows no other.
 PackageAttributes read_attributes(const Reader& r) {
   PackageAttributes a;
   a.format_version = kFormatVersion;
