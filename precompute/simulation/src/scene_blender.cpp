@@ -22,8 +22,10 @@ BlenderSettings read_simulator(Fields sim, const std::filesystem::path& folder) 
                         s.blend.string());
       for (size_t i = 1; i < make.size(); ++i) how += " " + make[i];
     }
-    sim.fail("blend", fmt::format("an existing .blend file ({} does not exist; make it with: {})",
-                                  s.blend.string(), how));
+    throw SceneError(
+        fmt::format("{}: field '{}': {} does not exist (expected an existing .blend file; make it "
+                    "with: {})",
+                    sim.file(), sim.path("blend"), s.blend.string(), how));
   }
   s.deformable = sim.strings("deformable");
   if (s.deformable.empty()) sim.fail("deformable", "a list of at least one object name");

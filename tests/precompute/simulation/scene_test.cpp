@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 namespace phasecast::precompute {
@@ -167,6 +168,20 @@ TEST(Scene, ViewSectionSetsCameraFloorLightAndExposure) {
   EXPECT_EQ(rejection("view_fov", with_view("eye = [0, 1, 3]\ntarget = [0, 0, 0]\nfov = 200")),
             ": field 'view.fov': expected a vertical field of view in (0, 180) degrees, got integer 200");
   EXPECT_NE(rejection("view_key", with_view("exposur = 2")).find("view.exposur"), std::string::npos);
+}
+
+// A Blender scene whose .blend is missing says how to make it, in one line.
+TEST(SceneErrors, MissingBlendSaysHowToMakeIt) {
+  std::ifstream in(kScenes / "tiny/blender/cloth_door.toml");
+  const std::string text{std::istreambuf_iterator<char>(in), {}};
+  const std::string message = rejection("blend_missing", text);
+  EXPECT_NE(message.find(": field 'simulator.blend': "), std::string::npos) << message;
+  EXPECT_NE(message.find("cloth_door.blend does not exist (expected an existing .blend file; make it with: "
+                         "blender -b --factory-startup --python "),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("--cells 5 7)"), std::string::npos) << message;
+  EXPECT_EQ(message.find(", got"), std::string::npos) << message;
 }
 
 TEST(SceneErrors, MissingField) {
