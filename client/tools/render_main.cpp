@@ -47,10 +47,7 @@ void render_simulation(const phasecast::client::RenderOptions& o, const std::str
   chunks.dt = view.dt();
   chunks.frames = o.max_frames > 0 ? std::min<std::uint64_t>(o.max_frames, view.frames()) : view.frames();
   chunks.chunks = view.chunks(chunks.frames);
-  chunks.chunk = [&view, &chunks](int index) {
-    auto c = view.chunk(index, chunks.frames);
-    return FrameChunk{std::move(c.basis), std::move(c.frames)};
-  };
+  chunks.chunk = [&view, &chunks](int index) { return view.chunk(index, chunks.frames); };
   render_chunks(o, chunks, std::cout, g_interrupted);
 }
 

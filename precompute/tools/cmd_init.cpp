@@ -65,8 +65,10 @@ void run_init(const InitOptions& o) {
   std::string scene = filled(filled(filled(t.scene, "@NAME@", stem), "@FILE@", o.output), "@MESH@", mesh);
   const auto mesh_path = path.parent_path() / mesh;
   refuse_existing(path, o.force);
-  if (*t.mesh) refuse_existing(mesh_path, o.force);
-  if (*t.mesh) write_file(mesh_path, t.mesh);
+  if (*t.mesh) {
+    refuse_existing(mesh_path, o.force);
+    write_file(mesh_path, t.mesh);
+  }
   write_file(path, scene);
   const Scene loaded = load_scene_file(path);  // a template that does not load is a bug here, not the user's
   fmt::print(
@@ -76,7 +78,7 @@ void run_init(const InitOptions& o) {
         for (const auto& e : loaded.palette) names += (names.empty() ? "" : ", ") + e.name;
         return names;
       }(),
-      *t.mesh ? fmt::format(" and {}", (path.parent_path() / mesh).string()) : "");
+      *t.mesh ? fmt::format(" and {}", mesh_path.string()) : "");
   fmt::print("next: phasecast-precompute simulate {} --schedule \"{}\" -o try.h5\n", o.output,
              loaded.standard_schedule);
   fmt::print(

@@ -1,5 +1,7 @@
 #include "phasecast/client/sh_light.h"
 
+#include "phasecast/core/package.h"
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <Eigen/Dense>
@@ -105,7 +107,7 @@ std::array<float, 48> ShLight::packed() const {
 }
 
 std::vector<std::string> light_probe_names() {
-  return {"grace", "sky", "sun", "white"};
+  return {core::kLightProbeNames.begin(), core::kLightProbeNames.end()};
 }
 
 ShLight light_probe(const std::string& name) {

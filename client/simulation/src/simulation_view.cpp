@@ -121,7 +121,7 @@ int SimulationView::chunks(std::uint64_t frames) const {
   return static_cast<int>((n + k - 1) / k);
 }
 
-SimulationChunk SimulationView::chunk(int index, std::uint64_t frames) const {
+FrameChunk SimulationView::chunk(int index, std::uint64_t frames) const {
   const auto& store = impl_->store;
   const int per_chunk = simulation_chunk_frames(points());
   const int total =
@@ -133,7 +133,7 @@ SimulationChunk SimulationView::chunk(int index, std::uint64_t frames) const {
   // Scene points of every frame of the chunk (3S x K) less the rest shape.
   const MatrixXfR x = store.positions.middleRows(first, K).transpose();
   MatrixXfR U = pre::embed_positions(impl_->embedding, x);
-  SimulationChunk c{impl_->rest, {}};
+  FrameChunk c{impl_->rest, {}};
   const auto S = static_cast<Eigen::Index>(c.basis.points);
   for (Eigen::Index p = 0; p < S; ++p) {
     for (Eigen::Index i = 3 * p; i < 3 * p + 3; ++i) {

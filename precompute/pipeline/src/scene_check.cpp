@@ -39,6 +39,16 @@ Eigen::MatrixX3d frame_positions(const OrbitStore& store, int frame) {
   return store.positions.row(frame).cast<double>().reshaped<Eigen::RowMajor>(store.vertices(), 3);
 }
 
+// The largest vertex speed (m/s, support frame) of one frame.
+double max_speed(const OrbitStore& store, int frame) {
+  return store.velocities.row(frame)
+      .cast<double>()
+      .reshaped<Eigen::RowMajor>(store.vertices(), 3)
+      .rowwise()
+      .norm()
+      .maxCoeff();
+}
+
 std::string body_of(const Scene& scene, int vertex) {
   for (const auto& b : scene.bodies) {
     if (std::find(b.vertices.begin(), b.vertices.end(), vertex) != b.vertices.end()) return b.name;
@@ -69,19 +79,12 @@ RestTrial run_trial(const Scene& scene, const std::vector<ScheduleItem>& schedul
   if (first_frame) *first_frame = frame_positions(store, 0);
   const Eigen::MatrixX3d start = rest ? *rest : frame_positions(store, 0);
   const Eigen::MatrixX3d end = frame_positions(store, store.frames() - 1);
-  const Eigen::MatrixX3d speed =
-      store.velocities.row(store.frames() - 1).cast<double>().reshaped<Eigen::RowMajor>(store.vertices(), 3);
   RestTrial t;
   t.schedule = schedule_text(scene, schedule);
   const Eigen::VectorXd distance = (end - start).rowwise().norm();
   t.max_displacement = distance.maxCoeff(&t.worst_vertex);
-  t.max_speed = speed.rowwise().norm().maxCoeff();
-  t.start_speed = store.velocities.row(0)
-                      .cast<double>()
-                      .reshaped<Eigen::RowMajor>(store.vertices(), 3)
-                      .rowwise()
-                      .norm()
-                      .maxCoeff();
+  t.max_speed = max_speed(store, store.frames() - 1);
+  t.start_speed = max_speed(store, 0);
   t.worst_body = body_of(scene, t.worst_vertex);
   t.moving = t.max_speed > o.still_speed * radius;
   t.displaced = t.max_displacement > o.displaced * radius;
@@ -237,12 +240,11 @@ std::vector<std::string> SceneCheck::report(const SceneCheckOptions& o) const {
         "'stop' entry",
         returns.empty() ? ", nor the return to it"
                         : ", the jolts (no forcing) are each followed by their own quiet"));
-    for (const auto& t : returns) lines.push_back(trial_line(t, stop_seconds, "return:"));
   } else {
     const std::string label = fmt::format("rest (settled, first frame at {}/s):", mm(rest->start_speed));
     lines.push_back(trial_line(*rest, stop_seconds, label.c_str()));
-    for (const auto& t : returns) lines.push_back(trial_line(t, stop_seconds, "return:"));
   }
+  for (const auto& t : returns) lines.push_back(trial_line(t, stop_seconds, "return:"));
   for (const auto& e : irfs) {
     lines.push_back(e.irfs > 0 ? fmt::format("palette '{}': {} IRFs in the package", e.entry, e.irfs)
                                : fmt::format("palette '{}': no IRF in the package, so the server refuses it; "

@@ -543,8 +543,8 @@ ViewSettings read_view(Fields v) {
   }
   if (v.has("light")) {
     view.light = v.string("light");
-    if (std::ranges::find(kLightProbeNames, view.light) == std::end(kLightProbeNames))
-      v.fail("light", fmt::format("one of {}", fmt::join(kLightProbeNames, ", ")));
+    if (std::ranges::find(core::kLightProbeNames, view.light) == core::kLightProbeNames.end())
+      v.fail("light", fmt::format("one of {}", fmt::join(core::kLightProbeNames, ", ")));
   }
   if (v.has("exposure")) view.exposure = v.positive("exposure");
   v.finish();

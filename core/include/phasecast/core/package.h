@@ -34,6 +34,10 @@ class PackageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The SH light probes a package's `light` may name, the clients' own
+// (client/scene sh_light.h light_probe builds them).
+inline constexpr std::array<const char*, 4> kLightProbeNames{"grace", "sky", "sun", "white"};
+
 // Root attributes.
 struct PackageAttributes {
   int format_version = kFormatVersion;

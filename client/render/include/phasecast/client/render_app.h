@@ -76,10 +76,6 @@ void run_render(const RenderOptions& options, std::ostream& log, const std::atom
 // as it was simulated (phasecast-render --simulation, simulation_view.h).
 // Each chunk's bases replace the last ones on the same context; the window,
 // PNG numbering and video go on.
-struct FrameChunk {
-  ClientBasis basis;
-  std::vector<FrameState> frames;
-};
 struct FrameChunks {
   std::string source;       // named in the log and in errors
   std::string description;  // the log's first line says what is drawn

@@ -18,6 +18,13 @@ struct FrameState {
   std::vector<float> support;  // 12: 3x4 row-major support -> world; empty: identity
 };
 
+// Frames that bring their own bases (a chunk of a simulation drawn as it
+// was simulated, simulation_view.h): the frames are evaluated with `basis`.
+struct FrameChunk {
+  ClientBasis basis;
+  std::vector<FrameState> frames;
+};
+
 // Checks sizes against the bases and that every value is finite. Throws
 // std::invalid_argument: "<source>: frame 12: q_u has 3 values (expected r_u = 4)".
 void validate_frame(const FrameState& frame, const ClientBasis& basis, const std::string& source);

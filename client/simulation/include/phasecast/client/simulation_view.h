@@ -25,11 +25,6 @@
 
 namespace phasecast::client {
 
-struct SimulationChunk {
-  ClientBasis basis;               // r_u = frames.size(), r_a = 0, the rest shape's transfer
-  std::vector<FrameState> frames;  // frame numbers are the store's frame indices
-};
-
 // Frames per chunk: at most 64, fewer where U_u would pass 64 MiB.
 int simulation_chunk_frames(int points);
 
@@ -52,7 +47,9 @@ class SimulationView {
   int points() const;
   // The first `frames` frames (all when 0) in chunks of simulation_chunk_frames.
   int chunks(std::uint64_t frames = 0) const;
-  SimulationChunk chunk(int index, std::uint64_t frames = 0) const;
+  // Its basis: r_u = frames.size(), r_a = 0, the rest shape's transfer; its
+  // frame numbers are the store's frame indices.
+  FrameChunk chunk(int index, std::uint64_t frames = 0) const;
 
  private:
   struct Impl;

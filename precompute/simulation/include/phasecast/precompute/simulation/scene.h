@@ -93,9 +93,6 @@ struct ViewSettings {
   std::optional<double> exposure;
 };
 
-// The light probes a client knows (client/scene sh_light.h light_probe_names).
-inline constexpr const char* kLightProbeNames[] = {"grace", "sky", "sun", "white"};
-
 struct Scene {
   std::string name;
   std::filesystem::path source;
