@@ -37,15 +37,7 @@ void run_check(const CheckOptions& o) {
           names.size()));
     }
   }
-  core::ProgressBar bar("check");
-  std::string last;
-  const SceneCheck c = check_scene(scene, package ? &*package : nullptr, o.check,
-                                   [&](const std::string& stage, int done, int total) {
-                                     if (stage != last) bar.restart(last = stage);
-                                     bar.update(done, total);
-                                   });
-  bar.finish();
-  for (const auto& line : c.report(o.check)) fmt::print("{}\n", line);
+  const SceneCheck c = check_and_report(scene, package ? &*package : nullptr, o.check);
   if (const int n = c.problems(); n > 0) {
     throw std::runtime_error(
         fmt::format("{}: {} problem{} found (above, each with its fix)", o.scene, n, n > 1 ? "s" : ""));
@@ -53,6 +45,20 @@ void run_check(const CheckOptions& o) {
 }
 
 }  // namespace
+
+SceneCheck check_and_report(const Scene& scene, const core::ScenePackage* package,
+                            const SceneCheckOptions& options) {
+  core::ProgressBar bar("check");
+  std::string last;
+  const SceneCheck c =
+      check_scene(scene, package, options, [&](const std::string& stage, int done, int total) {
+        if (stage != last) bar.restart(last = stage);
+        bar.update(done, total);
+      });
+  bar.finish();
+  for (const auto& line : c.report(options)) fmt::print("{}\n", line);
+  return c;
+}
 
 void add_check_command(CLI::App& app) {
   auto o = std::make_shared<CheckOptions>();

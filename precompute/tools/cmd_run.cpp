@@ -26,6 +26,7 @@ struct Options {
   int held_out_schedules = -1;      // -1: 20 with --until-fidelity, else none
   std::uint64_t fidelity_seed = 0;  // 0: derived from --seed (below 2^53: the package stores it as a double)
   bool allow_missing_entries = false;  // accept a package in which an entry has no IRF
+  bool allow_rest_problems = false;    // accept a scene whose rest trials find a problem
 };
 
 // A palette entry without an IRF cannot be played: the server refuses it.
@@ -46,6 +47,21 @@ void check_every_entry_sampled(const core::ScenePackage& p, const Options& o) {
                   count > 1 ? "them" : "it"));
 }
 
+// check's rest trials: a rest that moves, or a push and a stop that end
+// elsewhere (a neutral mode), is a state the served scene cannot know, since a
+// package has one rest; playback snaps back. The package stays written.
+void check_rest(const Scene& scene, const Options& o) {
+  SceneCheckOptions options;
+  options.fidelity_schedules = 0;
+  const SceneCheck c = check_and_report(scene, nullptr, options);
+  const int n = c.problems();
+  if (n == 0 || o.allow_rest_problems) return;
+  throw std::runtime_error(
+      fmt::format("{}: the rest trials found {} problem{} in {} (above, each with its fix); the package is "
+                  "written, --allow-rest-problems accepts it",
+                  o.output, n, n > 1 ? "s" : "", o.scene));
+}
+
 // The held-out schedules' stream: never the sampler's, never the guides'.
 std::uint64_t held_out_seed(const Options& o) {
   return o.fidelity_seed != 0 ? o.fidelity_seed : 0x74657374ULL + 7919 * o.sample.sampling.seed;  // "test"
@@ -54,6 +70,9 @@ std::uint64_t held_out_seed(const Options& o) {
 void add_fidelity_options(CLI::App* cmd, Options& o) {
   cmd->add_flag("--allow-missing-entries", o.allow_missing_entries,
                 "exit 0 even when a palette entry got no IRF (the server refuses such an entry)");
+  cmd->add_flag("--allow-rest-problems", o.allow_rest_problems,
+                "exit 0 even when the rest trials at the end (check's) find a rest that moves or a neutral "
+                "mode (the served scene snaps back to its one rest)");
   cmd->add_option(
          "--until-fidelity", o.until_fidelity,
          "sample until random guide schedules play at this median NRMSE (90th percentile + 0.1, 95 % "
@@ -146,6 +165,7 @@ void add_run_command(CLI::App& app) {
         store_fidelity(f, fidelity, reduced.package, o->output);
       }
     }
+    if (reduced.writer) check_rest(scene, *o);
   });
 }
 

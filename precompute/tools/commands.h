@@ -2,6 +2,8 @@
 // One registration function per phasecast-precompute subcommand, each in its
 // own file, so parts of the pipeline are added without touching each other.
 
+#include "phasecast/precompute/pipeline/scene_check.h"
+
 #include <CLI/CLI.hpp>
 
 namespace phasecast::precompute::tools {
@@ -15,6 +17,9 @@ void add_reduce_command(CLI::App& app);
 void add_run_command(CLI::App& app);
 // `validate scene.toml package.h5`: playback against the full simulation (docs/validation.md).
 void add_validate_command(CLI::App& app);
+// check_scene with a progress bar per trial on stderr, and its report on stdout.
+SceneCheck check_and_report(const Scene& scene, const core::ScenePackage* package,
+                            const SceneCheckOptions& options);
 // `transfer <mesh.obj> -o transfer.h5`: diffuse PRT of a static mesh (docs/transfer.md).
 void add_transfer_command(CLI::App& app);
 }  // namespace phasecast::precompute::tools

@@ -186,10 +186,12 @@ TEST_P(ConsoleExample, RunsUnattendedAgainstAPrecomputedPackage) {
   const auto& e = GetParam();
   const auto dir = testing::scratch_dir(std::string("console_example_") + e.scene);
   const auto package = dir / (std::string(e.scene) + ".h5");
-  const auto pre = testing::run_tool(
-      "phasecast-precompute",
-      {"run", phasecast::testing::scenes_dir().string() + "/tiny/" + e.scene + ".toml", "-o",
-       package.string(), "--chains", "1", "--irfs-per-chain", e.irfs, "--seed", e.seed});
+  // The tiny plant's leaves turn about its stem: run's rest trials report it (docs/limitations.md).
+  const auto pre =
+      testing::run_tool("phasecast-precompute",
+                        {"run", phasecast::testing::scenes_dir().string() + "/tiny/" + e.scene + ".toml",
+                         "-o", package.string(), "--chains", "1", "--irfs-per-chain", e.irfs, "--seed",
+                         e.seed, "--allow-rest-problems"});
   ASSERT_EQ(pre.exit_code, 0) << pre.err;
   testing::ServerProcess server({package.string()});
   ::setenv("PUSHES", "1", 1);

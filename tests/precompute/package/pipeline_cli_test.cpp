@@ -118,6 +118,34 @@ TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
   }
 }
 
+// run ends with check's rest trials: the tiny door returns to its rest; the
+// flag turns about its pole and stays there, which fails run (the package is
+// written all the same) unless --allow-rest-problems.
+TEST(PipelineCli, RunEndsWithTheRestTrials) {
+  const auto dir = scratch_dir("cli_rest_trials");
+  const std::vector<std::string> quick = {
+      "--chains", "1", "--irfs-per-chain", "4", "--no-appearance", "--allow-missing-entries"};
+  const auto door = run_tool("phasecast-precompute",
+                             args({"run", tiny_scene_path().string(), "-o", (dir / "door.h5").string()}));
+  ASSERT_EQ(door.exit_code, 0) << door.err;
+  EXPECT_NE(door.out.find("return: 'open 0.62; stop 3.00': back within"), std::string::npos) << door.out;
+  const auto scene = (testing::source_dir() / "tests/data/scenes/flag_pole.toml").string();
+  const auto pkg = (dir / "flag.h5").string();
+  const auto flag = run_tool("phasecast-precompute", args({"run", scene, "-o", pkg}, quick));
+  EXPECT_EQ(flag.exit_code, 1);
+  EXPECT_NE(flag.out.find("a neutral mode: 'flag' turned"), std::string::npos) << flag.out;
+  EXPECT_TRUE(one_line(flag.err.substr(flag.err.rfind("phasecast-precompute: ")))) << flag.err;
+  EXPECT_NE(
+      flag.err.find("flag.h5: the rest trials found 1 problem in " + scene +
+                    " (above, each with its fix); the package is written, --allow-rest-problems accepts it"),
+      std::string::npos)
+      << flag.err;
+  EXPECT_GT(core::read_package(pkg).portrait.irf_count(), 0) << "the package is written all the same";
+  auto allowed = quick;
+  allowed.push_back("--allow-rest-problems");
+  EXPECT_EQ(run_tool("phasecast-precompute", args({"run", scene, "-o", pkg}, allowed)).exit_code, 0);
+}
+
 // One IRF from rest cannot be a 'stop' (it follows open or close): run writes
 // the package, then fails naming the entries the server would refuse.
 TEST(PipelineCli, RunFailsNamingAnEntryWithoutIrfs) {
