@@ -4,6 +4,8 @@
 //      draws from the server's recording of the same stream;
 //   2. a click on a palette button changes the served stream and the picture;
 //   3. a garbage message on its own WebSocket gets an error and the page goes on.
+// The package is served with a [view] light and exposure of its own (written
+// here into a copy by h5py), so 1. also holds the page to the scene's light.
 // It prints one JSON line of figures (page frames/s, bytes per frame, time to
 // first frame). Run by ctest (tests/gateway/CMakeLists.txt):
 //   node e2e/page_in_chromium.mjs BIN_DIR PACKAGE WEB_ROOT WORK_DIR [SECONDS]
@@ -13,7 +15,8 @@ import path from 'node:path';
 import { chromium } from 'playwright-core';
 import { PNG } from 'pngjs';
 
-const [binDir, pkg, webRoot, workDir, seconds = '3'] = process.argv.slice(2);
+const [binDir, givenPackage, webRoot, workDir, seconds = '3'] = process.argv.slice(2);
+const VIEW = { light: 'sun', exposure: 1.4 };  // not the page's defaults (grace, 1)
 if (!workDir) {
   console.error('usage: node e2e/page_in_chromium.mjs BIN_DIR PACKAGE WEB_ROOT WORK_DIR [SECONDS]');
   process.exit(2);
@@ -148,9 +151,24 @@ async function waitFor(page, fn, arg, what, timeout = 30000) {
   }
 }
 
+// A copy of the package with VIEW as its root attributes light and exposure
+// (docs/package-format.md), as `[view]` in its scene file would have written
+// them; by Debian's h5py, as the other tests write packages.
+function withView(from, to) {
+  const code = 'import shutil, sys, h5py, numpy as np\n' +
+    'shutil.copyfile(sys.argv[1], sys.argv[2])\n' +
+    'with h5py.File(sys.argv[2], "a") as f:\n' +
+    '    f.attrs["light"] = sys.argv[3]\n' +
+    '    f.attrs["exposure"] = np.float32(float(sys.argv[4]))\n';
+  const r = spawnSync('/usr/bin/python3', ['-c', code, from, to, VIEW.light, String(VIEW.exposure)], { encoding: 'utf8' });
+  check(r.status === 0, `writing the [view] light into a copy of ${from} failed: ${r.stderr}`);
+  return to;
+}
+
 async function main() {
   rmSync(workDir, { recursive: true, force: true });
   mkdirSync(workDir, { recursive: true });
+  const pkg = withView(givenPackage, path.join(workDir, 'viewed.h5'));
   const recording = path.join(workDir, 'stream.phcrec');
   const server = await start('phasecast-server',
     [pkg, '--instances', '4', '--cmd', 'tcp://127.0.0.1:*', '--pub', 'tcp://127.0.0.1:*', '--record', recording],
@@ -167,6 +185,9 @@ async function main() {
     await page.goto(`${url}?size=${SIZE.width}x${SIZE.height}`);
     await waitFor(page, () => window.phasecast.ready, null, 'first frame');
     figures.first_frame_ms = await page.evaluate(() => window.phasecast.firstFrameMs);
+    const light = await page.evaluate(() => window.phasecast.light);
+    check(light?.probe === VIEW.light && Math.abs(light.exposure - VIEW.exposure) < 1e-6,
+      `the page draws under ${JSON.stringify(light)}, not the scene's [view] ${JSON.stringify(VIEW)}`);
 
     // Figures at rest: frames drawn per second and WebSocket bytes per
     // frame of the followed instance (its frames, plus the page's polls).

@@ -12,6 +12,7 @@ import { OrbitCamera, gridOffsets, groupCamera, sceneCamera, sceneRadius } from 
 import { FrameFollower, RateMeter, frameProblem } from './frames.js';
 import { parseParams } from './params.js';
 import { Ui } from './ui.js';
+import { sceneLight } from './sh.js';
 
 const POLL_MS = 250;  // list_instances about 4 times a second: palette rules change with the IRFs
 
@@ -30,6 +31,7 @@ const hooks = (window.phasecast = {
   lastImpulseReply: null,
   basisDownloads: 0,  // scenes whose bases were downloaded (again after a hash change)
   frame: null,        // {frame, seq, palette_index, irf} of the frame drawn last
+  light: null,        // {probe, exposure} the followed scene is drawn with
 });
 
 class App {
@@ -163,6 +165,10 @@ class App {
     this.followed = { instance: id, ids, offsets, radius: view.radius, all: wanted === 'all', scene: scene.name, entry, info: scene };
     this.latestOf.clear();
     this.renderer.useScene(entry.gpu);
+    this.renderer.setLight(entry.lit.light);
+    this.renderer.exposure = entry.lit.exposure;
+    hooks.light = { probe: entry.lit.probe, exposure: entry.lit.exposure };
+    if (entry.lit.problem) this.error(entry.lit.problem);
     this.follower.follow(id);
     hooks.instance = id;
     hooks.instances = ids.length > 1 ? ids : [];
@@ -195,6 +201,7 @@ class App {
         // The page keeps only what it needs on the CPU once the GPU has the bases.
         camera: sceneCamera(basis),
         radius: sceneRadius(basis.mean_shape),
+        lit: sceneLight(scene),
         downloadMs: performance.now() - started,
       };
       this.gpuScenes.set(scene.name, entry);

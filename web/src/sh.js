@@ -56,6 +56,67 @@ export function directionalLight([x, y, z], rgb) {
   return light;
 }
 
+// Coefficients of radiance(x, y, z) -> [r, g, b] by a theta/phi product rule
+// with `samples` steps in theta and twice that in phi (project_light of
+// sh_light.cpp, the same order of summation), rounded to float32.
+export function projectLight(radiance, samples = 128) {
+  const sum = [new Float64Array(16), new Float64Array(16), new Float64Array(16)];
+  const dTheta = PI / samples, dPhi = (2 * PI) / (2 * samples);
+  for (let i = 0; i < samples; ++i) {
+    const theta = (i + 0.5) * dTheta;
+    const weight = Math.sin(theta) * dTheta * dPhi;
+    for (let j = 0; j < 2 * samples; ++j) {
+      const phi = (j + 0.5) * dPhi;
+      const x = Math.sin(theta) * Math.cos(phi), y = Math.sin(theta) * Math.sin(phi), z = Math.cos(theta);
+      const L = radiance(x, y, z), Y = shBasis(x, y, z);
+      for (let c = 0; c < 3; ++c) for (let k = 0; k < 16; ++k) sum[c][k] += weight * L[c] * Y[k];
+    }
+  }
+  return sum.map((channel) => Float32Array.from(channel));
+}
+
+// The probes of light_probe (sh_light.cpp), by the names packages store in
+// their [view] light (core::kLightProbeNames).
+const sky = () => projectLight((x, y) =>
+  (y < 0 ? [0.18, 0.16, 0.14] : [0.45 + 0.35 * y, 0.60 + 0.30 * y, 0.95 + 0.05 * y]));
+
+function sun() {
+  const light = directionalLight([0.3, 0.8, 0.52], [2.6, 2.45, 2.2]);
+  const ambient = sky();
+  for (let c = 0; c < 3; ++c) for (let k = 0; k < 16; ++k) light[c][k] = f32(light[c][k] + f32(f32(0.3) * ambient[c][k]));  // 0.3f * ambient: float arithmetic, as the C++
+  return light;
+}
+
+function whiteFurnace() {
+  const light = emptyLight();
+  for (let c = 0; c < 3; ++c) light[c][0] = 4 * PI * 0.2820947917738781;
+  return light;
+}
+
+const PROBES = { grace: graceCathedral, sky, sun, white: whiteFurnace };
+export const LIGHT_PROBE_NAMES = Object.keys(PROBES);
+
+// The named probe, or null for a name this page does not know.
+export function lightProbe(name) {
+  return Object.hasOwn(PROBES, name) ? PROBES[name]() : null;
+}
+
+// The scene's [view] light and exposure (SceneInfo.view), as phasecast-render
+// takes them without its own flags: grace and 1 where the scene says nothing.
+// A probe this page does not know is drawn under grace, and said.
+export function sceneLight(scene) {
+  const view = scene.view ?? {};
+  const asked = view.light || 'grace';
+  const light = lightProbe(asked);
+  return {
+    probe: light ? asked : 'grace',
+    light: light ?? lightProbe('grace'),
+    exposure: view.exposure ?? 1,
+    problem: light ? null : `scene '${scene.name}' asks for light '${asked}', which this page does not know ` +
+      `(expected one of ${LIGHT_PROBE_NAMES.join(', ')}): drawn under grace`,
+  };
+}
+
 // The 64 fitting directions (Fibonacci sphere) of sh_light.cpp.
 export const FIT_DIRECTIONS = (() => {
   const n = 64, golden = PI * (3 - Math.sqrt(5));

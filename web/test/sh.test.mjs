@@ -7,7 +7,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import {
   shBasis, shBand, graceCathedral, directionalLight, shRotation, lightInSupportFrame, FIT_DIRECTIONS,
-  FrameLights, packLights, supportRotation,
+  FrameLights, packLights, supportRotation, LIGHT_PROBE_NAMES, lightProbe, sceneLight,
 } from '../src/sh.js';
 import { supportMatrix } from '../src/packing.js';
 
@@ -153,4 +153,52 @@ test('frame lights: world at vec4 0, support frame at vec4 12; recomputed only f
   const first = lights.key;
   lights.forSupport(supportMatrix([0, 0, 1, -3, 0, 1, 0, 0, -1, 0, 0, 1]));  // same rotation, moved
   assert.equal(lights.key, first);
+});
+
+// The probes a scene's [view] light names (core::kLightProbeNames), against
+// closed forms. The sky is 0.18/0.16/0.14 below the horizon and a + b y above
+// it, so over the sphere: integral of Y_0 = c0 (2 pi g + 2 pi a + pi b), of
+// Y_1 = -c1 y is -c1 (-pi g + pi a + 2 pi b / 3), and it does not depend on x or z.
+test('the light probes: white, sky and sun against closed forms', () => {
+  assert.deepEqual(LIGHT_PROBE_NAMES, ['grace', 'sky', 'sun', 'white']);
+  const white = lightProbe('white');
+  for (let c = 0; c < 3; ++c) {
+    close(white[c][0], 4 * Math.PI * 0.2820947917738781, 1e-6, 'white Y_0');
+    for (let k = 1; k < 16; ++k) assert.equal(white[c][k], 0);
+  }
+  const sky = lightProbe('sky');
+  const ground = [0.18, 0.16, 0.14], a = [0.45, 0.60, 0.95], b = [0.35, 0.30, 0.05];
+  const c0 = 0.2820947917738781, c1 = 0.4886025119029199, PI = Math.PI;
+  for (let c = 0; c < 3; ++c) {
+    close(sky[c][0], c0 * (2 * PI * ground[c] + 2 * PI * a[c] + PI * b[c]), 2e-3, `sky Y_0, channel ${c}`);
+    close(sky[c][1], -c1 * (-PI * ground[c] + PI * a[c] + (2 * PI * b[c]) / 3), 2e-3, `sky Y_1, channel ${c}`);
+    close(sky[c][2], 0, 1e-4, `sky Y_2 (z), channel ${c}`);
+    close(sky[c][3], 0, 1e-4, `sky Y_3 (x), channel ${c}`);
+  }
+  const sun = lightProbe('sun'), direct = directionalLight([0.3, 0.8, 0.52], [2.6, 2.45, 2.2]);
+  for (let c = 0; c < 3; ++c) {
+    for (let k = 0; k < 16; ++k) close(sun[c][k], direct[c][k] + 0.3 * sky[c][k], 1e-6, `sun ${c}/${k}`);
+  }
+  assert.equal(lightProbe('moon'), null);
+  assert.equal(lightProbe('toString'), null, 'only probe names, not what every object has');
+});
+
+test('sceneLight: the scene view light and exposure, grace and 1 where it says nothing', () => {
+  const plain = sceneLight({ name: 'door', view: null });
+  assert.equal(plain.probe, 'grace');
+  assert.equal(plain.exposure, 1);
+  assert.deepEqual(plain.light, graceCathedral());
+  assert.equal(plain.problem, null);
+  const lit = sceneLight({ name: 'door', view: { light: 'sun', exposure: 1.5, floor_height: null } });
+  assert.equal(lit.probe, 'sun');
+  assert.equal(lit.exposure, 1.5);
+  assert.deepEqual(lit.light, lightProbe('sun'));
+  // protobufjs decodes an absent optional exposure as null, an absent light as ''.
+  assert.equal(sceneLight({ name: 'door', view: { light: '', exposure: null } }).probe, 'grace');
+  assert.equal(sceneLight({ name: 'door', view: { light: '', exposure: null } }).exposure, 1);
+  const unknown = sceneLight({ name: 'door', view: { light: 'moon' } });
+  assert.equal(unknown.probe, 'grace');
+  assert.equal(unknown.problem,
+    "scene 'door' asks for light 'moon', which this page does not know (expected one of grace, sky, sun, white): " +
+    'drawn under grace');
 });
