@@ -7,10 +7,12 @@
 #include "stage_options.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace phasecast::precompute::tools {
 namespace {
@@ -31,14 +33,20 @@ struct Options {
 
 // A palette entry without an IRF cannot be played: the server refuses it.
 // The package stays written (nothing computed is lost); run fails naming them.
-void check_every_entry_sampled(const core::ScenePackage& p, const Options& o) {
+std::vector<std::string> entries_without_irfs(const core::ScenePackage& p) {
   std::vector<int> irfs(static_cast<size_t>(p.palette.size()), 0);
   for (const auto e : p.portrait.irf_palette) ++irfs[static_cast<size_t>(e)];
-  std::string missing;
-  int count = 0;
+  std::vector<std::string> names;
   for (size_t e = 0; e < irfs.size(); ++e)
-    if (irfs[e] == 0) missing += (count++ ? ", '" : "'") + p.palette.names[e] + "'";
+    if (irfs[e] == 0) names.push_back(p.palette.names[e]);
+  return names;
+}
+
+void check_every_entry_sampled(const core::ScenePackage& p, const Options& o) {
+  const auto names = entries_without_irfs(p);
+  const auto count = names.size();
   if (count == 0 || o.allow_missing_entries) return;
+  const std::string missing = fmt::format("'{}'", fmt::join(names, "', '"));
   throw std::runtime_error(
       fmt::format("{}: no IRF of palette {} {} (the server would refuse {}): sample more (--irfs-per-chain, "
                   "--chains) or let {} follow more entries ('after'); the package is written, "
@@ -47,13 +55,18 @@ void check_every_entry_sampled(const core::ScenePackage& p, const Options& o) {
                   count > 1 ? "them" : "it"));
 }
 
-// check's rest trials: a rest that moves, or a push and a stop that end
-// elsewhere (a neutral mode), is a state the served scene cannot know, since a
-// package has one rest; playback snaps back. The package stays written.
-void check_rest(const Scene& scene, const Options& o) {
+// check's trials: a rest that moves, or a push and a stop that end elsewhere
+// (a neutral mode), is a state the served scene cannot know, since a package
+// has one rest; playback snaps back. Where run measured no held-out figures
+// and every entry can be played, check's short fidelity estimate follows,
+// with what it suggests. Only a rest problem fails run; the package stays.
+void check_scene_health(const Scene& scene, const core::ScenePackage& package, bool measured,
+                        const Options& o) {
+  const bool playable = entries_without_irfs(package).empty();
   SceneCheckOptions options;
-  options.fidelity_schedules = 0;
-  const SceneCheck c = check_and_report(scene, nullptr, options);
+  options.list_irfs = false;
+  if (measured) options.fidelity_schedules = 0;
+  const SceneCheck c = check_and_report(scene, playable ? &package : nullptr, options);
   const int n = c.problems();
   if (n == 0 || o.allow_rest_problems) return;
   throw std::runtime_error(
@@ -165,7 +178,7 @@ void add_run_command(CLI::App& app) {
         store_fidelity(f, fidelity, reduced.package, o->output);
       }
     }
-    if (reduced.writer) check_rest(scene, *o);
+    if (reduced.writer) check_scene_health(scene, reduced.package, held_out > 0, *o);
   });
 }
 

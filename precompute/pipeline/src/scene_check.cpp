@@ -246,6 +246,7 @@ std::vector<std::string> SceneCheck::report(const SceneCheckOptions& o) const {
   }
   for (const auto& t : returns) lines.push_back(trial_line(t, stop_seconds, "return:"));
   for (const auto& e : irfs) {
+    if (e.irfs > 0 && !o.list_irfs) continue;
     lines.push_back(e.irfs > 0 ? fmt::format("palette '{}': {} IRFs in the package", e.entry, e.irfs)
                                : fmt::format("palette '{}': no IRF in the package, so the server refuses it; "
                                              "fix: sample more (--irfs-per-chain, --chains) or let it follow "

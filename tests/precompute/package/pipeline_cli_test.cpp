@@ -118,17 +118,25 @@ TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
   }
 }
 
-// run ends with check's rest trials: the tiny door returns to its rest; the
-// flag turns about its pole and stays there, which fails run (the package is
-// written all the same) unless --allow-rest-problems.
+// run ends with check's trials: the tiny door returns to its rest, and with
+// every entry sampled check's fidelity estimate follows; the flag turns about
+// its pole and stays there, which fails run (the package is written all the
+// same) unless --allow-rest-problems.
 TEST(PipelineCli, RunEndsWithTheRestTrials) {
   const auto dir = scratch_dir("cli_rest_trials");
   const std::vector<std::string> quick = {
       "--chains", "1", "--irfs-per-chain", "4", "--no-appearance", "--allow-missing-entries"};
-  const auto door = run_tool("phasecast-precompute",
-                             args({"run", tiny_scene_path().string(), "-o", (dir / "door.h5").string()}));
+  const auto door =
+      run_tool("phasecast-precompute",
+               args({"run", tiny_scene_path().string(), "-o", (dir / "door.h5").string()},
+                    {"--chains", "2", "--irfs-per-chain", "8", "--seed", "2", "--no-appearance"}));
   ASSERT_EQ(door.exit_code, 0) << door.err;
   EXPECT_NE(door.out.find("return: 'open 0.62; stop 3.00': back within"), std::string::npos) << door.out;
+  EXPECT_NE(door.out.find("fidelity (4 random schedules of 4 entries, seed 7): median NRMSE"),
+            std::string::npos)
+      << door.out;
+  EXPECT_EQ(door.out.find("IRFs in the package"), std::string::npos)
+      << "run has printed the counts: " << door.out;
   const auto scene = (testing::source_dir() / "tests/data/scenes/flag_pole.toml").string();
   const auto pkg = (dir / "flag.h5").string();
   const auto flag = run_tool("phasecast-precompute", args({"run", scene, "-o", pkg}, quick));

@@ -25,6 +25,7 @@ struct SceneCheckOptions {
   int fidelity_schedules = 4;  // random schedules of the fidelity estimate (with a package)
   int fidelity_items = 4;
   std::uint64_t fidelity_seed = 7;
+  bool list_irfs = true;  // false: the report names only entries without an IRF (run printed the counts)
   // Thresholds, as fractions of the rest mesh's bounding radius R: a scene
   // "moves" above 0.02 R per second and "is displaced" above 0.02 R.
   double still_speed = 0.02, displaced = 0.02;
