@@ -97,6 +97,30 @@ TEST_F(NetworkRender, ThePubPortIsNamedAsTheLikelySlip) {
   EXPECT_THAT(r.err, HasSubstr("is this its command endpoint, --cmd, not its --pub port?")) << r.err;
 }
 
+// The scene's [view] reaches a network client through SceneInfo.view: drawn
+// without --light, --exposure and --backdrop, a frame equals the one drawn
+// with the view's own flags, and differs from the one drawn with the defaults.
+TEST_F(NetworkRender, TheScenesViewReachesTheClient) {
+  package_.attributes.light = "sun";
+  package_.attributes.exposure = 1.3f;
+  package_.attributes.floor = false;
+  core::write_package(package_, dir_ / "plate.h5");
+  testing::RealServer server(dir_ / "plate.h5", "tcp://127.0.0.1:*", "tcp://127.0.0.1:*", dir_ / "server");
+  const auto first_frame = [&](const std::string& out, std::vector<std::string> flags) {
+    std::vector<std::string> a = {"--connect", server.cmd(), "--frames", "1",
+                                  "--size",    "96x72",      "--out",    path(out)};
+    a.insert(a.end(), flags.begin(), flags.end());
+    const auto r = testing::run_tool("phasecast-render", a);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return read_png(std::filesystem::directory_iterator(dir_ / out)->path());
+  };
+  const Image viewed = first_frame("viewed", {});
+  const Image flagged = first_frame("flagged", {"--light", "sun", "--exposure", "1.3", "--backdrop", "off"});
+  const Image defaults = first_frame("defaults", {"--light", "grace", "--exposure", "1", "--backdrop", "on"});
+  EXPECT_EQ(max_channel_difference(viewed, flagged), 0);
+  EXPECT_GT(max_channel_difference(viewed, defaults), 20);
+}
+
 // Four instances of a real server in one view, listed in any order, through
 // one subscription to the scene's batches: an impulse sent to instance 2
 // (the grid's right column, front row: the grid is in id order) changes the
