@@ -4,6 +4,7 @@
 #include "phasecast/precompute/pipeline/scene_check.h"
 
 #include "phasecast/precompute/sampling/orbit_recorder.h"
+#include "phasecast/precompute/sampling/palette_rules.h"
 #include "phasecast/precompute/validation/playback.h"
 
 #include <fmt/format.h>
@@ -83,6 +84,9 @@ RestTrial run_trial(const Scene& scene, const std::vector<ScheduleItem>& schedul
   t.schedule = schedule_text(scene, schedule);
   const Eigen::VectorXd distance = (end - start).rowwise().norm();
   t.max_displacement = distance.maxCoeff(&t.worst_vertex);
+  for (int f = 0; f < store.frames(); ++f)
+    t.peak_displacement =
+        std::max(t.peak_displacement, (frame_positions(store, f) - start).rowwise().norm().maxCoeff());
   t.max_speed = max_speed(store, store.frames() - 1);
   t.start_speed = max_speed(store, 0);
   t.worst_body = body_of(scene, t.worst_vertex);
@@ -95,6 +99,29 @@ RestTrial run_trial(const Scene& scene, const std::vector<ScheduleItem>& schedul
 // A moving entry's trial length: halfway between its shortest and longest IRF.
 double trial_seconds(const PaletteEntry& e) {
   return std::clamp(0.5 * (e.t_min + e.t_max), e.t_min, e.t_max);
+}
+
+// A schedule that plays moving entry `e` where it moves the support, then the
+// quiet entry: from the rest when the rules and the range allow it there,
+// else after one lead-in entry and a stop (a door's 'close' needs an 'open'
+// first). Empty when neither can play it.
+std::vector<ScheduleItem> return_schedule(const Scene& scene, const PaletteRules& rules, int e,
+                                          int quiet_entry, double stop) {
+  const double dt = scene.simulation.frame_dt;
+  const auto frames = [&](int entry, double at) {
+    const int wanted = std::max(
+        1, static_cast<int>(std::lround(trial_seconds(scene.palette[static_cast<size_t>(entry)]) / dt)));
+    return std::min(wanted, rules.reachable_frames(entry, at));
+  };
+  if (rules.allowed_at({}, e, 0)) return {{e, frames(e, 0) * dt}, {quiet_entry, stop}};
+  for (int d = 0; d < rules.size(); ++d) {
+    if (d == e || d == quiet_entry || !rules.allowed_at({}, d, 0)) continue;
+    const int lead = frames(d, 0);
+    const double at = rules.advance(d, 0, lead);
+    if (!rules.allowed_after({d}, quiet_entry) || !rules.allowed_at({d, quiet_entry}, e, at)) continue;
+    return {{d, lead * dt}, {quiet_entry, stop}, {e, frames(e, at) * dt}, {quiet_entry, stop}};
+  }
+  return {};
 }
 
 std::string mm(double metres) {
@@ -116,8 +143,8 @@ std::string trial_line(const RestTrial& t, double seconds, const char* label) {
         label, t.schedule, mm(t.max_speed), seconds, where);
   }
   if (!t.displaced) {
-    return fmt::format("{} '{}': back within {} of the settled rest, at {}/s: ok", label, t.schedule,
-                       mm(t.max_displacement), mm(t.max_speed));
+    return fmt::format("{} '{}': moved up to {}, back within {} of the settled rest, at {}/s: ok", label,
+                       t.schedule, mm(t.peak_displacement), mm(t.max_displacement), mm(t.max_speed));
   }
   std::string mode = "the scene settles into another shape";
   if (t.rigid && !t.rigid->explains) {
@@ -191,11 +218,17 @@ SceneCheck check_scene(const Scene& scene, const core::ScenePackage* package, co
     const double stop = c.stop_seconds = o.stop_seconds > 0 ? o.stop_seconds : std::max(3.0, q.t_max);
     Eigen::MatrixX3d rest;
     c.rest = run_trial(scene, {{quiet_entry, stop}}, nullptr, c.radius, o, stage("rest trial"), &rest);
+    const PaletteRules rules = make_palette_rules(scene);
     for (int d = 0; d < static_cast<int>(scene.palette.size()); ++d) {
       if (d == quiet_entry || quiet(scene, d)) continue;
       const auto& e = scene.palette[static_cast<size_t>(d)];
-      c.returns.push_back(run_trial(scene, {{d, trial_seconds(e)}, {quiet_entry, stop}}, &rest, c.radius, o,
-                                    stage(fmt::format("return trial '{}'", e.name))));
+      const auto schedule = return_schedule(scene, rules, d, quiet_entry, stop);
+      if (schedule.empty()) {
+        c.unplayable.push_back(e.name);
+        continue;
+      }
+      c.returns.push_back(
+          run_trial(scene, schedule, &rest, c.radius, o, stage(fmt::format("return trial '{}'", e.name))));
     }
   } else {
     // Jolts (no forcing) leave the scene alone once their pulse is over: each
@@ -213,7 +246,9 @@ SceneCheck check_scene(const Scene& scene, const core::ScenePackage* package, co
     for (const auto entry : package->portrait.irf_palette) {
       if (entry >= 0 && static_cast<size_t>(entry) < c.irfs.size()) ++c.irfs[static_cast<size_t>(entry)].irfs;
     }
-    if (o.fidelity_schedules > 0) {
+    const bool playable =
+        std::none_of(c.irfs.begin(), c.irfs.end(), [](const EntryIrfs& e) { return e.irfs == 0; });
+    if (o.fidelity_schedules > 0 && playable) {  // random schedules would play entries the server refuses
       if (progress) progress("fidelity estimate", 0, 1);
       c.fidelity = measure_fidelity(scene, *package, o.fidelity_seed, o.fidelity_schedules, o.fidelity_items);
       if (progress) progress("fidelity estimate", 1, 1);
@@ -245,13 +280,25 @@ std::vector<std::string> SceneCheck::report(const SceneCheckOptions& o) const {
     lines.push_back(trial_line(*rest, stop_seconds, label.c_str()));
   }
   for (const auto& t : returns) lines.push_back(trial_line(t, stop_seconds, "return:"));
+  for (const auto& name : unplayable) {
+    lines.push_back(
+        fmt::format("return: '{}' moves nothing from the rest, nor after one entry and '{}' (its "
+                    "rules or the support's range): not checked",
+                    name, quiet));
+  }
   for (const auto& e : irfs) {
     if (e.irfs > 0 && !o.list_irfs) continue;
-    lines.push_back(e.irfs > 0 ? fmt::format("palette '{}': {} IRFs in the package", e.entry, e.irfs)
+    lines.push_back(e.irfs > 0 ? fmt::format("palette '{}': {} IRF{} in the package", e.entry, e.irfs,
+                                             e.irfs > 1 ? "s" : "")
                                : fmt::format("palette '{}': no IRF in the package, so the server refuses it; "
                                              "fix: sample more (--irfs-per-chain, --chains) or let it follow "
                                              "more entries (its `after`)",
                                              e.entry));
+  }
+  if (!fidelity && problems() > 0 && o.fidelity_schedules > 0 &&
+      std::any_of(irfs.begin(), irfs.end(), [](const EntryIrfs& e) { return e.irfs == 0; })) {
+    lines.push_back(
+        "fidelity: not estimated (random schedules would play the entries above that have no IRF)");
   }
   if (fidelity) {
     const auto& f = *fidelity;

@@ -1,6 +1,7 @@
 #include "phasecast/precompute/simulation/scene_fields.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -57,6 +58,14 @@ bool close_enough(const std::string& a, const std::string& b) {
   return d > 0 && d <= std::min<size_t>(2, std::max(a.size(), b.size()) / 3);
 }
 
+// A key a user likely wrote for another: a typo of it, or it with more
+// words (`young_modulus` for `young`, `dt` for `frame_dt`).
+bool likely_meant(const std::string& written, const std::string& known) {
+  const bool contains = std::min(written.size(), known.size()) >= 2 && written != known &&
+                        (written.find(known) != std::string::npos || known.find(written) != std::string::npos);
+  return close_enough(written, known) || contains;
+}
+
 }  // namespace
 
 Fields::Fields(const toml::table& table, std::string file, std::string prefix)
@@ -74,10 +83,10 @@ bool Fields::is_string(const std::string& key) const {
 
 std::string Fields::got(const std::string& key) const {
   if (const toml::node* n = table_->get(key)) return describe(*n);
-  // A key of the file nobody asked for, a typo away: the likely cause.
+  // A key of the file nobody asked for, likely written for this one: the cause.
   for (const auto& [other, value] : *table_) {
     const std::string name(other.str());
-    if (!known_.count(name) && close_enough(name, key))
+    if (!known_.count(name) && likely_meant(name, key))
       return fmt::format("nothing (missing; the file has '{}', misspelt?)", path(name));
   }
   return "nothing (missing)";
@@ -231,11 +240,12 @@ void Fields::finish() const {
     if (used_.count(name)) continue;
     std::string nearest;
     for (const auto& k : known_)
-      if (close_enough(name, k) && (nearest.empty() || edit_distance(name, k) < edit_distance(name, nearest)))
+      if (likely_meant(name, k) && (nearest.empty() || edit_distance(name, k) < edit_distance(name, nearest)))
         nearest = k;
-    throw SceneError(
-        fmt::format("{}: field '{}': unknown field ({})", file_, path(name),
-                    nearest.empty() ? "misspelt?" : fmt::format("did you mean '{}'?", path(nearest))));
+    // Otherwise every key this table knows (known_ is ordered), so the right one is in the line.
+    throw SceneError(fmt::format("{}: field '{}': unknown field ({})", file_, path(name),
+                                 nearest.empty() ? fmt::format("expected one of {}", fmt::join(known_, ", "))
+                                                 : fmt::format("did you mean '{}'?", path(nearest))));
   }
 }
 

@@ -57,6 +57,30 @@ TEST(PipelineCli, CheckNamesTheNeutralModeAndReadsAPackage) {
   EXPECT_NE(door.out.find("fidelity (2 random schedules of 4 entries, seed 7): median NRMSE"),
             std::string::npos)
       << door.out;
+  // A package the server cannot play whole: the entries named, no fidelity of schedules it would refuse.
+  const auto dir = scratch_dir("cli_check_thin");
+  const auto thin = (dir / "thin.h5").string();
+  ASSERT_EQ(run_tool("phasecast-precompute",
+                     {"run", tiny_scene_path().string(), "-o", thin, "--chains", "1", "--irfs-per-chain", "1",
+                      "--no-appearance", "--allow-missing-entries"})
+                .exit_code,
+            0);
+  const auto t = run_tool("phasecast-precompute", {"check", tiny_scene_path().string(), "--package", thin});
+  EXPECT_EQ(t.exit_code, 1);
+  EXPECT_NE(t.out.find("palette 'close': no IRF in the package, so the server refuses it; fix: sample more"),
+            std::string::npos)
+      << t.out;
+  EXPECT_NE(t.out.find("palette 'open': 1 IRF in the package"), std::string::npos) << t.out;
+  EXPECT_NE(t.out.find("fidelity: not estimated"), std::string::npos) << t.out;
+  EXPECT_NE(t.err.find("2 problems found"), std::string::npos) << t.err;
+  // A package of another scene is refused in one line naming both.
+  const auto other = run_tool("phasecast-precompute",
+                              {"check", tiny_scene_path().string(), "--package",
+                               (testing::source_dir() / "tests/data/packages/plant_pot.h5").string()});
+  EXPECT_EQ(other.exit_code, 1);
+  EXPECT_TRUE(one_line(other.err)) << other.err;
+  EXPECT_NE(other.err.find("is of scene 'plant_pot_tiny' with 3 palette entries;"), std::string::npos)
+      << other.err;
 }
 
 // Every template of init simulates its [validation] schedule as written and
@@ -131,7 +155,7 @@ TEST(PipelineCli, RunEndsWithTheRestTrials) {
                args({"run", tiny_scene_path().string(), "-o", (dir / "door.h5").string()},
                     {"--chains", "2", "--irfs-per-chain", "8", "--seed", "2", "--no-appearance"}));
   ASSERT_EQ(door.exit_code, 0) << door.err;
-  EXPECT_NE(door.out.find("return: 'open 0.62; stop 3.00': back within"), std::string::npos) << door.out;
+  EXPECT_NE(door.out.find("return: 'open 0.62; stop 3.00': moved up to"), std::string::npos) << door.out;
   EXPECT_NE(door.out.find("fidelity (4 random schedules of 4 entries, seed 7): median NRMSE"),
             std::string::npos)
       << door.out;

@@ -83,7 +83,15 @@ TEST(SceneCheck, TheTinyClothDoorReturnsToItsRest) {
   const Scene scene = load_scene_file(testing::source_dir() / "scenes/tiny/cloth_door.toml");
   const SceneCheck c = check_scene(scene, nullptr, {});
   ASSERT_EQ(c.returns.size(), 2u);  // open and close, each then stop
-  for (const auto& t : c.returns) EXPECT_LT(t.max_displacement, 0.02 * c.radius) << t.schedule;
+  // 'close' moves nothing from the rest (the door is at the end of its
+  // range): it is played after an 'open' and a stop.
+  EXPECT_EQ(c.returns[0].schedule, "open 0.62; stop 3.00; close 0.62; stop 3.00");
+  EXPECT_EQ(c.returns[1].schedule, "open 0.62; stop 3.00");
+  for (const auto& t : c.returns) {
+    EXPECT_LT(t.max_displacement, 0.02 * c.radius) << t.schedule;
+    EXPECT_GT(t.peak_displacement, 0.02 * c.radius) << t.schedule << ": the trial moved the cloth";
+  }
+  EXPECT_TRUE(c.unplayable.empty());
   EXPECT_EQ(c.problems(), 0);
 }
 

@@ -385,9 +385,18 @@ TEST(SceneErrors, EnergyOnTheWrongMesh) {
             ": field 'body[0].energies': expected 'rod' only on polyline meshes, got array of 2");
 }
 
+// An unknown key names the known one it likely stands for (a typo of it, or
+// it with more words), else every key its table knows.
 TEST(SceneErrors, MisspeltField) {
   EXPECT_EQ(rejection("typo", edited(kValid, "young = 100", "young = 100\nyoung_modulus = 3")),
-            ": field 'body[0].young_modulus': unknown field (misspelt?)");
+            ": field 'body[0].young_modulus': unknown field (did you mean 'body[0].young'?)");
+  EXPECT_EQ(rejection("renamed", edited(kValid, "young = 100", "young_modulus = 100")),
+            ": field 'body[0].young': expected a positive number, got nothing (missing; the file has "
+            "'body[0].young_modulus', misspelt?)");
+  const std::string far = rejection("unknown", edited(kValid, "[support]", "[support]\nwobble = 3"));
+  EXPECT_EQ(far.substr(0, far.find('(')), ": field 'support.wobble': unknown field ") << far;
+  EXPECT_NE(far.find("(expected one of axis, "), std::string::npos) << far;
+  EXPECT_NE(far.find("range"), std::string::npos) << far;
 }
 
 // A key a typo away from a known one is named with it, whether the known key

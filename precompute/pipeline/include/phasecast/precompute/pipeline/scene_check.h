@@ -45,10 +45,11 @@ struct RigidMotion {
 
 // A schedule from the settled rest and how far from that rest it ends.
 struct RestTrial {
-  std::string schedule;         // "carry 0.5; stop 3"
-  double max_displacement = 0;  // m, largest vertex distance from the settled rest at the end
-  double max_speed = 0;         // m/s, largest vertex speed at the end (support frame)
-  double start_speed = 0;       // m/s, largest vertex speed at the first frame (after settle and one step)
+  std::string schedule;          // "carry 0.5; stop 3"
+  double max_displacement = 0;   // m, largest vertex distance from the settled rest at the end
+  double peak_displacement = 0;  // m, the same over every frame of the trial (how far it moved)
+  double max_speed = 0;          // m/s, largest vertex speed at the end (support frame)
+  double start_speed = 0;        // m/s, largest vertex speed at the first frame (after settle and one step)
   int worst_vertex = 0;
   std::string worst_body;
   std::optional<RigidMotion> rigid;  // the best rigid motion of the worst body, when displaced
@@ -67,8 +68,10 @@ struct SceneCheck {
   std::string quiet;               // the quiet palette entry the trials end with ("" : none, trials skipped)
   double stop_seconds = 0;         // how long the trials stay quiet
   std::optional<RestTrial> rest;   // the quiet entry alone: is the settled rest a rest?
-  std::vector<RestTrial> returns;  // each moving entry, then the quiet one
-  std::vector<EntryIrfs> irfs;     // with a package
+  std::vector<RestTrial> returns;  // each moving entry where it moves the support (after a lead-in if
+                                   // needed), then the quiet one
+  std::vector<std::string> unplayable;  // moving entries no such schedule can play
+  std::vector<EntryIrfs> irfs;          // with a package
   std::optional<FidelityFigures> fidelity;
 
   // Lines of the report, each a finding and, for a problem, what would fix it.
