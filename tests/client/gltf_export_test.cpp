@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <numbers>
 #include <utility>
 
 namespace phasecast::client {
@@ -340,6 +341,40 @@ TEST_F(GltfExport, ColoursAreTheRenderersAtRest) {
   EXPECT_EQ(values_checked, 3 * package_.mesh.points());
   EXPECT_GT(2 * beyond_k0, values_checked)
       << "the coefficients k > 0 hardly matter: M_bar is checked at k = 0 only";
+}
+
+// The scene's [view] where the tool's flags are absent: its camera becomes
+// the "scene camera" node (at the eye, looking at the target along its
+// local -z, the view's field of view) and its light colours the points.
+TEST_F(GltfExport, TheScenesViewGivesTheCameraAndTheLight) {
+  auto viewed = package_;
+  viewed.attributes.camera = std::array<float, 10>{1, 2, 3, 0, 0.5f, 0, 0, 1, 0, 30};
+  viewed.attributes.light = "sun";
+  write(viewed, "viewed.h5");
+  exported({path("viewed.h5"), "-o", path("viewed.glb")});
+  exported({path("viewed.h5"), "-o", path("sun.glb"), "--light", "sun"});
+  exported({path("viewed.h5"), "-o", path("grace.glb"), "--light", "grace"});
+  const tinygltf::Model m = load("viewed.glb");
+  const int node = node_named(m, "scene camera");
+  ASSERT_GE(node, 0);
+  const auto& n = m.nodes[static_cast<std::size_t>(node)];
+  ASSERT_EQ(n.translation.size(), 3u);
+  EXPECT_NEAR(n.translation[0], 1, 1e-6);
+  EXPECT_NEAR(n.translation[1], 2, 1e-6);
+  EXPECT_NEAR(n.translation[2], 3, 1e-6);
+  ASSERT_EQ(n.rotation.size(), 4u);
+  const Eigen::Quaterniond q(n.rotation[3], n.rotation[0], n.rotation[1], n.rotation[2]);
+  const Eigen::Vector3d looks = q * Eigen::Vector3d(0, 0, -1), up = q * Eigen::Vector3d(0, 1, 0);
+  const Eigen::Vector3d towards = (Eigen::Vector3d(0, 0.5, 0) - Eigen::Vector3d(1, 2, 3)).normalized();
+  EXPECT_NEAR(looks.dot(towards), 1, 1e-6);
+  EXPECT_GT(up.y(), 0.9) << "the view's up is +y";
+  const auto& camera = m.cameras.at(static_cast<std::size_t>(n.camera));
+  EXPECT_NEAR(camera.perspective.yfov, 30 * std::numbers::pi / 180, 1e-6);
+  const auto colours = [&](const tinygltf::Model& g) {
+    return floats_of(g, g.meshes.at(0).primitives.at(0).attributes.at("COLOR_0"));
+  };
+  EXPECT_EQ(colours(m), colours(load("sun.glb"))) << "the view's light colours the points";
+  EXPECT_NE(colours(m), colours(load("grace.glb")));
 }
 
 TEST_F(GltfExport, AnimatesTheRequestedInstance) {
