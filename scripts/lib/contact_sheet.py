@@ -53,7 +53,7 @@ def natural(name):
 
 
 def picks(names, count):
-    """count names from the first to the last, evenly spaced (repeats when there are fewer)."""
+    """count names from the first to the last, evenly spaced (count <= len(names): no repeats)."""
     if count == 1:
         return [names[0]]
     return [names[round(i * (len(names) - 1) / (count - 1))] for i in range(count)]
@@ -102,6 +102,10 @@ def main():
         names = sorted((n for n in os.listdir(args.frames_dir) if n.lower().endswith(".png")), key=natural)
     if not names:
         sys.exit(f"contact_sheet: {args.frames_dir} has no .png files")
+    if len(names) < args.columns * args.rows:
+        # Fewer frames than tiles: the widest grid of whole rows they fill, each frame at most once.
+        args.columns = min(args.columns, len(names))
+        args.rows = len(names) // args.columns
     count = args.columns * args.rows
     chosen = picks(names, count)
     width, height = png_size(os.path.join(args.frames_dir, chosen[0]))

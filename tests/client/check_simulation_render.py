@@ -7,12 +7,14 @@ transform (float64 here). The door swings in the PNG frames; a store of
 another scene is refused in one line naming what differs; the scene's [view]
 draws what the same flags draw."""
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import h5py
 import numpy as np
+from PIL import Image
 
 
 def run(args, **kw):
@@ -67,6 +69,27 @@ def check_package_view(make_fixture: str, render: str, work: Path) -> None:
     assert r.returncode == 1 and "[view] light: light probe 'moon' is unknown" in r.stderr, r.stderr
 
 
+def check_contact_sheets(source: Path, frames: Path, work: Path) -> None:
+    """scripts/contact-sheet of the drawn frames: a 4 x 3 grid of half-size tiles from the first frame to
+    the last; of five frames, the widest whole row (4 x 1) with no frame twice."""
+    if not shutil.which("ffmpeg"):
+        print("contact sheets not checked: ffmpeg is not on PATH (scripts/install-deps installs it)")
+        return
+    sheet = work / "sheet.png"
+    r = run([str(source / "scripts" / "contact-sheet"), str(frames), "-o", str(sheet)])
+    assert r.returncode == 0, r.stderr
+    assert "4 x 3 frames" in r.stdout and "frame 0 to frame 79 of its 80" in r.stdout, r.stdout
+    assert Image.open(sheet).size == (4 * (48 + 4), 3 * (48 + 4))
+    few = work / "few"
+    few.mkdir(exist_ok=True)
+    for name in sorted(frames.glob("frame_*.png"))[:5]:
+        shutil.copy(name, few / name.name)
+    r = run([str(source / "scripts" / "contact-sheet"), str(few), "-o", str(work / "few.png")])
+    assert r.returncode == 0, r.stderr
+    assert "4 x 1 frames" in r.stdout and "of its 5" in r.stdout, r.stdout
+    assert Image.open(work / "few.png").size == (4 * (48 + 4), 48 + 4)
+
+
 def main(precompute: str, render: str, source_dir: str, workdir: str, make_fixture: str) -> None:
     work = Path(workdir)
     work.mkdir(parents=True, exist_ok=True)
@@ -82,6 +105,7 @@ def main(precompute: str, render: str, source_dir: str, workdir: str, make_fixtu
     assert r.returncode == 0, r.stderr
     assert "drawn as simulated" in r.stdout, r.stdout
     assert len(list(out.glob("frame_*.png"))) == frames
+    check_contact_sheets(Path(source_dir), out, work)
 
     gpu = np.load(work / "dump.npy")
     with h5py.File(store, "r") as f:

@@ -140,6 +140,15 @@ TEST(PipelineCli, RunWritesAPackageThatInspectAccepts) {
               std::string::npos)
         << "nothing is dropped from this sample: " << r.out;
   }
+  // A strict dead-end filter drops one of 'close''s two IRFs, counted by its reason and named.
+  const auto strict =
+      run_tool("phasecast-precompute", {"run", tiny_scene_path().string(), "-o", (dir / "strict.h5").string(),
+                                        "--chains", "2", "--irfs-per-chain", "4", "--seed", "2",
+                                        "--no-appearance", "--no-check", "--dead-end-fraction", "0.001"});
+  ASSERT_EQ(strict.exit_code, 0) << strict.err;
+  EXPECT_NE(strict.out.find("'close' 2 sampled, 1 kept (0 short, 1 dead ends dropped)"), std::string::npos)
+      << strict.out;
+  EXPECT_NE(strict.err.find("('close'): dead end"), std::string::npos) << strict.err;
 }
 
 // run ends with check's trials: the tiny door returns to its rest, and with
@@ -176,6 +185,11 @@ TEST(PipelineCli, RunEndsWithTheRestTrials) {
   auto allowed = quick;
   allowed.push_back("--allow-rest-problems");
   EXPECT_EQ(run_tool("phasecast-precompute", args({"run", scene, "-o", pkg}, allowed)).exit_code, 0);
+  auto unchecked = quick;
+  unchecked.push_back("--no-check");
+  const auto skipped = run_tool("phasecast-precompute", args({"run", scene, "-o", pkg}, unchecked));
+  EXPECT_EQ(skipped.exit_code, 0) << skipped.err;
+  EXPECT_EQ(skipped.out.find("return:"), std::string::npos) << "--no-check plays no trial: " << skipped.out;
 }
 
 // One IRF from rest cannot be a 'stop' (it follows open or close): run writes

@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <Eigen/Geometry>
 
 #include <numbers>
@@ -93,6 +95,24 @@ TEST(SceneCheck, TheTinyClothDoorReturnsToItsRest) {
   }
   EXPECT_TRUE(c.unplayable.empty());
   EXPECT_EQ(c.problems(), 0);
+}
+
+// Stops too short for the towel to settle: each return still moves at its
+// end, a problem named with its fix.
+TEST(SceneCheck, AStopTooShortToSettleIsNamed) {
+  const Scene scene = load_scene_file(testing::source_dir() / "scenes/tiny/cloth_door.toml");
+  SceneCheckOptions o;
+  o.stop_seconds = 0.1;
+  const SceneCheck c = check_scene(scene, nullptr, o);
+  ASSERT_EQ(c.returns.size(), 2u);
+  for (const auto& t : c.returns) EXPECT_TRUE(t.moving) << t.schedule;
+  EXPECT_EQ(c.problems(), 2);
+  const auto lines = c.report(o);
+  const auto moving = std::count_if(lines.begin(), lines.end(), [](const std::string& l) {
+    return l.find("still moving at") != std::string::npos &&
+           l.find("fix: longer quiet entries (t_min, t_max) or more damping") != std::string::npos;
+  });
+  EXPECT_EQ(moving, 2);
 }
 
 }  // namespace

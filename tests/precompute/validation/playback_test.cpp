@@ -172,7 +172,8 @@ TEST(Playback, RandomSchedulesAreNeverRefusedByTheServer) {
     const auto p = std::make_shared<const core::ScenePackage>(
         core::read_package(phasecast::testing::source_dir() / ("tests/data/packages/" + name + ".h5")));
     const auto rules = make_palette_rules(s);
-    int refused = 0, items = 0;
+    int refused = 0, items = 0,
+        at_range_end = 0;  // the case the server stops: a push to the end of the range
     std::string first;
     for (std::uint64_t seed = 1; seed <= 3; ++seed) {
       for (int k = 0; k < 100; ++k) {
@@ -180,14 +181,19 @@ TEST(Playback, RandomSchedulesAreNeverRefusedByTheServer) {
         engine.add_scene(p, "refusals", 0);
         const std::uint32_t id = engine.create_instance(p->attributes.scene);
         std::uint64_t frame = 0;
+        double at = 0;
         for (const auto& item : random_schedule(rules, s.simulation.frame_dt, seed, k, 8)) {
           ++items;
+          const int frames = schedule_frames(item.duration, s.simulation.frame_dt);
+          at = rules.advance(item.entry, at, frames);
+          at_range_end += rules.support_rate[static_cast<size_t>(item.entry)] != 0 &&
+                          (std::abs(at - rules.range_min) < 1e-9 || std::abs(at - rules.range_max) < 1e-9);
           try {
             engine.schedule_impulse(id, item.entry, frame);
           } catch (const server::EngineError& e) {
             if (refused++ == 0) first = e.what();
           }
-          for (int f = 0; f < schedule_frames(item.duration, s.simulation.frame_dt); ++f, ++frame) {
+          for (int f = 0; f < frames; ++f, ++frame) {
             for (const auto& r : engine.tick().refused)
               if (refused++ == 0) first = r.error;
           }
@@ -195,6 +201,9 @@ TEST(Playback, RandomSchedulesAreNeverRefusedByTheServer) {
       }
     }
     EXPECT_EQ(refused, 0) << name << ": " << refused << " of " << items << " refused; first: " << first;
+    if (rules.range_min != rules.range_max) {
+      EXPECT_GT(at_range_end, 10) << name << ": pushes reach the range end";
+    }
   }
 }
 
