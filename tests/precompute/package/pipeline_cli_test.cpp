@@ -165,7 +165,7 @@ TEST(PipelineCli, RunEndsWithTheRestTrials) {
                     {"--chains", "2", "--irfs-per-chain", "8", "--seed", "2", "--no-appearance"}));
   ASSERT_EQ(door.exit_code, 0) << door.err;
   EXPECT_NE(door.out.find("return: 'open 0.62; stop 3.00': moved up to"), std::string::npos) << door.out;
-  EXPECT_NE(door.out.find("fidelity (4 random schedules of 4 entries, seed 7): median NRMSE"),
+  EXPECT_NE(door.out.find("fidelity (2 random schedules of 4 entries, seed 7): median NRMSE"),
             std::string::npos)
       << door.out;
   EXPECT_EQ(door.out.find("IRFs in the package"), std::string::npos)
