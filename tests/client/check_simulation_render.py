@@ -44,6 +44,19 @@ def check_view(precompute: str, render: str, scenes: Path, work: Path) -> None:
     assert (work / "view_scene/frame_000009.png").read_bytes() != (work / "view_default/frame_000009.png").read_bytes()
     light = np.load(work / "view_scene.npy")[:, 3:]
     assert np.abs(light - np.load(work / "view_default.npy")[:, 3:]).max() > 1e-3, "--light overrides the scene's"
+    # A floor height of its own: the backdrop's floor moves (the door's lowest point is y = 0).
+    floors = []
+    for name, floor in (("floor_low", "-0.6"), ("floor_rest", None)):
+        text = (scenes / "cloth_door.toml").read_text() + "\n[view]\neye = [1.5, 1.2, 2.5]\ntarget = [0, 0.6, 0]\n"
+        (work / f"{name}.toml").write_text(text + (f"floor = {floor}\n" if floor else ""))
+        r = run([precompute, "simulate", str(work / f"{name}.toml"), "--schedule", "open 0.1", "-o",
+                 str(work / f"{name}.h5")])
+        assert r.returncode == 0, r.stderr
+        r = run([render, "--simulation", str(work / f"{name}.h5"), "--frames", "1", "--size", "64x64", "--out",
+                 str(work / name)])
+        assert r.returncode == 0, r.stderr
+        floors.append(np.asarray(Image.open(work / name / "frame_000000.png"), dtype=np.int16))
+    assert np.abs(floors[0] - floors[1]).max() > 20, "[view] floor = -0.6 draws the floor where it was"
 
 
 def check_package_view(make_fixture: str, render: str, work: Path) -> None:
