@@ -280,7 +280,7 @@ TEST(RenderErrors, BadValuesNameTheKeyAndWhatWasExpected) {
                 .find(": field 'body[0].render.obj': expected one of subdivide = n"),
             std::string::npos);
   EXPECT_EQ(cloth_rejection("render = { subdivide = 1, smooth = true }", "unknown"),
-            ": field 'body[0].render.smooth': unknown field (misspelt?)");
+            ": field 'body[0].render.smooth': unknown field (expected one of obj, subdivide, tube)");
   EXPECT_EQ(
       cloth_rejection("render = { obj = \"a.obj\" }", "obj_on_sheet"),
       ": field 'body[0].render.obj': expected a tetgen body (a render OBJ moves with the tets around it; "
