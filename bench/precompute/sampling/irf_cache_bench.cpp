@@ -40,7 +40,8 @@ int main(int argc, char** argv) {
     palette.push_back(i % D);
   }
   const auto t0 = std::chrono::steady_clock::now();
-  const auto cache = phasecast::precompute::nearest_irf_cache(q, qdot, 0.5, start, palette, D);
+  const std::vector<std::int32_t> length(start.size(), static_cast<std::int32_t>(N / n_irf));
+  const auto cache = phasecast::precompute::nearest_irf_cache(q, qdot, 0.5, start, length, palette, D);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   int mismatches = 0;
   for (int j = 0; j < N; j += 997) {

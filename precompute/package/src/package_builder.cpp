@@ -329,7 +329,8 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
     row += len;
   }
   const double beta = o.beta > 0 ? o.beta : default_beta(p.q_u, p.qdot_u);
-  p.nearest_irf = nearest_irf_cache(p.q_u, p.qdot_u, beta, p.irf_start, p.irf_palette, rules.size());
+  p.nearest_irf =
+      nearest_irf_cache(p.q_u, p.qdot_u, beta, p.irf_start, p.irf_length, p.irf_palette, rules.size());
   pkg.mesh = scene_mesh(scene);
   pkg.reduction = embedded_reduction(pkg.mesh, scene_point_embedding(scene), basis);
   // Palette.

@@ -43,6 +43,7 @@ std::vector<std::int32_t> irfs_of(const std::vector<std::int32_t>& irf_palette, 
 
 MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
                             const std::vector<std::int32_t>& irf_start,
+                            const std::vector<std::int32_t>& irf_length,
                             const std::vector<std::int32_t>& irf_palette, int palette_size) {
   const Eigen::Index N = q_u.rows();
   const Eigen::MatrixXd x = phase_points_double(q_u, qdot_u, beta);
@@ -70,15 +71,17 @@ MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, doubl
         const Eigen::Index node = first + j;
         const double least = score.row(j).minCoeff();
         const double slack = kRounding * (x_norm[node] + s_norm_max);
-        // Ties go to the IRF sampled first (the lowest index).
+        // Ties go to the longest IRF, then to the one sampled first (irfs is in index order).
         double best = std::numeric_limits<double>::infinity();
+        std::int32_t best_length = 0;
         for (Eigen::Index k = 0; k < score.cols(); ++k) {
           if (score(j, k) > least + slack) continue;
-          const auto irf = irfs[static_cast<size_t>(k)];
-          const double distance = eq9_squared(q_u, qdot_u, beta, node, irf_start[static_cast<size_t>(irf)]);
-          if (distance < best) {
+          const auto irf = static_cast<size_t>(irfs[static_cast<size_t>(k)]);
+          const double distance = eq9_squared(q_u, qdot_u, beta, node, irf_start[irf]);
+          if (distance < best || (distance == best && irf_length[irf] > best_length)) {
             best = distance;
-            cache(node, d) = irf;
+            best_length = irf_length[irf];
+            cache(node, d) = static_cast<std::int32_t>(irf);
           }
         }
       }

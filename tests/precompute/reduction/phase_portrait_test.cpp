@@ -72,7 +72,8 @@ TEST(IrfCache, MatchesBruteForceEq9) {
     palette.push_back(i % (D - 1));  // entry D-1 has no IRF
   }
   const double beta = 0.3;
-  const MatrixXiR cache = nearest_irf_cache(q, v, beta, start, palette, D);
+  const std::vector<std::int32_t> length(start.size(), N / n_irf);
+  const MatrixXiR cache = nearest_irf_cache(q, v, beta, start, length, palette, D);
   ASSERT_EQ(cache.rows(), N);
   ASSERT_EQ(cache.cols(), D);
   for (int j = 0; j < N; j += 7) {
@@ -92,17 +93,18 @@ TEST(IrfCache, MatchesBruteForceEq9) {
 }
 
 // The brute force the cache must equal: eq. 9 with each difference in
-// double, the lowest index among equals.
+// double; among equals the longest, then the lowest index.
 int brute_force_nearest(const MatrixXfR& q, const MatrixXfR& v, double beta,
-                        const std::vector<std::int32_t>& start, const std::vector<std::int32_t>& palette,
-                        int node, int d) {
+                        const std::vector<std::int32_t>& start, const std::vector<std::int32_t>& length,
+                        const std::vector<std::int32_t>& palette, int node, int d) {
   int best = -1;
   double best_dist = INFINITY;
   for (size_t i = 0; i < start.size(); ++i) {
     if (palette[i] != d) continue;
     const double dist = (q.row(node).cast<double>() - q.row(start[i]).cast<double>()).squaredNorm() +
                         beta * (v.row(node).cast<double>() - v.row(start[i]).cast<double>()).squaredNorm();
-    if (dist < best_dist) best_dist = dist, best = static_cast<int>(i);
+    if (dist < best_dist || (dist == best_dist && length[i] > length[static_cast<size_t>(best)]))
+      best_dist = dist, best = static_cast<int>(i);
   }
   return best;
 }
@@ -125,19 +127,23 @@ TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
     start.push_back(i * (N / n_irf));
     palette.push_back(i % D);
   }
-  start[7] = start[5];  // two IRFs of entry 1 start at the same node: the first sampled wins
+  std::vector<std::int32_t> length(start.size(), 5);
+  start[7] = start[5];  // two IRFs of entry 1 start at the same node: the longer wins
+  length[7] = 6;
+  start[11] = start[9];  // and of two as long, the first sampled
   const double beta = 2.5;
-  const MatrixXiR cache = nearest_irf_cache(q, v, beta, start, palette, D);
+  const MatrixXiR cache = nearest_irf_cache(q, v, beta, start, length, palette, D);
   int checked = 0;
   for (int j = 0; j < N; ++j) {
     for (int d = 0; d < D; ++d) {
-      ASSERT_EQ(cache(j, d), brute_force_nearest(q, v, beta, start, palette, j, d))
+      ASSERT_EQ(cache(j, d), brute_force_nearest(q, v, beta, start, length, palette, j, d))
           << "node " << j << " entry " << d;
       ++checked;
     }
   }
   EXPECT_EQ(checked, N * D);
-  EXPECT_EQ(cache(start[5], 1), 5);  // not 7, at the same distance 0
+  EXPECT_EQ(cache(start[5], 1), 7);  // not 5, at the same distance 0 but shorter
+  EXPECT_EQ(cache(start[9], 1), 9);  // not 11, as long and sampled later
   // Not vacuous: the float32 score |b|^2 - 2 a.b misorders these starts.
   int float_misses = 0;
   for (int j = 0; j < N; ++j) {
@@ -157,7 +163,7 @@ TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
 TEST(IrfCache, AnIrfStartMapsToItself) {
   MatrixXfR q(6, 1), v = MatrixXfR::Zero(6, 1);
   q << 0, 1, 2, 5, 6, 7;
-  const MatrixXiR cache = nearest_irf_cache(q, v, 1.0, {0, 3}, {0, 0}, 1);
+  const MatrixXiR cache = nearest_irf_cache(q, v, 1.0, {0, 3}, {3, 3}, {0, 0}, 1);
   EXPECT_EQ(cache(0, 0), 0);
   EXPECT_EQ(cache(3, 0), 1);
   EXPECT_EQ(cache(2, 0), 0);  // |2 - 0| < |2 - 5|

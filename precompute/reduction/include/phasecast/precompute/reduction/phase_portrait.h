@@ -15,14 +15,18 @@ double default_beta(const MatrixXfR& q_u, const MatrixXfR& qdot_u);
 
 // §5.2: for every node j and palette entry d, the IRF of entry d whose start
 // node is nearest to node j under eq. 9, or -1 if entry d has no IRF. Exact
-// under eq. 9 with each difference taken in double; of IRFs at the same
-// distance, the one sampled first (lowest index). A matrix product per block
+// under eq. 9 with each difference taken in double. Of IRFs at the same
+// distance (the chains' first IRFs all start at the one settled rest), the
+// longest, then the one sampled first (lowest index): a later impulse can cut
+// a long IRF short, but a short one ends the entry (its on_end) before the
+// user meant it to. A matrix product per block
 // of nodes (in double) finds the candidates, and each start within its
 // rounding of the least is measured again directly, so N = 20 000 nodes
 // against thousands of IRF starts takes about a second.
 //   returns N x D
 MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, double beta,
                             const std::vector<std::int32_t>& irf_start,
+                            const std::vector<std::int32_t>& irf_length,
                             const std::vector<std::int32_t>& irf_palette, int palette_size);
 
 }  // namespace phasecast::precompute
