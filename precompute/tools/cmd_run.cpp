@@ -32,8 +32,6 @@ struct Options {
   bool no_check = false;               // skip check's trials and fidelity line at the end
 };
 
-// A palette entry without an IRF cannot be played: the server refuses it.
-// The package stays written (nothing computed is lost); run fails naming them.
 std::vector<std::string> entries_without_irfs(const core::ScenePackage& p) {
   std::vector<int> irfs(static_cast<size_t>(p.palette.size()), 0);
   for (const auto e : p.portrait.irf_palette) ++irfs[static_cast<size_t>(e)];
@@ -43,6 +41,8 @@ std::vector<std::string> entries_without_irfs(const core::ScenePackage& p) {
   return names;
 }
 
+// A palette entry without an IRF cannot be played: the server refuses it.
+// The package stays written (nothing computed is lost); run fails naming them.
 void check_every_entry_sampled(const core::ScenePackage& p, const Options& o) {
   const auto names = entries_without_irfs(p);
   const auto count = names.size();

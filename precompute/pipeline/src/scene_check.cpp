@@ -295,7 +295,7 @@ std::vector<std::string> SceneCheck::report(const SceneCheckOptions& o) const {
                                              "more entries (its `after`)",
                                              e.entry));
   }
-  if (!fidelity && problems() > 0 && o.fidelity_schedules > 0 &&
+  if (!fidelity && o.fidelity_schedules > 0 &&
       std::any_of(irfs.begin(), irfs.end(), [](const EntryIrfs& e) { return e.irfs == 0; })) {
     lines.push_back(
         "fidelity: not estimated (random schedules would play the entries above that have no IRF)");
