@@ -54,6 +54,7 @@ MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, doubl
   // to |a|^2 + |b|^2: every start within it of the least score is measured
   // again directly, so the product only prefilters.
   constexpr double kRounding = 1e-9;
+  const double band = kSameStartFraction * std::sqrt(x_norm.size() ? x_norm.maxCoeff() : 0.0);
 
   for (int d = 0; d < palette_size; ++d) {
     const std::vector<std::int32_t> irfs = irfs_of(irf_palette, d);
@@ -71,14 +72,23 @@ MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, doubl
         const Eigen::Index node = first + j;
         const double least = score.row(j).minCoeff();
         const double slack = kRounding * (x_norm[node] + s_norm_max);
-        // Ties go to the longest IRF, then to the one sampled first (irfs is in index order).
-        double best = std::numeric_limits<double>::infinity();
-        std::int32_t best_length = 0;
+        double nearest = std::numeric_limits<double>::infinity();
         for (Eigen::Index k = 0; k < score.cols(); ++k) {
           if (score(j, k) > least + slack) continue;
           const auto irf = static_cast<size_t>(irfs[static_cast<size_t>(k)]);
+          nearest = std::min(nearest, eq9_squared(q_u, qdot_u, beta, node, irf_start[irf]));
+        }
+        // Of the starts within the band, the longest IRF, then the nearest, then
+        // the first sampled (irfs is in index order).
+        const double reach = std::sqrt(nearest) + band;
+        double best = std::numeric_limits<double>::infinity();
+        std::int32_t best_length = 0;
+        for (Eigen::Index k = 0; k < score.cols(); ++k) {
+          if (score(j, k) > reach * reach - x_norm[node] + slack) continue;
+          const auto irf = static_cast<size_t>(irfs[static_cast<size_t>(k)]);
           const double distance = eq9_squared(q_u, qdot_u, beta, node, irf_start[irf]);
-          if (distance < best || (distance == best && irf_length[irf] > best_length)) {
+          if (std::sqrt(distance) > reach) continue;
+          if (irf_length[irf] > best_length || (irf_length[irf] == best_length && distance < best)) {
             best = distance;
             best_length = irf_length[irf];
             cache(node, d) = static_cast<std::int32_t>(irf);

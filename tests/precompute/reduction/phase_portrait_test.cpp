@@ -93,18 +93,28 @@ TEST(IrfCache, MatchesBruteForceEq9) {
 }
 
 // The brute force the cache must equal: eq. 9 with each difference in
-// double; among equals the longest, then the lowest index.
-int brute_force_nearest(const MatrixXfR& q, const MatrixXfR& v, double beta,
-                        const std::vector<std::int32_t>& start, const std::vector<std::int32_t>& length,
-                        const std::vector<std::int32_t>& palette, int node, int d) {
+// double; of the starts within kSameStartFraction of the portrait's radius
+// of the nearest, the longest IRF, then the nearest, then the lowest index.
+int brute_force_choice(const MatrixXfR& q, const MatrixXfR& v, double beta,
+                       const std::vector<std::int32_t>& start, const std::vector<std::int32_t>& length,
+                       const std::vector<std::int32_t>& palette, int node, int d) {
+  double radius = 0;
+  for (Eigen::Index i = 0; i < q.rows(); ++i)
+    radius = std::max(radius, std::sqrt(q.row(i).cast<double>().squaredNorm() +
+                                        beta * v.row(i).cast<double>().squaredNorm()));
+  const auto distance = [&](size_t i) {
+    return std::sqrt((q.row(node).cast<double>() - q.row(start[i]).cast<double>()).squaredNorm() +
+                     beta * (v.row(node).cast<double>() - v.row(start[i]).cast<double>()).squaredNorm());
+  };
+  double nearest = INFINITY;
+  for (size_t i = 0; i < start.size(); ++i)
+    if (palette[i] == d) nearest = std::min(nearest, distance(i));
   int best = -1;
-  double best_dist = INFINITY;
   for (size_t i = 0; i < start.size(); ++i) {
-    if (palette[i] != d) continue;
-    const double dist = (q.row(node).cast<double>() - q.row(start[i]).cast<double>()).squaredNorm() +
-                        beta * (v.row(node).cast<double>() - v.row(start[i]).cast<double>()).squaredNorm();
-    if (dist < best_dist || (dist == best_dist && length[i] > length[static_cast<size_t>(best)]))
-      best_dist = dist, best = static_cast<int>(i);
+    if (palette[i] != d || distance(i) > nearest + kSameStartFraction * radius) continue;
+    const auto b = static_cast<size_t>(best);
+    if (best < 0 || length[i] > length[b] || (length[i] == length[b] && distance(i) < distance(b)))
+      best = static_cast<int>(i);
   }
   return best;
 }
@@ -128,22 +138,26 @@ TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
     palette.push_back(i % D);
   }
   std::vector<std::int32_t> length(start.size(), 5);
-  start[7] = start[5];  // two IRFs of entry 1 start at the same node: the longer wins
+  // Every start lies within 1 % of the radius of every other here: for entry 1,
+  // whose IRF 7 is the longest, it plays from everywhere; entry 0's IRFs are
+  // equally long, so its choice is the exact nearest (the brute force checks it).
+  start[7] = start[5];
   length[7] = 6;
-  start[11] = start[9];  // and of two as long, the first sampled
+  start[10] = start[8];  // two of entry 0 at one node: the first sampled
   const double beta = 2.5;
   const MatrixXiR cache = nearest_irf_cache(q, v, beta, start, length, palette, D);
   int checked = 0;
   for (int j = 0; j < N; ++j) {
     for (int d = 0; d < D; ++d) {
-      ASSERT_EQ(cache(j, d), brute_force_nearest(q, v, beta, start, length, palette, j, d))
+      ASSERT_EQ(cache(j, d), brute_force_choice(q, v, beta, start, length, palette, j, d))
           << "node " << j << " entry " << d;
       ++checked;
     }
   }
   EXPECT_EQ(checked, N * D);
   EXPECT_EQ(cache(start[5], 1), 7);  // not 5, at the same distance 0 but shorter
-  EXPECT_EQ(cache(start[9], 1), 9);  // not 11, as long and sampled later
+  EXPECT_EQ(cache(start[9], 1), 7);  // the longest within the band, not the nearest
+  EXPECT_EQ(cache(start[8], 0), 8);  // not 10: as long, as near, sampled later
   // Not vacuous: the float32 score |b|^2 - 2 a.b misorders these starts.
   int float_misses = 0;
   for (int j = 0; j < N; ++j) {
@@ -158,6 +172,18 @@ TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
     float_misses += pick != cache(j, 0);
   }
   EXPECT_GT(float_misses, N / 10);
+}
+
+// Starts within 1 % of the portrait's radius of the nearest are one state:
+// the longest IRF among them plays (a later impulse can cut it short).
+TEST(IrfCache, TheLongestIrfOfOneStartPlays) {
+  MatrixXfR q(4, 1), v = MatrixXfR::Zero(4, 1);
+  q << 0, 0.05f, 0.2f, 10;  // radius 10: starts within 0.1 of the nearest count as one
+  const MatrixXiR cache = nearest_irf_cache(q, v, 1.0, {0, 1, 2, 3}, {3, 9, 20, 1}, {0, 0, 0, 0}, 1);
+  EXPECT_EQ(cache(0, 0), 1);  // 0.05 away and three times as long; 0.2 is another state
+  EXPECT_EQ(cache(1, 0), 1);
+  EXPECT_EQ(cache(2, 0), 2);  // the nearest (itself) and the longest
+  EXPECT_EQ(cache(3, 0), 3);
 }
 
 TEST(IrfCache, AnIrfStartMapsToItself) {

@@ -13,13 +13,18 @@ namespace phasecast::precompute {
 // §2.3.2 default: beta = max_j ||q^j||^2 / max_j ||qdot^j||^2 (1 if all velocities vanish).
 double default_beta(const MatrixXfR& q_u, const MatrixXfR& qdot_u);
 
-// §5.2: for every node j and palette entry d, the IRF of entry d whose start
-// node is nearest to node j under eq. 9, or -1 if entry d has no IRF. Exact
-// under eq. 9 with each difference taken in double. Of IRFs at the same
-// distance (the chains' first IRFs all start at the one settled rest), the
-// longest, then the one sampled first (lowest index): a later impulse can cut
-// a long IRF short, but a short one ends the entry (its on_end) before the
-// user meant it to. A matrix product per block
+// Starts within this share of the portrait's radius (the largest |[q, sqrt(beta) q̇]|)
+// of the nearest one are one state for playback (measured in docs/sampling.md).
+inline constexpr double kSameStartFraction = 0.01;
+
+// §5.2: for every node j and palette entry d, the IRF of entry d to play from
+// node j, or -1 if entry d has no IRF: of the IRFs whose start is within
+// kSameStartFraction of the portrait's radius of the nearest start under
+// eq. 9, the longest, then the nearest, then the one sampled first (lowest
+// index). A later impulse can cut a long IRF short, but a short one ends the
+// entry (its on_end) before the user meant it to, and every chain's first IRF
+// starts at the one settled rest. Distances are exact under eq. 9 with each
+// difference taken in double. A matrix product per block
 // of nodes (in double) finds the candidates, and each start within its
 // rounding of the least is measured again directly, so N = 20 000 nodes
 // against thousands of IRF starts takes about a second.
