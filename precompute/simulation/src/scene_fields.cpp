@@ -61,8 +61,9 @@ bool close_enough(const std::string& a, const std::string& b) {
 // A key a user likely wrote for another: a typo of it, or it with more
 // words (`young_modulus` for `young`, `dt` for `frame_dt`).
 bool likely_meant(const std::string& written, const std::string& known) {
-  const bool contains = std::min(written.size(), known.size()) >= 2 && written != known &&
-                        (written.find(known) != std::string::npos || known.find(written) != std::string::npos);
+  const bool contains =
+      std::min(written.size(), known.size()) >= 2 && written != known &&
+      (written.find(known) != std::string::npos || known.find(written) != std::string::npos);
   return close_enough(written, known) || contains;
 }
 
