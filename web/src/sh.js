@@ -83,7 +83,10 @@ const sky = () => projectLight((x, y) =>
 function sun() {
   const light = directionalLight([0.3, 0.8, 0.52], [2.6, 2.45, 2.2]);
   const ambient = sky();
-  for (let c = 0; c < 3; ++c) for (let k = 0; k < 16; ++k) light[c][k] = f32(light[c][k] + f32(f32(0.3) * ambient[c][k]));  // 0.3f * ambient: float arithmetic, as the C++
+  // 0.3f * ambient in float arithmetic, as the C++ adds it.
+  for (let c = 0; c < 3; ++c) {
+    for (let k = 0; k < 16; ++k) light[c][k] = f32(light[c][k] + f32(f32(0.3) * ambient[c][k]));
+  }
   return light;
 }
 
