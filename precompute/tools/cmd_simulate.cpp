@@ -51,7 +51,7 @@ void run_simulate(const SimulateOptions& o) {
   }
   if (!o.obj_dir.empty()) {
     phasecast::core::ProgressBar obj_bar("obj frames");
-    const int n = write_obj_frames(store, scene.model.obstacles, o.obj_dir,
+    const int n = write_obj_frames(store, scene.model.obstacles, scene.prop_meshes, o.obj_dir,
                                    [&](int done, int total) { obj_bar.update(done, total); });
     obj_bar.finish();
     fmt::print("wrote {} OBJ frames to {}\n", n, o.obj_dir);

@@ -5,14 +5,17 @@
 The layout is scenes/tiny/cloth_door.toml's in Blender's Z-up world (Phasecast's (x, y, z) is
 Blender's (x, -z, y)): the hinge line is Blender's Z axis through the origin, the door board
 spans x in [0.02, 0.82], z in [0, 2], y in [0, 0.04], and the towel hangs on the board's -y face.
-Objects: "Hinge" (an empty, the support), "Door" (the board, drawn), "DoorCollider" (what the
-towel collides with: the board's front face backed by 20 cm, not rendered) and "Towel" (cloth with
-self-collision, pinned along its top edge); all but the hinge are children of the hinge. Nothing
+Objects: "Hinge" (an empty, the support), "Door" (the board, drawn, its faces cut 8 x 8 by a
+simple subdivision so they carry the towel's shadow), "Rail" (a round bar the towel hangs from,
+drawn; the cloth is pinned, not hung on it), "DoorCollider" (what the towel collides with: the
+board's front face backed by 20 cm, not rendered) and "Towel" (cloth with self-collision, pinned
+along its top edge); all but the hinge are children of the hinge. Nothing
 binary is committed: scenes/blender/*.toml name this script as their [simulator] make
 (docs/simulator.md, "Blender as the black box").
 """
 
 import argparse
+import math
 import os
 import sys
 
@@ -61,8 +64,31 @@ def box(name, lo, hi, parent, colour):
     return obj
 
 
+def round_bar(parent, x0, x1, y, z, radius=0.012, sides=16):
+    """A round bar along x: smooth sides, flat ends (auto smooth keeps the end edges sharp)."""
+    ring = [(y + radius * math.cos(2 * math.pi * k / sides), z + radius * math.sin(2 * math.pi * k / sides))
+            for k in range(sides)]
+    vertices = [(x, cy, cz) for x in (x0, x1) for cy, cz in ring]
+    faces = [(k, (k + 1) % sides, sides + (k + 1) % sides, sides + k) for k in range(sides)]
+    faces += [tuple(reversed(range(sides))), tuple(range(sides, 2 * sides))]
+    obj = mesh_object("Rail", vertices, faces, parent, (0.7, 0.7, 0.72))
+    mesh = bmesh.new()
+    mesh.from_mesh(obj.data)
+    bmesh.ops.recalc_face_normals(mesh, faces=mesh.faces)
+    mesh.to_mesh(obj.data)
+    mesh.free()
+    for polygon in obj.data.polygons:
+        polygon.use_smooth = True
+    obj.data.use_auto_smooth = True
+    obj.data.auto_smooth_angle = math.radians(60)
+    return obj
+
+
 def door(parent):
     board = box("Door", (0.02, 0.0, 0.0), (0.82, 0.04, 2.0), parent, (0.62, 0.42, 0.24))
+    cut = board.modifiers.new("Cells", "SUBSURF")
+    cut.subdivision_type = "SIMPLE"
+    cut.levels = 3
     # The towel collides with a proxy: the board's front face backed by 20 cm. Pressed onto the
     # 4 cm board itself, Blender's cloth ends up behind it within a few swings (measured).
     proxy = box("DoorCollider", (0.02, 0.0, 0.0), (0.82, 0.2, 2.0), parent, (0.5, 0.5, 0.5))
@@ -82,6 +108,7 @@ def towel(parent, nx, nz):
     faces = [(k * (nx + 1) + i, k * (nx + 1) + i + 1, (k + 1) * (nx + 1) + i + 1, (k + 1) * (nx + 1) + i)
              for k in range(nz) for i in range(nx)]
     obj = mesh_object("Towel", vertices, faces, parent, (0.12, 0.3, 0.75))
+    round_bar(parent, x0 - 0.03, x0 + width + 0.03, y, top + 0.014)
     rail = obj.vertex_groups.new(name="rail")
     rail.add(list(range(nx + 1)), 1.0, "REPLACE")
     cloth = obj.modifiers.new("Cloth", "CLOTH")

@@ -114,11 +114,24 @@ Eigen::Index prop_points(const Scene& scene, size_t i) {
   return look.drawn ? box_points(o.min, o.max, look.cell) : 0;
 }
 
-// Scene points the props add, in obstacle order.
+// Scene points the props add: the boxes in obstacle order, then the meshes.
 Eigen::Index prop_points(const Scene& scene) {
   Eigen::Index n = 0;
   for (size_t i = 0; i < scene.model.obstacles.size(); ++i) n += prop_points(scene, i);
+  for (const auto& mesh : scene.prop_meshes) n += mesh.positions.rows();
   return n;
+}
+
+// Appends a prop mesh as it is: its points, normals and triangles.
+void add_prop_mesh(core::SceneMesh& m, const PropMesh& mesh) {
+  const Eigen::Index base = m.rest_positions.rows(), first_tri = m.triangles.rows();
+  m.rest_positions.conservativeResize(base + mesh.positions.rows(), 3);
+  m.rest_positions.bottomRows(mesh.positions.rows()) = mesh.positions.cast<float>();
+  m.normals.conservativeResize(m.rest_positions.rows(), 3);
+  m.normals.bottomRows(mesh.normals.rows()) = mesh.normals.cast<float>();
+  m.triangles.conservativeResize(first_tri + mesh.triangles.rows(), 3);
+  m.triangles.bottomRows(mesh.triangles.rows()) =
+      (mesh.triangles.array() + static_cast<int>(base)).cast<std::uint32_t>();
 }
 
 // x-bar and U_u of the scene points from those of the simulated vertices:
@@ -241,6 +254,7 @@ core::SceneMesh scene_mesh(const Scene& scene) {
     const PropLook look = prop_look(scene, i);
     if (look.drawn) add_box(m, model.obstacles[i].min, model.obstacles[i].max, look.cell);
   }
+  for (const auto& mesh : scene.prop_meshes) add_prop_mesh(m, mesh);
   m.deformable.resize(static_cast<size_t>(m.rest_positions.rows()), 0);
   m.attached.assign(static_cast<size_t>(m.rest_positions.rows()), 1);  // everything rides on the support
   return m;
@@ -274,11 +288,15 @@ MatrixXfR scene_point_albedo(const Scene& scene) {
     rho.row(p) =
         scene.bodies[static_cast<size_t>(surface.body[static_cast<size_t>(front)])].albedo.cast<float>();
   }
-  // The props' points follow in obstacle order, each box's points in one block.
+  // The props' points follow in obstacle order, each box's points in one block, then the meshes'.
   for (size_t i = 0; i < scene.model.obstacles.size(); ++i) {
     const Eigen::Index n = prop_points(scene, i);
     rho.middleRows(p, n).rowwise() = prop_look(scene, i).albedo.cast<float>().transpose();
     p += n;
+  }
+  for (const auto& mesh : scene.prop_meshes) {
+    rho.middleRows(p, mesh.positions.rows()).rowwise() = mesh.albedo.cast<float>().transpose();
+    p += mesh.positions.rows();
   }
   return rho;
 }

@@ -26,10 +26,19 @@ void append_box(const BoxObstacle& box, Eigen::MatrixX3d& v, Eigen::MatrixX3i& f
   }
 }
 
+void append_mesh(const PropMesh& mesh, Eigen::MatrixX3d& v, Eigen::MatrixX3i& f) {
+  const Eigen::Index base = v.rows(), t = f.rows();
+  v.conservativeResize(base + mesh.positions.rows(), 3);
+  v.bottomRows(mesh.positions.rows()) = mesh.positions;
+  f.conservativeResize(t + mesh.triangles.rows(), 3);
+  f.bottomRows(mesh.triangles.rows()) = mesh.triangles.array() + static_cast<int>(base);
+}
+
 }  // namespace
 
 int write_obj_frames(const OrbitStore& store, const std::vector<BoxObstacle>& obstacles,
-                     const std::filesystem::path& dir, const std::function<void(int, int)>& progress) {
+                     const std::vector<PropMesh>& meshes, const std::filesystem::path& dir,
+                     const std::function<void(int, int)>& progress) {
   std::filesystem::create_directories(dir);
   const int V = store.vertices();
   for (int n = 0; n < store.frames(); ++n) {
@@ -37,6 +46,7 @@ int write_obj_frames(const OrbitStore& store, const std::vector<BoxObstacle>& ob
     for (int i = 0; i < V; ++i) v.row(i) = store.positions.block(n, 3 * i, 1, 3).cast<double>();
     Eigen::MatrixX3i f = store.triangles.cast<int>();
     for (const auto& box : obstacles) append_box(box, v, f);
+    for (const auto& mesh : meshes) append_mesh(mesh, v, f);
     const Eigen::Matrix<double, 3, 4, Eigen::RowMajor> T =
         Eigen::Map<const Eigen::Matrix<float, 3, 4, Eigen::RowMajor>>(store.support.row(n).data())
             .cast<double>();

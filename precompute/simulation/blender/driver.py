@@ -5,7 +5,8 @@
 #
 #   describe  one JSON line: the deformable objects' evaluated world vertices and
 #             triangles at the first frame, their base colours, the drawn objects'
-#             world boxes, the pinned vertices.
+#             evaluated meshes (one point per distinct corner normal), the pinned
+#             vertices.
 #   simulate  one JSON line {"vertices": V}; then per line "step m00 .. m23" (the
 #             support's motion, a 3x4 in Blender's world) it moves the support,
 #             advances one frame and answers "ok" and 3V little-endian
@@ -98,6 +99,31 @@ def triangles_of(obj):
     return triangles
 
 
+def drawn_mesh(obj):
+    """obj's evaluated mesh in Blender's world, modifiers applied: a point per vertex and split
+    normal (flat faces keep hard edges, smooth ones share their vertices) and its triangles."""
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    mesh.calc_normals_split()
+    mesh.calc_loop_triangles()
+    matrix = evaluated.matrix_world
+    turn = matrix.to_3x3().inverted_safe().transposed()  # normals turn by the inverse transpose
+    vertices, normals, triangles, points = [], [], [], {}
+    for t in mesh.loop_triangles:
+        corners = []
+        for v, n in zip(t.vertices, t.split_normals):
+            key = (v, tuple(round(c, 4) for c in n))
+            if key not in points:
+                points[key] = len(vertices) // 3
+                vertices.extend(matrix @ mesh.vertices[v].co)
+                normals.extend((turn @ mathutils.Vector(n)).normalized())
+            corners.append(points[key])
+        triangles.append(corners)
+    evaluated.to_mesh_clear()
+    return {"name": obj.name, "colour": base_colour(obj), "vertices": vertices, "normals": normals,
+            "triangles": triangles}
+
+
 def pinned_of(obj, count):
     groups = set()
     for m in obj.modifiers:
@@ -159,12 +185,6 @@ def describe(config):
         triangles.extend([first + i for i in t] for t in triangles_of(obj))
         pinned.extend(pinned_of(obj, count))
         bodies[-1]["triangles"] = len(triangles) - bodies[-1]["first_triangle"]
-    boxes = []
-    for obj in drawn:
-        corners = [obj.matrix_world @ mathutils.Vector(c) for c in obj.bound_box]
-        boxes.append({"name": obj.name, "colour": base_colour(obj),
-                      "min": [min(c[k] for c in corners) for k in range(3)],
-                      "max": [max(c[k] for c in corners) for k in range(3)]})
     self_collision, distance = False, 0.0
     for obj in deformable:
         for m in obj.modifiers:
@@ -172,7 +192,7 @@ def describe(config):
                 self_collision = True
                 distance = max(distance, m.collision_settings.self_distance_min)
     answer_json({"vertices": vertices, "triangles": triangles, "pinned": pinned, "bodies": bodies,
-                 "drawn": boxes, "self_collision": self_collision, "self_distance": distance})
+                 "drawn": [drawn_mesh(obj) for obj in drawn], "self_collision": self_collision, "self_distance": distance})
 
 
 def simulate(config):

@@ -41,8 +41,27 @@ nlohmann::json read_json(BlenderProcess& process, const BlenderSettings& s) {
   return parse_answer(process.read_line(), s);
 }
 
-Eigen::Vector3d phasecast_point(const nlohmann::json& xyz) {
-  return blender_to_phasecast() * Eigen::Vector3d(xyz.at(0), xyz.at(1), xyz.at(2));
+// Rows of Phasecast points from a flat list of Blender xyz.
+Eigen::MatrixX3d phasecast_rows(const nlohmann::json& flat) {
+  const auto xyz = flat.get<std::vector<double>>();
+  Eigen::MatrixX3d rows(static_cast<Eigen::Index>(xyz.size() / 3), 3);
+  for (Eigen::Index v = 0; v < rows.rows(); ++v)
+    rows.row(v) = blender_to_phasecast() * Eigen::Map<const Eigen::Vector3d>(xyz.data() + 3 * v);
+  return rows;
+}
+
+Eigen::Vector3d colour_of(const nlohmann::json& rgb) {
+  return Eigen::Vector3d(rgb.at(0).get<double>(), rgb.at(1).get<double>(), rgb.at(2).get<double>());
+}
+
+// A drawn object: its evaluated mesh, one point per distinct corner normal.
+PropMesh prop_mesh(const nlohmann::json& drawn) {
+  PropMesh m{drawn.at("name"), phasecast_rows(drawn.at("vertices")), phasecast_rows(drawn.at("normals")),
+             Eigen::MatrixX3i(static_cast<Eigen::Index>(drawn.at("triangles").size()), 3),
+             colour_of(drawn.at("colour"))};
+  for (Eigen::Index t = 0; t < m.triangles.rows(); ++t)
+    for (int k = 0; k < 3; ++k) m.triangles(t, k) = drawn.at("triangles").at(t).at(k).get<int>();
+  return m;
 }
 
 std::size_t position_hash(const Eigen::VectorXd& x) {
@@ -194,14 +213,9 @@ BlenderDescription describe_blender_scene(const BlenderSettings& settings, doubl
   out.pinned = d.at("pinned").get<std::vector<std::uint8_t>>();
   for (const auto& b : d.at("bodies")) {
     out.bodies.push_back({b.at("name"), b.at("first"), b.at("count"), b.at("first_triangle"),
-                          b.at("triangles"),
-                          Eigen::Vector3d(b.at("colour").at(0), b.at("colour").at(1), b.at("colour").at(2))});
+                          b.at("triangles"), colour_of(b.at("colour"))});
   }
-  for (const auto& b : d.at("drawn")) {
-    const Eigen::Vector3d p = phasecast_point(b.at("min")), q = phasecast_point(b.at("max"));
-    out.drawn.push_back({b.at("name"), p.cwiseMin(q), p.cwiseMax(q),
-                         Eigen::Vector3d(b.at("colour").at(0), b.at("colour").at(1), b.at("colour").at(2))});
-  }
+  for (const auto& b : d.at("drawn")) out.drawn.push_back(prop_mesh(b));
   out.self_collision = d.at("self_collision");
   out.self_distance = d.at("self_distance");
   return out;

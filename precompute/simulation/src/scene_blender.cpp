@@ -53,10 +53,7 @@ void add_description(Scene& scene, const BlenderDescription& d) {
     info.albedo = b.colour;
     scene.bodies.push_back(std::move(info));
   }
-  for (const auto& box : d.drawn) {
-    m.obstacles.push_back({box.name, box.min, box.max});
-    scene.props.push_back({box.colour, 0, true});
-  }
+  scene.prop_meshes = d.drawn;
 }
 
 }  // namespace

@@ -11,7 +11,7 @@ namespace phasecast::precompute::detail {
 SimulationSettings read_blender_simulation(Fields sim, double default_settle);
 
 // [simulator] and the model Blender describes: points, triangles, base
-// colours, the drawn objects as boxes. Sections a .blend replaces are refused.
+// colours, the drawn objects as meshes. Sections a .blend replaces are refused.
 void read_blender_model(Fields& top, Scene& scene);
 
 }  // namespace phasecast::precompute::detail

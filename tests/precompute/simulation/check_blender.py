@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """The Blender simulator end to end on a tiny towel-on-door .blend (docs/simulator.md, "Blender"):
 simulate twice (the same bits), the door swings and the towel follows, run + validate through
-Blender, a resumed run gives the same package, and each failure a user can meet names its cause."""
+Blender, a resumed run gives the same package, the drawn objects arrive as Blender's meshes, and
+each failure a user can meet names its cause."""
 import filecmp
 import os
 import shutil
@@ -118,6 +119,26 @@ def check_run(precompute, scene, d):
     assert not os.path.exists(f"{d}/c.h5"), "a failed run wrote a package"
 
 
+def check_drawn_meshes(package):
+    """The drawn objects are the package's static points as Blender evaluates them: the door board
+    cut 8 x 8 on each face by its subdivision (flat, hard edges), the round rail (smooth sides on a
+    circle of 12 mm, flat ends), not their bounding boxes."""
+    with h5py.File(package, "r") as f:
+        static = f["mesh/deformable"][:] == 0
+        x, n = f["mesh/rest_positions"][:][static], f["mesh/normals"][:][static]
+    door, rail = x[:, 2] <= 0.001, x[:, 2] > 0.001  # Blender's y in [0, 0.04] and [-0.042, -0.018]
+    assert door.sum() == 6 * 9 * 9, f"{door.sum()} door points, expected 486 (6 faces of 9 x 9)"
+    assert np.allclose(np.abs(n[door]).max(axis=1), 1, atol=1e-5), "the door's normals are not its faces'"
+    assert rail.sum() == 4 * 16, f"{rail.sum()} rail points, expected 64 (16 per end ring, sides and ends)"
+    side = np.abs(n[rail][:, 0]) < 1e-4
+    radial = x[rail][side][:, 1:] - [1.864, 0.03]
+    radius = np.linalg.norm(radial, axis=1)
+    assert side.sum() == 32 and np.allclose(radius, 0.012, atol=1e-5), f"rail radii {radius.min()}..{radius.max()}"
+    assert np.allclose(np.einsum("ij,ij->i", radial / radius[:, None], n[rail][side][:, 1:]), 1, atol=1e-3), \
+        "the rail's side normals are not radial (smooth)"
+    assert np.allclose(np.abs(n[rail][~side][:, 0]), 1, atol=1e-5), "the rail's ends are not flat"
+
+
 def edited_blend(d, name, edit):
     """door.blend with `edit` (Python run inside Blender) applied, saved as NAME."""
     code = f"import bpy\n{edit}\nbpy.ops.wm.save_as_mainfile(filepath={os.path.join(d, name)!r})\n"
@@ -144,7 +165,7 @@ def check_failures(precompute, d):
     fails_with(precompute, write(d, "unknown.toml", scene_text(deformable='["Towl"]')),
                "deformable object 'Towl' is not an object of")
     fails_with(precompute, write(d, "unknown2.toml", scene_text(deformable='["Towl"]')),
-               "(its objects: Door, DoorCollider, Hinge, Towel)")
+               "(its objects: Door, DoorCollider, Hinge, Rail, Towel)")
     animated = edited_blend(d, "animated.blend", "bpy.data.objects['Hinge'].keyframe_insert('rotation_euler', frame=1)")
     fails_with(precompute, write(d, "animated.toml", scene_text(blend=animated)),
                "the support 'Hinge' has animation or constraints: Phasecast moves it (remove them)")
@@ -154,7 +175,7 @@ def check_failures(precompute, d):
     crash = write(d, "crash.sh", "#!/bin/sh\necho Blender 3.4.1\necho Segmentation fault >&2\nexit 3\n")
     for script in (hang, crash):
         os.chmod(script, 0o755)
-    timeout = scene_text().replace('drawn = ["Door"]', 'drawn = ["Door"]\ntimeout = 1')
+    timeout = scene_text().replace('support = "Hinge"', 'support = "Hinge"\ntimeout = 1')
     fails_with(precompute, write(d, "hang.toml", timeout), "no answer within 1 s ([simulator] timeout); its last "
                "lines: Blender 3.4.1 | reading the file", env={**os.environ, "PHASECAST_BLENDER": hang})
     fails_with(precompute, write(d, "crash.toml", timeout), "it exited with status 3; its last lines: Blender 3.4.1 "
@@ -173,6 +194,7 @@ def main(precompute):
         check_simulation(precompute, scene, d)
         check_free_fall(precompute, d)
         check_run(precompute, scene, d)
+        check_drawn_meshes(f"{d}/a.h5")
         check_failures(precompute, d)
     print("blender simulator: ok")
 

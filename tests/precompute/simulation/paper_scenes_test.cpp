@@ -330,7 +330,7 @@ TEST(PaperScenes, PlantStemTravelsThroughTheStoreAndObjFrames) {
   const auto path = testing::scratch_dir("plant_segments") / "plant.h5";
   write_orbit_store(o, path);
   EXPECT_EQ(read_orbit_store(path).segments, o.segments);
-  write_obj_frames(o, s.model.obstacles, path.parent_path() / "frames");
+  write_obj_frames(o, s.model.obstacles, s.prop_meshes, path.parent_path() / "frames");
   std::ifstream obj(path.parent_path() / "frames/frame_00000.obj");
   std::string text((std::istreambuf_iterator<char>(obj)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("\nl 1 2\n"), std::string::npos);  // the stem's first edge

@@ -56,7 +56,8 @@ struct PackageBuild {
 // by the same U_u rows), then every drawn box obstacle (`drawn = false`: none)
 // as static points: each face
 // a grid of quads of about the prop's `cell` edge (one quad when 0),
-// single-sided, outward normals, its own points per face. Sheet triangles are
+// single-sided, outward normals, its own points per face; then every prop
+// mesh (a black-box simulator's drawn objects) as it came. Sheet triangles are
 // the surface triangles none of whose corners moves with a vertex of a
 // tetrahedron (cloth, leaves); a solid's boundary stays single-sided. Both
 // sides get their own transfer (§4.1).

@@ -4,6 +4,7 @@
 // solver settings) while the palette's kinematics move the .blend's support
 // object. One Blender process per simulator; docs/simulator.md, "Blender".
 
+#include "phasecast/precompute/simulation/prop_mesh.h"
 #include "phasecast/precompute/simulation/simulator.h"
 #include "phasecast/precompute/simulation/support_motion.h"
 
@@ -34,16 +35,11 @@ struct BlenderDescription {
     int first_triangle = 0, triangles = 0;                    // its rows of `triangles`
     Eigen::Vector3d colour = Eigen::Vector3d::Constant(0.8);  // the base colour of its first material
   };
-  struct Box {
-    std::string name;
-    Eigen::Vector3d min, max;  // axis-aligned in Phasecast's world: the transfer sees the bounding box
-    Eigen::Vector3d colour = Eigen::Vector3d::Constant(0.8);
-  };
   Eigen::VectorXd rest;              // 3V, the deformable objects' evaluated vertices in order
   Eigen::MatrixXi triangles;         // F x 3
   std::vector<std::uint8_t> pinned;  // V: in a cloth's pin group or a soft body's goal group
   std::vector<Body> bodies;
-  std::vector<Box> drawn;
+  std::vector<PropMesh> drawn;  // evaluated meshes (modifiers applied), base colour as albedo
   bool self_collision = false;
   double self_distance = 0;  // m, the largest of the cloths' self-collision distances
 };

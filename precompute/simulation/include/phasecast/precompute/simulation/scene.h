@@ -100,7 +100,8 @@ struct Scene {
   SupportSettings support;
   DeformableModel model;
   std::vector<BodyInfo> bodies;
-  std::vector<PropLook> props;  // one per model.obstacles entry
+  std::vector<PropLook> props;        // one per model.obstacles entry
+  std::vector<PropMesh> prop_meshes;  // drawn after the box props (Blender's drawn objects)
   AppearanceDefaults appearance;
   std::vector<PaletteEntry> palette;
   // [validation] schedule: the interaction `phasecast-precompute validate`
@@ -109,7 +110,8 @@ struct Scene {
   std::optional<DemoDefaults> demo;
   std::optional<ViewSettings> view;
   // [simulator] kind = "blender": Blender steps the .blend (the model then
-  // holds only what Blender described: points, triangles, drawn boxes).
+  // holds only what Blender described: points, triangles; its drawn objects
+  // are prop_meshes).
   std::optional<BlenderSettings> blender;
 
   // Index of the palette entry `name`; throws SceneError listing the known names.
