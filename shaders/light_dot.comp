@@ -11,13 +11,13 @@
 
 layout(local_size_x = 64) in;
 
-layout(std430, binding = PHASECAST_BINDING_MEAN_TRANSFER) readonly buffer MeanTransfer { vec4 M_bar[]; };  // [S][3][4]: k in vec4s
-layout(std430, binding = PHASECAST_BINDING_TRANSFER_BASIS) readonly buffer TransferBasis { vec4 U_a[]; };  // [48S][r_a4]
+layout(std430, binding = PHASECAST_BINDING_MEAN_TRANSFER) readonly buffer MeanTransfer { vec4 M_bar[]; };  // tiled, [3][4] per point: k in vec4s
+layout(std430, binding = PHASECAST_BINDING_TRANSFER_BASIS) readonly buffer TransferBasis { vec4 U_a[]; };  // tiled, [48][r_a4] per point
 // The same buffer with --half: each vec4 as four 16-bit floats in two uints.
 layout(std430, binding = PHASECAST_BINDING_TRANSFER_BASIS) readonly buffer TransferBasisHalf { uvec2 U_a_half[]; };
 layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };     // bit 1 attached
 layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [instance][S]: xyz = M_bar_c . L_c
-layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [instance][S][3][r_a4]: (U_a . L)_j
+layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [instance] tiled, [3][r_a4] per point: (U_a . L)_j
 
 uniform int r_a4;
 
@@ -37,21 +37,22 @@ void main() {
   uint v = gl_GlobalInvocationID.x;
   if (v >= uint(points)) return;
   int base = (flags[v] & 2u) != 0u ? 12 : 0;
-  uint n = uint(r_a4), out_v = uint(out_base) + v;
+  uint n = uint(r_a4), w = 48u * n, out_v = uint(out_base) + v;
   vec3 mean_dotted;
   for (int c = 0; c < 3; ++c) {
     vec4 sum = vec4(0.0);
-    for (int kb = 0; kb < 4; ++kb) sum += M_bar[12u * v + uint(4 * c + kb)] * light[base + 4 * c + kb];
+    for (int kb = 0; kb < 4; ++kb) sum += M_bar[PHASECAST_TILED(v, uint(4 * c + kb), 12u)] * light[base + 4 * c + kb];
     mean_dotted[c] = sum.x + sum.y + sum.z + sum.w;
     for (uint b = 0u; b < n; ++b) {
       vec4 acc = vec4(0.0);
       for (int kb = 0; kb < 4; ++kb) {
         vec4 L = light[base + 4 * c + kb];
-        uint row = 48u * v + uint(16 * c + 4 * kb);
-        acc += U_a_at(row * n + b) * L.x + U_a_at((row + 1u) * n + b) * L.y + U_a_at((row + 2u) * n + b) * L.z +
-               U_a_at((row + 3u) * n + b) * L.w;
+        uint row = uint(16 * c + 4 * kb);
+        acc += U_a_at(PHASECAST_TILED(v, row * n + b, w)) * L.x + U_a_at(PHASECAST_TILED(v, (row + 1u) * n + b, w)) * L.y +
+               U_a_at(PHASECAST_TILED(v, (row + 2u) * n + b, w)) * L.z +
+               U_a_at(PHASECAST_TILED(v, (row + 3u) * n + b, w)) * L.w;
       }
-      U_dot[(3u * out_v + uint(c)) * n + b] = acc;
+      U_dot[PHASECAST_TILED(out_v, uint(c) * n + b, 3u * n)] = acc;
     }
   }
   M_dot[out_v] = vec4(mean_dotted, 0.0);

@@ -5,17 +5,18 @@
 //
 // GPU layout (packed by low_rank_renderer.cpp from the row-major protocol
 // layout): ranks are padded to whole vec4 blocks, r_u4 = ceil(r_u / 4) and
-// r_a4 = ceil(r_a / 4), so each basis row is read with vec4 loads.
+// r_a4 = ceil(r_a / 4), so each basis row is read with vec4 loads, and the
+// bases are tiled by points (bindings.glsl, PHASECAST_TILED).
 
 layout(std430, binding = PHASECAST_BINDING_MEAN_SHAPE) readonly buffer MeanShape { float x_bar[]; };         // 3S (eq. 7)
-layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer DisplacementBasis { vec4 U_u[]; };   // [3S][r_u4]
+layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer DisplacementBasis { vec4 U_u[]; };   // tiled, 3 r_u4 per point
 // The same buffer with --half: each vec4 as four 16-bit floats in two uints.
 layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer DisplacementBasisHalf { uvec2 U_u_half[]; };
 layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };         // bit 0 deformable, 1 attached
 layout(std430, binding = PHASECAST_BINDING_REST_NORMALS) readonly buffer RestNormals { float normals[]; };     // 3S
 layout(std430, binding = PHASECAST_BINDING_REDUCED) readonly buffer Reduced { vec4 q[]; };                // [instance]: q_u (r_u4) then q_a (r_a4)
 layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) readonly buffer MeanDotted { vec4 M_dot[]; };         // [instance][S]: xyz = M_bar_c . L_c
-layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) readonly buffer BasisDotted { vec4 U_dot[]; };        // [instance][S][3][r_a4]: (U_a . L)_j
+layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) readonly buffer BasisDotted { vec4 U_dot[]; };        // [instance] tiled, 3 r_a4 per point: (U_a . L)_j
 
 // SH light, coefficient 16c + k in light[base + 4c + k / 4][k % 4]; base 0 is
 // the world light rotated into the instance's frame, base 12 the same light
@@ -53,10 +54,11 @@ vec3 displaced_position(uint v, bool deformable, uint q0) {
   uint row = 3u * v;
   vec3 x = vec3(x_bar[row], x_bar[row + 1u], x_bar[row + 2u]);
   if (deformable) {
-    uint n = uint(r_u4);
+    uint n = uint(r_u4), w = 3u * n;
     for (uint b = 0u; b < n; ++b) {
       vec4 qb = q[q0 + b];
-      x += vec3(dot(U_u_at(row * n + b), qb), dot(U_u_at((row + 1u) * n + b), qb), dot(U_u_at((row + 2u) * n + b), qb));
+      x += vec3(dot(U_u_at(PHASECAST_TILED(v, b, w)), qb), dot(U_u_at(PHASECAST_TILED(v, n + b, w)), qb),
+                dot(U_u_at(PHASECAST_TILED(v, 2u * n + b, w)), qb));
     }
   }
   return x;
@@ -69,7 +71,7 @@ vec3 transfer_radiance(uint v, uint q0) {
   vec3 rgb = M_dot[v].xyz;
   uint n = uint(r_a4), qa = q0 + uint(r_u4);
   for (uint c = 0u; c < 3u; ++c) {
-    for (uint b = 0u; b < n; ++b) rgb[c] += dot(U_dot[(3u * v + c) * n + b], q[qa + b]);
+    for (uint b = 0u; b < n; ++b) rgb[c] += dot(U_dot[PHASECAST_TILED(v, c * n + b, 3u * n)], q[qa + b]);
   }
   return rgb;
 }

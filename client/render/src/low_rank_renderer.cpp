@@ -60,6 +60,20 @@ std::vector<float> pad_columns(const std::vector<float>& m, int cols) {
   return out;
 }
 
+// Per-point rows of vec4s (each point's W vec4s in a row) in tiles of
+// PHASECAST_POINT_TILE points, vec4 j of a tile's points side by side
+// (bindings.glsl, PHASECAST_TILED); `stride_points` points, the last tile
+// zero-padded.
+std::vector<float> tile_points(const std::vector<float>& m, int points, int stride_points) {
+  if (m.empty()) return m;
+  const auto P = static_cast<std::size_t>(points), W = m.size() / (4 * P);
+  std::vector<float> out(static_cast<std::size_t>(stride_points) * W * 4, 0.0f);
+  for (std::size_t v = 0; v < P; ++v)
+    for (std::size_t j = 0; j < W; ++j)
+      std::copy_n(&m[4 * (v * W + j)], 4, &out[4 * PHASECAST_TILED(v, j, W)]);
+  return out;
+}
+
 // IEEE binary16 values of a float matrix (--half); the shaders read them in
 // pairs with unpackHalf2x16.
 std::vector<std::uint16_t> to_half(const std::vector<float>& m) {
@@ -131,6 +145,7 @@ GLsizeiptr byte_size(const std::vector<T>& v) {
 // Points per block are a multiple of this, so every block's first byte in
 // every per-point buffer is 256-byte aligned (4 bytes per point and up).
 constexpr int kBlockAlign = 64;
+static_assert(kBlockAlign % PHASECAST_POINT_TILE == 0, "a block of points starts on a tile");
 
 int round_up(int x, int to) {
   return (x + to - 1) / to * to;
@@ -302,14 +317,17 @@ struct LowRankRenderer::Impl {
     block_limit = storage_block_limit(gl);
     stride_points = round_up(basis.points, kBlockAlign);
     upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
+    const auto U_u = tile_points(pad_columns(basis.U_u, basis.rank_u), basis.points, stride_points);
+    const auto U_a = tile_points(pad_columns(basis.U_a, basis.rank_a), basis.points, stride_points);
     if (half) {
-      upload_storage(kDisplacementBasis, to_half(pad_columns(basis.U_u, basis.rank_u)), "U_u");
-      upload_storage(kTransferBasis, to_half(pad_columns(basis.U_a, basis.rank_a)), "U_a");
+      upload_storage(kDisplacementBasis, to_half(U_u), "U_u");
+      upload_storage(kTransferBasis, to_half(U_a), "U_a");
     } else {
-      upload_storage(kDisplacementBasis, pad_columns(basis.U_u, basis.rank_u), "U_u");
-      upload_storage(kTransferBasis, pad_columns(basis.U_a, basis.rank_a), "U_a");
+      upload_storage(kDisplacementBasis, U_u, "U_u");
+      upload_storage(kTransferBasis, U_a, "U_a");
     }
-    upload_storage(kMeanTransfer, basis.mean_transfer, "mean_transfer");
+    upload_storage(kMeanTransfer, tile_points(basis.mean_transfer, basis.points, stride_points),
+                   "mean_transfer");
     upload_storage(kPointFlags, point_flags(basis), "flags");
     upload_storage(kRestNormals, basis.normals, "normals");
     allocate_instances(placements.size());
@@ -434,18 +452,21 @@ struct LowRankRenderer::Impl {
   }
 
   // Binds points [first, first + count) of every per-point buffer, and of
-  // instance `instance`'s dotted values.
+  // instance `instance`'s dotted values; a tiled buffer's range ends on a
+  // whole tile.
   void bind_point_block(int first, int count, std::size_t instance) {
     const auto bpp = bytes_per_point();
     for (int b = 0; b < static_cast<int>(kBindingCount); ++b) {
       const auto size = bpp[static_cast<std::size_t>(b)];
       if (size == 0) continue;
       const bool dotted = b == kMeanDotted || b == kBasisDotted;
+      const bool tiled = dotted || b == kDisplacementBasis || b == kMeanTransfer || b == kTransferBasis;
       const std::size_t point =
           (dotted ? instance * static_cast<std::size_t>(stride_points) : 0) + static_cast<std::size_t>(first);
+      const auto points = static_cast<std::size_t>(tiled ? round_up(count, kBlockAlign) : count);
       gl.glBindBufferRange(GL_SHADER_STORAGE_BUFFER, static_cast<GLuint>(b),
                            storage[static_cast<std::size_t>(b)].get(), static_cast<GLintptr>(point * size),
-                           static_cast<GLsizeiptr>(static_cast<std::size_t>(count) * size));
+                           static_cast<GLsizeiptr>(points * size));
     }
   }
 
