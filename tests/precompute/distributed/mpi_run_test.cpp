@@ -108,6 +108,22 @@ TEST(MpiRun, AnyNumberOfRanksWritesTheSinglePackage) {
   }
 }
 
+// --until-fidelity under mpirun: every rank reduces and validates alike, the
+// directed chains of each round spread over the ranks, and the package is the
+// single process's, bit for bit.
+TEST(MpiRun, AdaptiveSamplingWritesTheSinglePackage) {
+  const auto dir = scratch_dir("mpi_adaptive");
+  const std::vector<std::string> adaptive = {
+      "--no-appearance",   "--no-check", "--until-fidelity",     "0.001", "--budget-irfs", "10",
+      "--guide-schedules", "3",          "--held-out-schedules", "2"};
+  const auto single = run_command(precompute_run(dir / "np1.h5", adaptive));
+  ASSERT_EQ(single.exit_code, 0) << single.err;
+  ASSERT_NE(single.err.find("adaptive round 1: "), std::string::npos) << "one round only: " << single.err;
+  const auto two = run_command(concat(mpirun_argv({"-np", "2"}), precompute_run(dir / "np2.h5", adaptive)));
+  ASSERT_EQ(two.exit_code, 0) << two.err;
+  EXPECT_TRUE(read_file(dir / "np2.h5") == read_file(dir / "np1.h5")) << "the files differ";
+}
+
 // --save-transfers under mpirun: each rank casts its share of the transfers,
 // all of them hold every row after the exchange, and one writes the file,
 // which holds what the single process's does, bit for bit.

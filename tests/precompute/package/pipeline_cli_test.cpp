@@ -267,6 +267,56 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
       << bad.err;
 }
 
+// Adaptive options whose first round is 4 IRFs and whose second adds up to 6
+// in directed chains, so --stop-after-irfs 5 stops inside the second round.
+std::vector<std::string> adaptive_rounds() {
+  return {"--chains",
+          "2",
+          "--irfs-per-chain",
+          "2",
+          "--seed",
+          "4",
+          "-j",
+          "1",
+          "--max-rank",
+          "20",
+          "--no-appearance",
+          "--no-check",
+          "--allow-missing-entries",
+          "--until-fidelity",
+          "0.001",
+          "--budget-irfs",
+          "10",
+          "--guide-schedules",
+          "3",
+          "--held-out-schedules",
+          "2"};
+}
+
+// A run stopped inside a directed round resumes from that round's
+// checkpoints to the uninterrupted run's package bytes.
+TEST(PipelineCli, UntilFidelityResumesInALaterRoundToTheSameBytes) {
+  const auto dir = scratch_dir("cli_until_fidelity_resume");
+  const auto straight = (dir / "straight.h5").string(), resumed = (dir / "resumed.h5").string();
+  const auto r = run_tool("phasecast-precompute",
+                          args({"run", tiny_scene_path().string(), "-o", straight}, adaptive_rounds()));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto stopping = adaptive_rounds();
+  stopping.insert(stopping.end(), {"--stop-after-irfs", "5"});
+  const auto stopped =
+      run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", resumed}, stopping));
+  EXPECT_EQ(stopped.exit_code, 1);
+  EXPECT_NE(stopped.err.find("adaptive round 0: 4 IRFs, guide"), std::string::npos) << stopped.err;
+  EXPECT_NE(stopped.err.find("sampling stopped after 5 new IRFs"), std::string::npos) << stopped.err;
+  EXPECT_FALSE(std::filesystem::exists(resumed));
+  auto resuming = adaptive_rounds();
+  resuming.push_back("--resume");
+  const auto again =
+      run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", resumed}, resuming));
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_TRUE(testing::read_file(straight) == testing::read_file(resumed)) << "the package bytes differ";
+}
+
 TEST(PipelineCli, KilledRunResumesToTheSamePackageBytes) {
   const auto dir = scratch_dir("cli_resume");
   const auto straight = (dir / "straight.h5").string(), resumed = (dir / "resumed.h5").string();
