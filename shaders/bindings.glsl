@@ -6,12 +6,13 @@
 // points: within a tile, the points' vec4 j lie side by side, so neighbouring
 // invocations (points) read neighbouring memory. PHASECAST_TILED(v, j, W) is
 // the index of point v's vec4 j; a bound block of points starts on a tile.
-#define PHASECAST_POINT_TILE 64
-#define PHASECAST_TILED(v, j, W) ((v) / 64u * (64u * (W)) + (j) * 64u + (v) % 64u)
+#define PHASECAST_POINT_TILE 64u
+#define PHASECAST_TILED(v, j, W) \
+  ((v) / PHASECAST_POINT_TILE * (PHASECAST_POINT_TILE * (W)) + (j) * PHASECAST_POINT_TILE + (v) % PHASECAST_POINT_TILE)
 #define PHASECAST_BINDING_MEAN_SHAPE 0          // x-bar, 3S (eq. 7)
 #define PHASECAST_BINDING_DISPLACEMENT_BASIS 1  // U_u, tiled, W = 3 r_u4: row c, vec4 block b at c r_u4 + b
 #define PHASECAST_BINDING_MEAN_TRANSFER 2       // M-bar, tiled, W = 12: channel c, k-block kb at 4c + kb
-#define PHASECAST_BINDING_TRANSFER_BASIS 3      // U_a, tiled, W = 48 r_a4: row 16c + k, block b at row r_a4 + b
+#define PHASECAST_BINDING_TRANSFER_BASIS 3      // U_a, tiled, W = 48 r_a4: row 16c + k, block b at (16c + k) r_a4 + b
 #define PHASECAST_BINDING_POINT_FLAGS 4         // bit 0 deformable, bit 1 attached
 #define PHASECAST_BINDING_REST_NORMALS 5        // 3S
 #define PHASECAST_BINDING_REDUCED 6             // per instance: q_u (r_u4 vec4s) then q_a (r_a4)

@@ -1,9 +1,10 @@
 // Packing the bases for WebGL2. WebGL2 has no shader storage buffers, so
 // every array low_rank.vert reads from a buffer becomes an RGBA32F texture
 // read with texelFetch: texel i of a texture of width W (a power of two) is
-// at (i & (W - 1), i >> log2 W). The layouts are those of low_rank.vert and
-// light_dot.comp: ranks padded to whole vec4 blocks, r_u4 = ceil(r_u / 4),
-// r_a4 = ceil(r_a / 4), so each basis row is one run of vec4 texels.
+// at (i & (W - 1), i >> log2 W). Row-major layouts (the native client tiles
+// its storage buffers by points instead, shaders/bindings.glsl): ranks padded
+// to whole vec4 blocks, r_u4 = ceil(r_u / 4), r_a4 = ceil(r_a / 4), so each
+// basis row is one run of vec4 texels.
 // Pure functions: tested in node (test/packing.test.mjs).
 
 export const vec4Blocks = (rank) => Math.ceil(rank / 4);

@@ -317,15 +317,16 @@ struct LowRankRenderer::Impl {
     block_limit = storage_block_limit(gl);
     stride_points = round_up(basis.points, kBlockAlign);
     upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
-    const auto U_u = tile_points(pad_columns(basis.U_u, basis.rank_u), basis.points, stride_points);
-    const auto U_a = tile_points(pad_columns(basis.U_a, basis.rank_a), basis.points, stride_points);
-    if (half) {
-      upload_storage(kDisplacementBasis, to_half(U_u), "U_u");
-      upload_storage(kTransferBasis, to_half(U_a), "U_a");
-    } else {
-      upload_storage(kDisplacementBasis, U_u, "U_u");
-      upload_storage(kTransferBasis, U_a, "U_a");
-    }
+    // One tiled copy at a time: the bases are the bulk of the client's memory.
+    const auto upload_basis = [&](Binding binding, const std::vector<float>& U, int rank, const char* part) {
+      auto tiled = tile_points(pad_columns(U, rank), basis.points, stride_points);
+      if (half)
+        upload_storage(binding, to_half(tiled), part);
+      else
+        upload_storage(binding, tiled, part);
+    };
+    upload_basis(kDisplacementBasis, basis.U_u, basis.rank_u, "U_u");
+    upload_basis(kTransferBasis, basis.U_a, basis.rank_a, "U_a");
     upload_storage(kMeanTransfer, tile_points(basis.mean_transfer, basis.points, stride_points),
                    "mean_transfer");
     upload_storage(kPointFlags, point_flags(basis), "flags");
@@ -335,7 +336,7 @@ struct LowRankRenderer::Impl {
 
   // The buffers that hold something per instance: q, placement, support and
   // lights, and what light_dot.comp writes (M_bar.L, a vec4 per point; U_a.L,
-  // [S][3][r_a4] vec4s), and the per-point pass's output.
+  // 3 r_a4 vec4s per point, tiled), and the per-point pass's output.
   void allocate_instances(std::size_t n) {
     const auto points = static_cast<std::size_t>(stride_points);
     plan_point_blocks(n);
@@ -460,7 +461,8 @@ struct LowRankRenderer::Impl {
       const auto size = bpp[static_cast<std::size_t>(b)];
       if (size == 0) continue;
       const bool dotted = b == kMeanDotted || b == kBasisDotted;
-      const bool tiled = dotted || b == kDisplacementBasis || b == kMeanTransfer || b == kTransferBasis;
+      const bool tiled =
+          b == kBasisDotted || b == kDisplacementBasis || b == kMeanTransfer || b == kTransferBasis;
       const std::size_t point =
           (dotted ? instance * static_cast<std::size_t>(stride_points) : 0) + static_cast<std::size_t>(first);
       const auto points = static_cast<std::size_t>(tiled ? round_up(count, kBlockAlign) : count);

@@ -94,7 +94,8 @@ def triangles_of(obj):
     evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
     mesh = evaluated.to_mesh()
     mesh.calc_loop_triangles()
-    triangles = [list(t.vertices) for t in mesh.loop_triangles]
+    order = -1 if evaluated.matrix_world.is_negative else 1  # a mirror reverses the winding
+    triangles = [list(t.vertices)[::order] for t in mesh.loop_triangles]
     evaluated.to_mesh_clear()
     return triangles
 
@@ -108,6 +109,7 @@ def drawn_mesh(obj):
     mesh.calc_loop_triangles()
     matrix = evaluated.matrix_world
     turn = matrix.to_3x3().inverted_safe().transposed()  # normals turn by the inverse transpose
+    mirrored = matrix.is_negative  # a mirror reverses the winding; the normals stay outward
     vertices, normals, triangles, points = [], [], [], {}
     for t in mesh.loop_triangles:
         corners = []
@@ -118,7 +120,7 @@ def drawn_mesh(obj):
                 vertices.extend(matrix @ mesh.vertices[v].co)
                 normals.extend((turn @ mathutils.Vector(n)).normalized())
             corners.append(points[key])
-        triangles.append(corners)
+        triangles.append(corners[::-1] if mirrored else corners)
     evaluated.to_mesh_clear()
     return {"name": obj.name, "colour": base_colour(obj), "vertices": vertices, "normals": normals,
             "triangles": triangles}

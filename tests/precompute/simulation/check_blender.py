@@ -137,6 +137,27 @@ def check_drawn_meshes(package):
     assert np.allclose(np.einsum("ij,ij->i", radial / radius[:, None], n[rail][side][:, 1:]), 1, atol=1e-3), \
         "the rail's side normals are not radial (smooth)"
     assert np.allclose(np.abs(n[rail][~side][:, 0]), 1, atol=1e-5), "the rail's ends are not flat"
+    check_static_winding(package)
+
+
+def check_static_winding(package):
+    """Every static triangle winds counter-clockwise seen from the side its points' normals face."""
+    with h5py.File(package, "r") as f:
+        static = f["mesh/deformable"][:] == 0
+        x, n, t = f["mesh/rest_positions"][:], f["mesh/normals"][:], f["mesh/triangles"][:]
+    t = t[static[t].all(axis=1)]
+    face = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
+    facing = np.einsum("ij,ij->i", face, n[t].sum(axis=1))
+    assert len(t) and (facing > 0).all(), f"{(facing <= 0).sum()} of {len(t)} static triangles face inwards"
+
+
+def check_mirrored_drawn_object(precompute, d):
+    """A drawn object under a mirror (negative scale) keeps its outward winding."""
+    mirrored = edited_blend(d, "mirrored.blend", "bpy.data.objects['Door'].scale = (1, -1, 1)")
+    scene = write(d, "mirrored.toml", scene_text(blend=mirrored))
+    tool(precompute, "run", scene, "-o", f"{d}/mirrored.h5", "--chains", "1", "--irfs-per-chain", "2",
+         "--no-appearance", "--no-check", "--allow-missing-entries", "-j", "1")
+    check_static_winding(f"{d}/mirrored.h5")
 
 
 def edited_blend(d, name, edit):
@@ -195,6 +216,7 @@ def main(precompute):
         check_free_fall(precompute, d)
         check_run(precompute, scene, d)
         check_drawn_meshes(f"{d}/a.h5")
+        check_mirrored_drawn_object(precompute, d)
         check_failures(precompute, d)
     print("blender simulator: ok")
 
