@@ -6,7 +6,9 @@
 // points: within a tile, the points' vec4 j lie side by side, so neighbouring
 // invocations (points) read neighbouring memory. PHASECAST_TILED(v, j, W) is
 // the index of point v's vec4 j; a bound block of points starts on a tile.
+#ifndef PHASECAST_POINT_TILE  // the renderer defines 1u for point rows (BasisLayout)
 #define PHASECAST_POINT_TILE 64u
+#endif
 #define PHASECAST_TILED(v, j, W) \
   ((v) / PHASECAST_POINT_TILE * (PHASECAST_POINT_TILE * (W)) + (j) * PHASECAST_POINT_TILE + (v) % PHASECAST_POINT_TILE)
 #define PHASECAST_BINDING_MEAN_SHAPE 0          // x-bar, 3S (eq. 7)

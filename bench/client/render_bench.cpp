@@ -11,6 +11,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -82,10 +83,20 @@ std::string backend_name() {
   return name ? name : "osmesa";
 }
 
+// Layout argument: 0 point rows, 1 point tiles, 2 the backend's default.
+std::optional<BasisLayout> layout_arg(std::int64_t arg) {
+  if (arg == 2) return std::nullopt;
+  return arg == 1 ? BasisLayout::point_tiles : BasisLayout::point_rows;
+}
+
+std::string layout_label(const LowRankRenderer& renderer) {
+  return renderer.basis_layout() == BasisLayout::point_tiles ? ", point tiles" : ", point rows";
+}
+
 // Args: grid side, width, height, mode (0: low-rank with the per-point pass
 // by transform feedback, 1: low-rank evaluated inside the triangle draw, 2:
 // static mesh, 3: low-rank with the per-point pass as a compute shader), read
-// back pixels (0/1), support rotating every frame (0/1).
+// back pixels (0/1), support rotating every frame (0/1), basis layout (layout_arg).
 void BM_Render(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0)), w = static_cast<int>(state.range(1)),
             h = static_cast<int>(state.range(2));
@@ -94,7 +105,7 @@ void BM_Render(benchmark::State& state) {
   const int r_u = 12, r_a = 7;
   const ClientBasis basis = grid_scene(n, r_u, r_a);
   auto backend = make_render_backend(backend_name(), w, h);
-  LowRankRenderer renderer(*backend, basis, w, h);
+  LowRankRenderer renderer(*backend, basis, w, h, BasisPrecision::float32, layout_arg(state.range(6)));
   const Evaluation paths[] = {Evaluation::per_point_pass, Evaluation::in_draw, Evaluation::per_point_pass,
                               Evaluation::compute_pass};
   renderer.set_evaluation(paths[mode]);
@@ -119,7 +130,8 @@ void BM_Render(benchmark::State& state) {
   const char* names[] = {"low-rank 12+7, per-point pass", "low-rank 12+7, in draw", "static mesh",
                          "low-rank 12+7, compute pass"};
   state.SetLabel(std::string(names[mode]) + (read_back ? " + read back" : "") +
-                 (rotating && !static_mesh ? ", support rotating" : "") + " | " + backend_name());
+                 (rotating && !static_mesh ? ", support rotating" : "") +
+                 (static_mesh ? "" : layout_label(renderer)) + " | " + backend_name());
 }
 
 // The timed loop of the instance and large-plate benchmarks: frames_at(t)
@@ -146,7 +158,7 @@ void draw_frames(benchmark::State& state, LowRankRenderer& renderer, bool static
 // view on the default grid, each at its own point of the motion: one
 // instanced draw of low-rank evaluation against the same instances drawn as
 // static meshes. Args: instances, width, height, mode (0: low-rank, 2:
-// static), support rotating (0/1).
+// static), support rotating (0/1), basis layout (layout_arg).
 void BM_Instances(benchmark::State& state) {
   const int count = static_cast<int>(state.range(0)), w = static_cast<int>(state.range(1)),
             h = static_cast<int>(state.range(2));
@@ -154,7 +166,7 @@ void BM_Instances(benchmark::State& state) {
   const int r_u = 12, r_a = 7;
   const ClientBasis basis = grid_scene(58, r_u, r_a);
   auto backend = make_render_backend(backend_name(), w, h);
-  LowRankRenderer renderer(*backend, basis, w, h);
+  LowRankRenderer renderer(*backend, basis, w, h, BasisPrecision::float32, layout_arg(state.range(5)));
   const auto placements = grid_placements(rest_bounds(basis), count);
   renderer.set_placements(placements);
   renderer.set_camera(group_camera(scene_camera(basis), rest_bounds(basis), placements));
@@ -167,7 +179,8 @@ void BM_Instances(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(count) * basis.points;
   state.SetLabel(
       std::string(static_mesh ? "static meshes" : "low-rank 12+7, one instanced draw, default path") +
-      (rotating && !static_mesh ? ", supports rotating" : "") + " | " + backend_name());
+      (rotating && !static_mesh ? ", supports rotating" : "") + (static_mesh ? "" : layout_label(renderer)) +
+      " | " + backend_name());
 }
 
 // The 1 M-point plate (1000 x 1000, r_u = 30, no appearance) at
@@ -194,29 +207,33 @@ void BM_LargePlate(benchmark::State& state) {
 void Arguments(benchmark::internal::Benchmark* b) {
   for (int n : {158, 58}) {
     for (auto [w, h] : {std::pair{512, 512}, std::pair{1280, 720}}) {
-      b->Args({n, w, h, 2, 0, 0});  // static reference
-      b->Args({n, w, h, 0, 0, 0});  // low-rank, support still
-      b->Args({n, w, h, 0, 0, 1});  // low-rank, support rotating
-      b->Args({n, w, h, 1, 0, 0});  // low-rank inside the draw
-      b->Args({n, w, h, 3, 0, 0});  // low-rank, the per-point pass as a compute shader
-      b->Args({n, w, h, 0, 1, 0});  // with pixel read-back (what PNG output costs)
+      b->Args({n, w, h, 2, 0, 0, 2});  // static reference
+      b->Args({n, w, h, 0, 0, 0, 2});  // low-rank, support still
+      b->Args({n, w, h, 0, 0, 1, 2});  // low-rank, support rotating
+      b->Args({n, w, h, 1, 0, 0, 2});  // low-rank inside the draw
+      b->Args({n, w, h, 3, 0, 0, 2});  // low-rank, the per-point pass as a compute shader
+      b->Args({n, w, h, 0, 1, 0, 2});  // with pixel read-back (what PNG output costs)
+      for (int layout : {0, 1}) {      // each layout on the paths that read the bases most
+        b->Args({n, w, h, 1, 0, 0, layout});
+        b->Args({n, w, h, 3, 0, 0, layout});
+        b->Args({n, w, h, 0, 0, 1, layout});
+      }
     }
   }
 }
 
 BENCHMARK(BM_Render)
     ->Apply(Arguments)
-    ->ArgNames({"side", "w", "h", "mode", "readback", "rotating"})
+    ->ArgNames({"side", "w", "h", "mode", "readback", "rotating", "layout"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 
 BENCHMARK(BM_LargePlate)->Arg(2)->Arg(0)->ArgNames({"mode"})->UseRealTime()->Unit(benchmark::kMillisecond);
 
 BENCHMARK(BM_Instances)
-    ->ArgsProduct({{1, 16, 64}, {1280}, {720}, {2, 0}, {0}})
-    ->Args({16, 1280, 720, 0, 1})
-    ->Args({64, 1280, 720, 0, 1})
-    ->ArgNames({"instances", "w", "h", "mode", "rotating"})
+    ->ArgsProduct({{1, 16, 64}, {1280}, {720}, {2, 0}, {0}, {2}})
+    ->ArgsProduct({{16, 64}, {1280}, {720}, {0}, {0, 1}, {0, 1}})
+    ->ArgNames({"instances", "w", "h", "mode", "rotating", "layout"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 

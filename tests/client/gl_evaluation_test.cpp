@@ -447,6 +447,41 @@ TEST(GlEvaluation, BasesLargerThanOneStorageBlockAreDrawnInBlocks) {
   EXPECT_EQ(max_channel_difference(whole.render(frames), blocks.render(frames)), 0);
 }
 
+// Point rows (llvmpipe's default) and point tiles (the GPUs') hold the same
+// values and sum them in the same order: the same bits in one block and in
+// blocks of points, in every evaluation path, with 32- and 16-bit bases.
+TEST(GlEvaluation, BothBasisLayoutsGiveTheSameBits) {
+  const auto package = testing::make_plate_package();
+  const auto basis = basis_from_package(package, 1);
+  auto backend = make_render_backend("osmesa", 96, 96);
+  const std::vector<FrameState> frames{portrait_frames(package, 0)[40], portrait_frames(package, 3)[20]};
+  for (const char* block_bytes : {"", "blocks"}) {
+    for (auto precision : {BasisPrecision::float32, BasisPrecision::float16}) {
+      const std::size_t scalar = precision == BasisPrecision::float16 ? 2 : 4;  // bytes per basis value
+      const std::size_t u_a_row = 48 * 4 * static_cast<std::size_t>((basis.rank_a + 3) / 4) * scalar;
+      if (*block_bytes)
+        ::setenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES", std::to_string(64 * u_a_row).c_str(), 1);
+      LowRankRenderer rows(*backend, basis, 96, 96, precision, BasisLayout::point_rows);
+      LowRankRenderer tiles(*backend, basis, 96, 96, precision, BasisLayout::point_tiles);
+      EXPECT_EQ(rows.basis_layout(), BasisLayout::point_rows);
+      EXPECT_EQ(tiles.basis_layout(), BasisLayout::point_tiles);
+      EXPECT_EQ(rows.point_blocks(), *block_bytes ? 2 : 1);
+      SCOPED_TRACE(std::string(*block_bytes ? "blocks" : "one block") +
+                   (precision == BasisPrecision::float16 ? ", 16-bit" : ", 32-bit"));
+      for (auto* r : {&rows, &tiles}) r->set_placements(grid_placements(rest_bounds(basis), 2));
+      const VertexDump a = rows.evaluate(frames), b = tiles.evaluate(frames);
+      EXPECT_EQ(a.positions, b.positions);
+      EXPECT_EQ(a.radiance, b.radiance);
+      for (auto path : {Evaluation::compute_pass, Evaluation::in_draw, Evaluation::per_point_pass}) {
+        rows.set_evaluation(path);
+        tiles.set_evaluation(path);
+        EXPECT_EQ(max_channel_difference(rows.render(frames), tiles.render(frames)), 0);
+      }
+      ::unsetenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES");
+    }
+  }
+}
+
 // --half stores U_u and U_a as 16-bit floats: the points move and shine as
 // with 32-bit bases up to half precision's relative error (2^-11) on the
 // displacement and the transfer, and the GPU holds fewer bytes per point.

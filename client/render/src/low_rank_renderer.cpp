@@ -61,16 +61,16 @@ std::vector<float> pad_columns(const std::vector<float>& m, int cols) {
 }
 
 // Per-point rows of vec4s (each point's W vec4s in a row) in tiles of
-// PHASECAST_POINT_TILE points, vec4 j of a tile's points side by side
-// (bindings.glsl, PHASECAST_TILED); `stride_points` points, the last tile
-// zero-padded.
-std::vector<float> tile_points(const std::vector<float>& m, int points, int stride_points) {
+// `tile` points, vec4 j of a tile's points side by side (bindings.glsl,
+// PHASECAST_TILED; tile 1: the rows as they are); `stride_points` points,
+// the last zero-padded.
+std::vector<float> tile_points(const std::vector<float>& m, int points, int stride_points, std::size_t tile) {
   if (m.empty()) return m;
   const auto P = static_cast<std::size_t>(points), W = m.size() / (4 * P);
   std::vector<float> out(static_cast<std::size_t>(stride_points) * W * 4, 0.0f);
   for (std::size_t v = 0; v < P; ++v)
     for (std::size_t j = 0; j < W; ++j)
-      std::copy_n(&m[4 * (v * W + j)], 4, &out[4 * PHASECAST_TILED(v, j, W)]);
+      std::copy_n(&m[4 * (v * W + j)], 4, &out[4 * (v / tile * (tile * W) + j * tile + v % tile)]);
   return out;
 }
 
@@ -212,14 +212,17 @@ struct LowRankRenderer::Impl {
   int stride_points = 0;  // S rounded up to kBlockAlign: an instance's share of the dotted buffers
   bool split = false;
   bool half = false;  // U_u and U_a as 16-bit floats (--half)
+  BasisLayout layout = BasisLayout::point_tiles;
 
-  Impl(RenderBackend& b, const ClientBasis& bases, int w, int h, BasisPrecision precision)
+  Impl(RenderBackend& b, const ClientBasis& bases, int w, int h, BasisPrecision precision,
+       std::optional<BasisLayout> basis_layout)
       : backend(b),
         gl(detail::load_gl_functions(b)),
         basis(bases),
         width(w),
         height(h),
-        half(precision == BasisPrecision::float16) {
+        half(precision == BasisPrecision::float16),
+        layout(basis_layout.value_or(llvmpipe() ? BasisLayout::point_rows : BasisLayout::point_tiles)) {
     basis.validate("renderer");
     radius = scene_radius(basis);
     view_radius = radius;
@@ -247,20 +250,27 @@ struct LowRankRenderer::Impl {
                                                                            : Evaluation::per_point_pass;
   }
 
-  // A shader reading the bases, with PHASECAST_HALF_BASES defined after its
-  // #version line for --half: the precision is fixed per renderer, so no
-  // branch runs per basis value.
+  // A shader reading the bases, with PHASECAST_HALF_BASES (--half) and the
+  // tile size defined after its #version line: both are fixed per renderer,
+  // so no branch runs per basis value.
   std::string precision_defined(std::string_view source) const {
     std::string out(source);
-    if (half) out.insert(out.find('\n') + 1, "#define PHASECAST_HALF_BASES\n");
+    const std::string defines = fmt::format("{}#define PHASECAST_POINT_TILE {}u\n",
+                                            half ? "#define PHASECAST_HALF_BASES\n" : "", point_tile());
+    out.insert(out.find('\n') + 1, defines);
     return out;
+  }
+
+  std::size_t point_tile() const { return layout == BasisLayout::point_tiles ? PHASECAST_POINT_TILE : 1; }
+
+  bool llvmpipe() const {
+    const auto* renderer = reinterpret_cast<const char*>(gl.glGetString(GL_RENDERER));
+    return renderer && std::string_view(renderer).find("llvmpipe") != std::string_view::npos;
   }
 
   // The fastest measured path for the backend (docs/performance-client.md).
   Evaluation default_evaluation() const {
-    const auto* renderer = reinterpret_cast<const char*>(gl.glGetString(GL_RENDERER));
-    const bool llvmpipe = renderer && std::string_view(renderer).find("llvmpipe") != std::string_view::npos;
-    return llvmpipe ? Evaluation::compute_pass : Evaluation::in_draw;
+    return llvmpipe() ? Evaluation::compute_pass : Evaluation::in_draw;
   }
 
   void set_backdrop(Backdrop b) {
@@ -319,7 +329,7 @@ struct LowRankRenderer::Impl {
     upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
     // One tiled copy at a time: the bases are the bulk of the client's memory.
     const auto upload_basis = [&](Binding binding, const std::vector<float>& U, int rank, const char* part) {
-      auto tiled = tile_points(pad_columns(U, rank), basis.points, stride_points);
+      auto tiled = tile_points(pad_columns(U, rank), basis.points, stride_points, point_tile());
       if (half)
         upload_storage(binding, to_half(tiled), part);
       else
@@ -327,7 +337,7 @@ struct LowRankRenderer::Impl {
     };
     upload_basis(kDisplacementBasis, basis.U_u, basis.rank_u, "U_u");
     upload_basis(kTransferBasis, basis.U_a, basis.rank_a, "U_a");
-    upload_storage(kMeanTransfer, tile_points(basis.mean_transfer, basis.points, stride_points),
+    upload_storage(kMeanTransfer, tile_points(basis.mean_transfer, basis.points, stride_points, point_tile()),
                    "mean_transfer");
     upload_storage(kPointFlags, point_flags(basis), "flags");
     upload_storage(kRestNormals, basis.normals, "normals");
@@ -817,8 +827,8 @@ struct LowRankRenderer::Impl {
 };
 
 LowRankRenderer::LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height,
-                                 BasisPrecision precision)
-    : impl_(std::make_unique<Impl>(backend, basis, width, height, precision)) {}
+                                 BasisPrecision precision, std::optional<BasisLayout> layout)
+    : impl_(std::make_unique<Impl>(backend, basis, width, height, precision, layout)) {}
 LowRankRenderer::~LowRankRenderer() = default;
 
 void LowRankRenderer::set_light(const ShLight& world_light) {
@@ -839,6 +849,9 @@ void LowRankRenderer::set_evaluation(Evaluation evaluation) {
 }
 Evaluation LowRankRenderer::evaluation() const {
   return impl_->path();
+}
+BasisLayout LowRankRenderer::basis_layout() const {
+  return impl_->layout;
 }
 void LowRankRenderer::set_backdrop(Backdrop backdrop) {
   impl_->set_backdrop(backdrop);

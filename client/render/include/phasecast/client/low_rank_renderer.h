@@ -17,6 +17,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -64,11 +65,21 @@ inline constexpr std::array<double, 3> kGroundAlbedo{0.3, 0.3, 0.3};
 // docs/performance-client.md); everything else stays 32-bit.
 enum class BasisPrecision { float32, float16 };
 
+// How the per-point bases lie in GPU memory (shaders/bindings.glsl):
+// point_rows, each point's values in one run (what a CPU thread evaluating
+// a point reads best); point_tiles, tiles of 64 points with a point's value
+// j beside its neighbours' (what a GPU warp of neighbouring points reads in
+// few transactions). Same values either way. The renderer's default is
+// chosen per backend: point_rows on llvmpipe (measured faster there,
+// docs/performance-client.md), point_tiles elsewhere.
+enum class BasisLayout { point_rows, point_tiles };
+
 class LowRankRenderer {
  public:
   // The backend's context must stay current and alive while the renderer lives.
   LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height,
-                  BasisPrecision precision = BasisPrecision::float32);
+                  BasisPrecision precision = BasisPrecision::float32,
+                  std::optional<BasisLayout> layout = std::nullopt);  // none: the backend's default
   ~LowRankRenderer();
   LowRankRenderer(const LowRankRenderer&) = delete;
   LowRankRenderer& operator=(const LowRankRenderer&) = delete;
@@ -78,6 +89,7 @@ class LowRankRenderer {
   void set_exposure(float exposure);
   void set_evaluation(Evaluation evaluation);
   Evaluation evaluation() const;
+  BasisLayout basis_layout() const;
   void set_backdrop(Backdrop backdrop);
 
   // Draws the frame into the offscreen framebuffer (and the window, if any).
