@@ -24,12 +24,15 @@
 namespace phasecast::client {
 namespace {
 
-// What the GPU holds: ", 312 bytes per point on the GPU (16-bit bases), bases
-// bound in 3 blocks of points" (the blocks only when they exceed one storage block).
+// What the GPU holds: ", 312 bytes per point on the GPU (16-bit bases, point
+// rows), bases bound in 3 blocks of points" (the blocks only when they exceed
+// one storage block).
 std::string gpu_note(const LowRankRenderer& renderer, bool half) {
   const int n = renderer.point_blocks();
+  const char* layout = renderer.basis_layout() == BasisLayout::point_tiles ? "point tiles" : "point rows";
   return fmt::format(
-      ", {} bytes per point on the GPU{}{}", renderer.gpu_bytes_per_point(), half ? " (16-bit bases)" : "",
+      ", {} bytes per point on the GPU ({}{}){}", renderer.gpu_bytes_per_point(),
+      half ? "16-bit bases, " : "", layout,
       n > 1 ? fmt::format(", bases bound in {} blocks of points (larger than one storage block)", n) : "");
 }
 
