@@ -6,7 +6,8 @@
 // GPU layout (packed by low_rank_renderer.cpp from the row-major protocol
 // layout): ranks are padded to whole vec4 blocks, r_u4 = ceil(r_u / 4) and
 // r_a4 = ceil(r_a / 4), so each basis row is read with vec4 loads, and the
-// bases are tiled by points (bindings.glsl, PHASECAST_TILED).
+// bases lie in point rows or point tiles (BasisLayout; bindings.glsl,
+// PHASECAST_TILED, whose tile size the renderer defines per program).
 
 layout(std430, binding = PHASECAST_BINDING_MEAN_SHAPE) readonly buffer MeanShape { float x_bar[]; };         // 3S (eq. 7)
 layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer DisplacementBasis { vec4 U_u[]; };   // tiled, 3 r_u4 per point

@@ -90,7 +90,7 @@ std::optional<BasisLayout> layout_arg(std::int64_t arg) {
 }
 
 std::string layout_label(const LowRankRenderer& renderer) {
-  return renderer.basis_layout() == BasisLayout::point_tiles ? ", point tiles" : ", point rows";
+  return std::string(", ") + basis_layout_name(renderer.basis_layout());
 }
 
 // Args: grid side, width, height, mode (0: low-rank with the per-point pass

@@ -228,13 +228,10 @@ struct LowRankRenderer::Impl {
     view_radius = radius;
     camera = scene_camera(basis);
     light = light_probe("grace");
-    program =
-        detail::link_vertex_program(gl, precision_defined(shaders::low_rank_vert), "low_rank.vert", true);
+    program = detail::link_vertex_program(gl, with_defines(shaders::low_rank_vert), "low_rank.vert", true);
     static_program = detail::link_vertex_program(gl, shaders::static_mesh_vert, "static_mesh.vert", false);
-    dot_program =
-        detail::link_compute_program(gl, precision_defined(shaders::light_dot_comp), "light_dot.comp");
-    eval_program =
-        detail::link_compute_program(gl, precision_defined(shaders::low_rank_comp), "low_rank.comp");
+    dot_program = detail::link_compute_program(gl, with_defines(shaders::light_dot_comp), "light_dot.comp");
+    eval_program = detail::link_compute_program(gl, with_defines(shaders::low_rank_comp), "low_rank.comp");
     evaluation = default_evaluation();
     upload_bases();
     create_framebuffer();
@@ -253,7 +250,7 @@ struct LowRankRenderer::Impl {
   // A shader reading the bases, with PHASECAST_HALF_BASES (--half) and the
   // tile size defined after its #version line: both are fixed per renderer,
   // so no branch runs per basis value.
-  std::string precision_defined(std::string_view source) const {
+  std::string with_defines(std::string_view source) const {
     std::string out(source);
     const std::string defines = fmt::format("{}#define PHASECAST_POINT_TILE {}u\n",
                                             half ? "#define PHASECAST_HALF_BASES\n" : "", point_tile());

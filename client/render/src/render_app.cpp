@@ -29,7 +29,7 @@ namespace {
 // one storage block).
 std::string gpu_note(const LowRankRenderer& renderer, bool half) {
   const int n = renderer.point_blocks();
-  const char* layout = renderer.basis_layout() == BasisLayout::point_tiles ? "point tiles" : "point rows";
+  const char* layout = basis_layout_name(renderer.basis_layout());
   return fmt::format(
       ", {} bytes per point on the GPU ({}{}){}", renderer.gpu_bytes_per_point(),
       half ? "16-bit bases, " : "", layout,

@@ -73,6 +73,9 @@ enum class BasisPrecision { float32, float16 };
 // chosen per backend: point_rows on llvmpipe (measured faster there,
 // docs/performance-client.md), point_tiles elsewhere.
 enum class BasisLayout { point_rows, point_tiles };
+inline const char* basis_layout_name(BasisLayout layout) {
+  return layout == BasisLayout::point_tiles ? "point tiles" : "point rows";
+}
 
 class LowRankRenderer {
  public:
