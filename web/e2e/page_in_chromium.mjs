@@ -273,6 +273,10 @@ async function main() {
     figures.all_instances_left_half_changed = halves.left;
     check(halves.right > 0.005, `instance 4's door did not move the right half (${(100 * halves.right).toFixed(2)} % of its pixels)`);
     check(halves.left <= 0.001, `the left half changed (${(100 * halves.left).toFixed(2)} % of its pixels) though only instance 4 moved`);
+    // One instanced per-point pass and one triangle draw, however many instances.
+    figures.all_instances_draw_calls = await field.evaluate(() => window.phasecast.drawCalls);
+    check(figures.all_instances_draw_calls === 2,
+      `the page drew its 4 instances in ${figures.all_instances_draw_calls} draw calls, not 2`);
     check(consoleErrors.length === 0, `page errors: ${consoleErrors.join('; ')}`);
 
     check(await stop(gateway.child) === 0, 'the gateway did not stop cleanly on SIGINT');

@@ -344,6 +344,7 @@ class App {
     const now = performance.now();
     this.fps.add(now);
     ++hooks.framesRendered;
+    hooks.drawCalls = this.renderer.drawCalls;
     hooks.frame = { frame: asNumber(frame.frame), seq: asNumber(frame.seq), palette_index: frame.palette_index, irf: frame.irf };
     if (hooks.firstFrameMs === null) {
       hooks.firstFrameMs = now;  // performance.now() counts from the page's navigation

@@ -110,6 +110,24 @@ export function packReduced(q_u, q_a, r_u4, r_a4, out = new Float32Array(4 * (r_
   return out;
 }
 
+// The instance texture (shaders.js instances_tex) holds one row per instance
+// drawn: q_u and q_a (packReduced, without its spare vec4), the support
+// matrix and the placement (4 columns each), then the light in the support
+// frame (12 vec4s). One upload per frame serves every instance's draw.
+export const instanceTexels = (r_u4, r_a4) => r_u4 + r_a4 + 20;
+
+// Writes one instance's row into `row` (4 instanceTexels floats); q: the
+// packed q (packReduced), support and placement: column-major 4x4s,
+// supportLight: the 48 support-frame light coefficients (sh.js packLights).
+export function packInstance(row, { q, support, placement, supportLight }, r_u4, r_a4) {
+  const at = 4 * (r_u4 + r_a4);
+  row.set(q.subarray(0, at), 0);
+  row.set(support, at);
+  row.set(placement, at + 16);
+  row.set(supportLight, at + 32);
+  return row;
+}
+
 // Frame.support (3x4 row-major [R | t], support frame -> world) as a
 // column-major 4x4 for GLSL; identity when the frame has none.
 export function supportMatrix(support) {

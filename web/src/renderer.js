@@ -1,11 +1,14 @@
 // WebGL2 renderer of the low-rank superposition (§5.3), after
 // client/render/src/low_rank_renderer.cpp: the bases go to the GPU once per scene
-// (RGBA32F textures, packing.js); per frame only q_u, q_a (uniforms), the
-// support matrix and the lights change. Each frame: a per-point pass
-// evaluates x̄ + U_u q_u, the support transform and the light-dotted transfer
-// once per scene point into a transform-feedback buffer; the triangles are
-// then drawn from that buffer (shared points are not evaluated again).
-import { packScene, packReduced, supportMatrix } from './packing.js';
+// (RGBA32F textures, packing.js); per frame only each instance's q_u, q_a,
+// support matrix and support-frame light change (one row each of the
+// instance texture). Each frame, for every instance in view at once: one
+// instanced per-point pass evaluates x̄ + U_u q_u, the support transform and
+// the light-dotted transfer once per scene point into a transform-feedback
+// buffer; one draw then draws every instance's triangles from that buffer
+// (shared points are not evaluated again). Two draw calls per frame, however
+// many instances.
+import { packScene, packReduced, supportMatrix, instanceTexels, packInstance } from './packing.js';
 import { hasTransfer } from './basis.js';
 import { FrameLights, graceCathedral } from './sh.js';
 import { viewProjection } from './camera.js';
@@ -101,6 +104,7 @@ export class Renderer {
     this.lights = new FrameLights(graceCathedral());
     this.exposure = 1;
     this.scene = null;
+    this.drawCalls = 0;  // draw calls of the last frame drawn
   }
 
   get maxTextureSize() {
@@ -117,7 +121,6 @@ export class Renderer {
   createScene(basis) {
     const gl = this.gl;
     const packed = packScene(basis, this.maxTextureSize);
-    this.checkUniformBudget(packed);
     const transfer = hasTransfer(basis);
     const program = link(gl, evaluationVertexShader({ ...packed, hasTransfer: transfer }), DISCARD_FRAGMENT_SHADER,
       'low_rank', ['world_position', 'radiance']);
@@ -128,34 +131,32 @@ export class Renderer {
       r_u4: packed.r_u4,
       r_a4: packed.r_a4,
       program,
-      uniforms: uniforms(gl, program, ['q', 'support', 'placement', 'light', ...TEXTURES.map((t) => `${t}_tex`)]),
+      uniforms: uniforms(gl, program, ['instances_tex', 'world_light', ...TEXTURES.map((t) => `${t}_tex`)]),
       textures,
       q: new Float32Array(4 * (packed.r_u4 + packed.r_a4) + 4),
+      triangles: basis.triangles,
       indexCount: basis.triangles.length,
+      instanceTexels: instanceTexels(packed.r_u4, packed.r_a4),
+      capacity: 0,  // instances the buffers below hold
       textureBytes: Object.values(packed.images).reduce((s, i) => s + i.data.byteLength, 0),
     };
-    this.createBuffers(scene, basis);
+    this.createBuffers(scene);
+    this.reserveInstances(scene, 1);
     this.check('uploading the bases');
     return scene;
   }
 
-  // q and the lights are uniforms: r_u4 + r_a4 + 1 + 24 + 4 vec4s must fit.
-  checkUniformBudget({ r_u4, r_a4 }) {
-    const budget = this.gl.getParameter(this.gl.MAX_VERTEX_UNIFORM_VECTORS);
-    const needed = r_u4 + r_a4 + 1 + 24 + 4;
-    if (needed > budget) {
-      throw new RenderError(`ranks r_u4 + r_a4 = ${r_u4 + r_a4} vec4s need ${needed} uniform vectors ` +
-        `(this GPU has ${budget})`);
-    }
-  }
-
-  // The evaluated points (6 floats each: position, radiance), written by
-  // transform feedback and read by the triangle draw through `vao`.
-  createBuffers(scene, basis) {
+  // The evaluated points (6 floats each: position, radiance; instance after
+  // instance), written by transform feedback and read by the triangle draw
+  // through `vao`; sized by reserveInstances.
+  createBuffers(scene) {
     const gl = this.gl;
     scene.evaluated = gl.createBuffer();
+    scene.instances = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, scene.instances);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
     gl.bindBuffer(gl.ARRAY_BUFFER, scene.evaluated);
-    gl.bufferData(gl.ARRAY_BUFFER, 24 * basis.points, gl.DYNAMIC_COPY);
     scene.vao = gl.createVertexArray();
     gl.bindVertexArray(scene.vao);
     gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 24, 0);
@@ -164,20 +165,47 @@ export class Renderer {
     gl.enableVertexAttribArray(1);
     scene.indices = gl.createBuffer();
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, scene.indices);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, basis.triangles, gl.STATIC_DRAW);
     gl.bindVertexArray(null);
     gl.bindBuffer(gl.ARRAY_BUFFER, null);
     // The per-point pass reads no attributes: an empty vertex array.
     scene.pointVao = gl.createVertexArray();
     scene.feedback = gl.createTransformFeedback();
+  }
+
+  // Room for `count` instances: the instance texture's rows, the evaluated
+  // points and the triangles' indices repeated with each instance's offset
+  // (WebGL2 has no base vertex per instance). Grows only.
+  reserveInstances(scene, count) {
+    if (count <= scene.capacity) return;
+    const gl = this.gl, S = scene.basis.points;
+    if (count > this.maxTextureSize) {
+      throw new RenderError(`${count} instances in one view need ${count} rows of the instance texture ` +
+        `(this GPU allows ${this.maxTextureSize})`);
+    }
+    gl.bindTexture(gl.TEXTURE_2D, scene.instances);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, scene.instanceTexels, count, 0, gl.RGBA, gl.FLOAT, null);
+    scene.instanceRows = new Float32Array(4 * scene.instanceTexels * count);
+    gl.bindBuffer(gl.ARRAY_BUFFER, scene.evaluated);
+    gl.bufferData(gl.ARRAY_BUFFER, 24 * S * count, gl.DYNAMIC_COPY);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
     gl.bindTransformFeedback(gl.TRANSFORM_FEEDBACK, scene.feedback);
     gl.bindBufferBase(gl.TRANSFORM_FEEDBACK_BUFFER, 0, scene.evaluated);
     gl.bindTransformFeedback(gl.TRANSFORM_FEEDBACK, null);
+    const triangles = scene.triangles, indices = new Uint32Array(triangles.length * count);
+    for (let i = 0; i < count; ++i) {
+      const at = i * triangles.length, offset = i * S;
+      for (let k = 0; k < triangles.length; ++k) indices[at + k] = triangles[k] + offset;
+    }
+    gl.bindVertexArray(scene.vao);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, indices, gl.STATIC_DRAW);
+    gl.bindVertexArray(null);
+    scene.capacity = count;
   }
 
   deleteScene(scene) {
     const gl = this.gl;
     for (const t of Object.values(scene.textures)) gl.deleteTexture(t);
+    gl.deleteTexture(scene.instances);
     gl.deleteBuffer(scene.evaluated);
     gl.deleteBuffer(scene.indices);
     gl.deleteVertexArray(scene.vao);
@@ -205,21 +233,41 @@ export class Renderer {
   }
 
   // Several instances of the scene in one view: frame i drawn at offsets[i]
-  // (a translation, the native default grid), each evaluated and drawn in
-  // turn; readEvaluated() then holds the last one's points.
+  // (a translation, the native default grid), all evaluated by one instanced
+  // draw and drawn by one more; readEvaluated(i) then holds instance i's points.
   drawMany(frames, offsets, camera, radius) {
     const scene = this.scene;
     if (!scene) throw new RenderError('draw: no scene was loaded');
+    this.reserveInstances(scene, frames.length);
+    this.drawCalls = 0;
     this.beginFrame();
-    frames.forEach((frame, i) => {
-      const placement = translation(offsets[i]);
-      this.evaluatePoints(scene, frame, multiply(placement, supportMatrix(frame.support)), placement);
-      this.drawTriangles(scene, camera, radius);
-    });
+    this.evaluatePoints(scene, frames, offsets);
+    this.drawTriangles(scene, camera, radius, frames.length);
+    this.drawn = frames.length;
   }
 
-  // Pass 1: the low-rank program once per point, captured into scene.evaluated.
-  evaluatePoints(scene, frame, support, placement) {
+  // Each instance's row of the instance texture, uploaded in one call.
+  packInstances(scene, frames, offsets) {
+    const rowFloats = 4 * scene.instanceTexels;
+    frames.forEach((frame, i) => {
+      const placement = translation(offsets[i]);
+      const support = multiply(placement, supportMatrix(frame.support));
+      packInstance(scene.instanceRows.subarray(i * rowFloats, (i + 1) * rowFloats), {
+        q: packReduced(frame.q_u, frame.q_a ?? [], scene.r_u4, scene.r_a4, scene.q),
+        support,
+        placement,
+        supportLight: this.lights.forSupport(support).subarray(48),
+      }, scene.r_u4, scene.r_a4);
+    });
+    const gl = this.gl;
+    gl.bindTexture(gl.TEXTURE_2D, scene.instances);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, scene.instanceTexels, frames.length, gl.RGBA, gl.FLOAT,
+      scene.instanceRows.subarray(0, frames.length * rowFloats));
+  }
+
+  // Pass 1: the low-rank program once per point and instance (one instanced
+  // draw), captured into scene.evaluated instance after instance.
+  evaluatePoints(scene, frames, offsets) {
     const gl = this.gl;
     gl.useProgram(scene.program);
     const u = scene.uniforms;
@@ -228,15 +276,16 @@ export class Renderer {
       gl.bindTexture(gl.TEXTURE_2D, scene.textures[name]);
       gl.uniform1i(u[`${name}_tex`], unit);
     });
-    gl.uniform4fv(u.q, packReduced(frame.q_u, frame.q_a ?? [], scene.r_u4, scene.r_a4, scene.q));
-    gl.uniformMatrix4fv(u.support, false, support);
-    gl.uniformMatrix4fv(u.placement, false, placement);
-    gl.uniform4fv(u.light, this.lights.forSupport(support));
+    gl.activeTexture(gl.TEXTURE0 + TEXTURES.length);
+    this.packInstances(scene, frames, offsets);
+    gl.uniform1i(u.instances_tex, TEXTURES.length);
+    gl.uniform4fv(u.world_light, this.lights.packed.subarray(0, 48));
     gl.enable(gl.RASTERIZER_DISCARD);
     gl.bindVertexArray(scene.pointVao);
     gl.bindTransformFeedback(gl.TRANSFORM_FEEDBACK, scene.feedback);
     gl.beginTransformFeedback(gl.POINTS);
-    gl.drawArrays(gl.POINTS, 0, scene.basis.points);
+    gl.drawArraysInstanced(gl.POINTS, 0, scene.basis.points, frames.length);
+    ++this.drawCalls;
     gl.endTransformFeedback();
     gl.bindTransformFeedback(gl.TRANSFORM_FEEDBACK, null);
     gl.disable(gl.RASTERIZER_DISCARD);
@@ -253,7 +302,7 @@ export class Renderer {
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
   }
 
-  drawTriangles(scene, camera, radius) {
+  drawTriangles(scene, camera, radius, instances) {
     const gl = this.gl;
     const width = gl.drawingBufferWidth, height = gl.drawingBufferHeight;
     gl.enable(gl.DEPTH_TEST);
@@ -265,18 +314,21 @@ export class Renderer {
     gl.uniformMatrix4fv(this.drawUniforms.view_projection, false, viewProjection(camera, width, height, radius));
     gl.uniform1f(this.drawUniforms.exposure, this.exposure);
     gl.bindVertexArray(scene.vao);
-    gl.drawElements(gl.TRIANGLES, scene.indexCount, gl.UNSIGNED_INT, 0);
+    gl.drawElements(gl.TRIANGLES, instances * scene.indexCount, gl.UNSIGNED_INT, 0);
+    ++this.drawCalls;
     gl.bindVertexArray(null);
   }
 
-  // The last per-point pass: 6 floats per point (world position, linear
-  // radiance), as phasecast-render --dump-vertices writes them; for tests.
-  readEvaluated() {
+  // Instance i's points in the last per-point pass (i: its place among the
+  // frames drawn): 6 floats per point (world position, linear radiance), as
+  // phasecast-render --dump-vertices writes them; for tests.
+  readEvaluated(i = 0) {
     const gl = this.gl, scene = this.scene;
     if (!scene) throw new RenderError('readEvaluated: no scene was loaded');
+    if (!(i >= 0 && i < (this.drawn ?? 0))) throw new RenderError(`readEvaluated: instance ${i} was not drawn (${this.drawn ?? 0} were)`);
     const out = new Float32Array(6 * scene.basis.points);
     gl.bindBuffer(gl.ARRAY_BUFFER, scene.evaluated);
-    gl.getBufferSubData(gl.ARRAY_BUFFER, 0, out);
+    gl.getBufferSubData(gl.ARRAY_BUFFER, i * out.byteLength, out);
     gl.bindBuffer(gl.ARRAY_BUFFER, null);
     return out;
   }

@@ -4,7 +4,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import {
   vec4Blocks, padColumns, pointFlags, packPoints, packNormals, chooseTextureWidth, texelCoord,
-  textureImage, packScene, packReduced, supportMatrix,
+  textureImage, packScene, packReduced, supportMatrix, instanceTexels, packInstance,
 } from '../src/packing.js';
 
 test('ranks are padded to whole vec4 blocks', () => {
@@ -115,4 +115,19 @@ test('support: row-major 3x4 [R | t] becomes a column-major 4x4; none: identity'
   const m = supportMatrix([1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
   assert.deepEqual(Array.from(m), [1, 5, 9, 0, 2, 6, 10, 0, 3, 7, 11, 0, 4, 8, 12, 1]);
   assert.deepEqual(Array.from(supportMatrix([])), [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+});
+
+test('an instance row: q without its spare vec4, support, placement, support-frame light', () => {
+  const r_u4 = 1, r_a4 = 1;
+  assert.equal(instanceTexels(r_u4, r_a4), 22);
+  const q = packReduced([1, 2, 3], [4], r_u4, r_a4);
+  const support = Float32Array.from({ length: 16 }, (_, i) => 10 + i);
+  const placement = Float32Array.from({ length: 16 }, (_, i) => 30 + i);
+  const supportLight = Float32Array.from({ length: 48 }, (_, i) => 50 + i);
+  const row = packInstance(new Float32Array(4 * 22), { q, support, placement, supportLight }, r_u4, r_a4);
+  // shaders.js: q[i] = texel i; support from texel R_Q, placement R_Q + 4, light R_Q + 8.
+  assert.deepEqual(Array.from(row.subarray(0, 8)), [1, 2, 3, 0, 4, 0, 0, 0]);
+  assert.deepEqual(Array.from(row.subarray(4 * 2, 4 * 6)), Array.from(support));
+  assert.deepEqual(Array.from(row.subarray(4 * 6, 4 * 10)), Array.from(placement));
+  assert.deepEqual(Array.from(row.subarray(4 * 10, 4 * 22)), Array.from(supportLight));
 });
