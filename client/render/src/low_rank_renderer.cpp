@@ -10,6 +10,10 @@
 #include <fmt/format.h>
 #include <Eigen/Geometry>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -48,6 +52,21 @@ enum Binding : GLuint {
   kEvaluated = PHASECAST_BINDING_EVALUATED,
   kBindingCount = PHASECAST_BINDING_COUNT
 };
+
+// llvmpipe mallocs its vertex buffers for each draw and frees them after it.
+// glibc gives the freed top of the heap back to the kernel once it exceeds a
+// trim threshold (128 KB at first), so every frame faulted the same pages in
+// again: 16 demo cloths drew in 58 ms instead of 19 (270 k page faults in
+// 7 s, docs/performance-client.md). A process that renders on llvmpipe keeps
+// up to kKeptHeap of freed heap instead.
+constexpr int kKeptHeap = 256 << 20;
+
+void keep_freed_heap() {
+#if defined(__GLIBC__)
+  static const bool kept = mallopt(M_TRIM_THRESHOLD, kKeptHeap) == 1;
+  (void)kept;
+#endif
+}
 
 // Row-major rows x cols -> rows x (4 ceil(cols / 4)), zero-padded, so the
 // shader reads each row in vec4 blocks.
@@ -224,6 +243,7 @@ struct LowRankRenderer::Impl {
         half(precision == BasisPrecision::float16),
         layout(basis_layout.value_or(llvmpipe() ? BasisLayout::point_rows : BasisLayout::point_tiles)) {
     basis.validate("renderer");
+    if (llvmpipe()) keep_freed_heap();
     radius = scene_radius(basis);
     view_radius = radius;
     camera = scene_camera(basis);
