@@ -10,7 +10,7 @@
 // many instances.
 import { packScene, packReduced, supportMatrix, instanceTexels, packInstance } from './packing.js';
 import { hasTransfer } from './basis.js';
-import { FrameLights, graceCathedral } from './sh.js';
+import { FrameLights, graceCathedral, packLights } from './sh.js';
 import { viewProjection } from './camera.js';
 import {
   evaluationVertexShader,
@@ -101,7 +101,7 @@ export class Renderer {
     this.canvas = canvas;
     this.drawProgram = link(gl, DRAW_VERTEX_SHADER, RADIANCE_FRAGMENT_SHADER, 'static_mesh');
     this.drawUniforms = uniforms(gl, this.drawProgram, ['view_projection', 'exposure']);
-    this.lights = new FrameLights(graceCathedral());
+    this.setLight(graceCathedral());
     this.exposure = 1;
     this.scene = null;
     this.drawCalls = 0;  // draw calls of the last frame drawn
@@ -113,7 +113,9 @@ export class Renderer {
 
   // The light in world coordinates ([3][16] SH coefficients, sh.js).
   setLight(world) {
-    this.lights = new FrameLights(world);
+    this.world = world;
+    this.worldPacked = packLights(world, world);
+    this.lights = [];  // per instance drawn: its light in its support frame, turned only when it turns
   }
 
   // Uploads one scene's bases; returns its GPU state for useScene (the page
@@ -243,7 +245,7 @@ export class Renderer {
     this.beginFrame();
     this.evaluatePoints(scene, frames, offsets);
     this.drawTriangles(scene, camera, radius, frames.length);
-    this.drawn = frames.length;
+    scene.drawn = frames.length;
   }
 
   // Each instance's row of the instance texture, uploaded in one call.
@@ -256,7 +258,7 @@ export class Renderer {
         q: packReduced(frame.q_u, frame.q_a ?? [], scene.r_u4, scene.r_a4, scene.q),
         support,
         placement,
-        supportLight: this.lights.forSupport(support).subarray(48),
+        supportLight: (this.lights[i] ??= new FrameLights(this.world)).forSupport(support).subarray(48),
       }, scene.r_u4, scene.r_a4);
     });
     const gl = this.gl;
@@ -279,7 +281,7 @@ export class Renderer {
     gl.activeTexture(gl.TEXTURE0 + TEXTURES.length);
     this.packInstances(scene, frames, offsets);
     gl.uniform1i(u.instances_tex, TEXTURES.length);
-    gl.uniform4fv(u.world_light, this.lights.packed.subarray(0, 48));
+    gl.uniform4fv(u.world_light, this.worldPacked.subarray(0, 48));
     gl.enable(gl.RASTERIZER_DISCARD);
     gl.bindVertexArray(scene.pointVao);
     gl.bindTransformFeedback(gl.TRANSFORM_FEEDBACK, scene.feedback);
@@ -325,7 +327,8 @@ export class Renderer {
   readEvaluated(i = 0) {
     const gl = this.gl, scene = this.scene;
     if (!scene) throw new RenderError('readEvaluated: no scene was loaded');
-    if (!(i >= 0 && i < (this.drawn ?? 0))) throw new RenderError(`readEvaluated: instance ${i} was not drawn (${this.drawn ?? 0} were)`);
+    const drawn = scene.drawn ?? 0;
+    if (!(Number.isInteger(i) && i >= 0 && i < drawn)) throw new RenderError(`readEvaluated: instance ${i} was not drawn (${drawn} were)`);
     const out = new Float32Array(6 * scene.basis.points);
     gl.bindBuffer(gl.ARRAY_BUFFER, scene.evaluated);
     gl.getBufferSubData(gl.ARRAY_BUFFER, i * out.byteLength, out);

@@ -10,10 +10,6 @@
 #include <fmt/format.h>
 #include <Eigen/Geometry>
 
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -24,6 +20,10 @@
 #include <span>
 #include <string_view>
 #include <utility>
+
+#if defined(__GLIBC__)  // set by <cstdlib> above on glibc systems
+#include <malloc.h>
+#endif
 
 namespace phasecast::client {
 
@@ -55,15 +55,20 @@ enum Binding : GLuint {
 
 // llvmpipe mallocs its vertex buffers for each draw and frees them after it.
 // glibc gives the freed top of the heap back to the kernel once it exceeds a
-// trim threshold (128 KB at first), so every frame faulted the same pages in
-// again: 16 demo cloths drew in 58 ms instead of 19 (270 k page faults in
-// 7 s, docs/performance-client.md). A process that renders on llvmpipe keeps
-// up to kKeptHeap of freed heap instead.
+// trim threshold (128 KB until glibc raises it), so every frame faulted the
+// same pages in again: 16 demo cloths drew in 58 ms instead of 17 (270 k page
+// faults in 7 s, docs/performance-client.md). A process that renders on
+// llvmpipe keeps up to kKeptHeap of freed heap instead, and takes blocks up
+// to kHeapBlock from the heap rather than mapping each one (setting either
+// threshold stops glibc from adjusting the other). Process-wide, once, and
+// only on llvmpipe (docs/client.md).
 constexpr int kKeptHeap = 256 << 20;
+constexpr int kHeapBlock = 32 << 20;  // glibc's largest mmap threshold on 64-bit
 
 void keep_freed_heap() {
 #if defined(__GLIBC__)
-  static const bool kept = mallopt(M_TRIM_THRESHOLD, kKeptHeap) == 1;
+  static const bool kept =
+      mallopt(M_TRIM_THRESHOLD, kKeptHeap) == 1 && mallopt(M_MMAP_THRESHOLD, kHeapBlock) == 1;
   (void)kept;
 #endif
 }

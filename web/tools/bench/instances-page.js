@@ -2,9 +2,11 @@
 // cloth-sized scene drawn by the page's renderer (one instanced per-point
 // pass and one triangle draw) against two baselines in the same run: the
 // same N instances drawn as static meshes (the triangle draw alone, from
-// points evaluated once), and each instance evaluated and drawn in turn
-// (2N draw calls, as the page drew before its one instanced draw). The
-// static meshes draw the points the last one_draw round evaluated.
+// points evaluated once), and each instance evaluated and drawn in turn by
+// the same program (2N draw calls, the page's structure before its one
+// instanced draw; its shader then took q and the light as uniforms). The
+// static meshes draw the points one_draw evaluated just before them in each
+// round (in_turn leaves only instance 0's slot of the buffer filled).
 import { Renderer } from '../../src/renderer.js';
 import { sceneCamera, sceneRadius, gridOffsets, groupCamera } from '../../src/camera.js';
 import { syntheticBasis, frames, time } from './synthetic.js';
@@ -32,7 +34,8 @@ window.bench = ({ side, rank_u, rank_a, count, instances }) => {
       });
     },
   };
-  // Three rounds, the variants interleaved; each variant's fastest round.
+  // Three rounds, the variants interleaved in this order (static after
+  // one_draw); each variant's fastest round.
   const ms = { one_draw: Infinity, static: Infinity, in_turn: Infinity };
   for (let round = 0; round < 3; ++round) {
     for (const [name, drawOne] of Object.entries(variants)) ms[name] = Math.min(ms[name], time(gl, groups, drawOne));

@@ -7,6 +7,7 @@ import { packScene, supportMatrix } from '../../src/packing.js';
 import { evaluationVertexShader } from '../../src/shaders.js';
 import { sceneCamera, sceneRadius } from '../../src/camera.js';
 import { syntheticBasis, frames, time } from './synthetic.js';
+import { FrameLights } from '../../src/sh.js';
 
 // Variant B's vertex shader: transfer_radiance reads M̄.L (M_bar_tex, [S])
 // and U_a.L (U_a_tex, [S][3][r_a4]) light-dotted beforehand.
@@ -77,8 +78,9 @@ window.bench = ({ side, rank_u, rank_a, count }) => {
     gl.bindTexture(gl.TEXTURE_2D, texture);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, width, h, 0, gl.RGBA, gl.FLOAT, data);
   };
+  const frameLights = new FrameLights(r.world);
   const redot = (f) => {
-    const lights = r.lights.forSupport(supportMatrix(f.support));
+    const lights = frameLights.forSupport(supportMatrix(f.support));
     const t = performance.now();
     lightDot(basis, packed, lights, mDot, uDot);
     upload(scene.textures.M_bar, mDot, mImg.h);

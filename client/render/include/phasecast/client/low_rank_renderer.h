@@ -80,6 +80,9 @@ inline const char* basis_layout_name(BasisLayout layout) {
 class LowRankRenderer {
  public:
   // The backend's context must stay current and alive while the renderer lives.
+  // On llvmpipe the first renderer of a process raises glibc's trim and mmap
+  // thresholds (mallopt), process-wide: llvmpipe's per-draw buffers would
+  // otherwise be faulted in anew every frame (docs/client.md).
   LowRankRenderer(RenderBackend& backend, const ClientBasis& basis, int width, int height,
                   BasisPrecision precision = BasisPrecision::float32,
                   std::optional<BasisLayout> layout = std::nullopt);  // none: the backend's default
