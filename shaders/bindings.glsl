@@ -23,3 +23,4 @@
 #define PHASECAST_BINDING_INSTANCES 9           // per instance: placement, support, lights
 #define PHASECAST_BINDING_EVALUATED 10          // low_rank.comp's output: 6 floats per point and instance
 #define PHASECAST_BINDING_COUNT 11
+#define PHASECAST_INSTANCE_VEC4S 33  // an instance's entry in Instances: 2 mat4s, 24 lights, its dotted copy

@@ -21,7 +21,7 @@ void main() {
   uint v = gl_GlobalInvocationID.x, slot = gl_GlobalInvocationID.y;
   if (v >= uint(points)) return;
   vec3 world, rgb;
-  evaluate_point(v, slot + uint(instance_base), slot, world, rgb);
+  evaluate_point(v, slot + uint(instance_base), world, rgb);
   uint at = 6u * (uint(out_base) + slot * uint(out_stride) + v);
   evaluated[at] = world.x;
   evaluated[at + 1u] = world.y;

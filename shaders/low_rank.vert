@@ -19,7 +19,6 @@ out vec3 world_position;  // captured by transform feedback (--dump-vertices)
 out vec3 radiance;        // linear exit radiance, RGB
 
 void main() {
-  evaluate_point(uint(gl_VertexID - first_point), uint(gl_InstanceID + instance_base), uint(gl_InstanceID),
-                 world_position, radiance);
+  evaluate_point(uint(gl_VertexID - first_point), uint(gl_InstanceID + instance_base), world_position, radiance);
   gl_Position = view_projection * vec4(world_position, 1.0);
 }

@@ -181,7 +181,8 @@ void draw_frames(benchmark::State& state, LowRankRenderer& renderer, bool static
 // view on the default grid, each at its own point of the motion: one
 // instanced draw of low-rank evaluation against the same instances drawn as
 // static meshes. Args: instances, width, height, mode (0: low-rank, 2:
-// static), support rotating (0/1), basis layout (layout_arg).
+// static), support rotating (0/1), basis layout (layout_arg), compute reads
+// (0 storage buffers, 1 buffer textures, 2 the backend's default).
 void BM_Instances(benchmark::State& state) {
   const int count = static_cast<int>(state.range(0)), w = static_cast<int>(state.range(1)),
             h = static_cast<int>(state.range(2));
@@ -190,6 +191,9 @@ void BM_Instances(benchmark::State& state) {
   const ClientBasis basis = grid_scene(58, r_u, r_a);
   auto backend = make_render_backend(backend_name(), w, h);
   LowRankRenderer renderer(*backend, basis, w, h, BasisPrecision::float32, layout_arg(state.range(5)));
+  if (state.range(6) != 2)
+    renderer.set_compute_reads(state.range(6) == 1 ? ComputeReads::buffer_textures
+                                                   : ComputeReads::storage_buffers);
   const auto placements = grid_placements(rest_bounds(basis), count);
   renderer.set_placements(placements);
   renderer.set_camera(group_camera(scene_camera(basis), rest_bounds(basis), placements));
@@ -203,6 +207,9 @@ void BM_Instances(benchmark::State& state) {
   state.SetLabel(
       std::string(static_mesh ? "static meshes" : "low-rank 12+7, one instanced draw, default path") +
       (rotating && !static_mesh ? ", supports rotating" : "") + (static_mesh ? "" : layout_label(renderer)) +
+      (static_mesh || renderer.evaluation() != Evaluation::compute_pass
+           ? ""
+           : std::string(", ") + compute_reads_name(renderer.compute_reads())) +
       " | " + backend_name());
 }
 
@@ -254,9 +261,10 @@ BENCHMARK(BM_Render)
 BENCHMARK(BM_LargePlate)->Arg(2)->Arg(0)->ArgNames({"mode"})->UseRealTime()->Unit(benchmark::kMillisecond);
 
 BENCHMARK(BM_Instances)
-    ->ArgsProduct({{1, 16, 64}, {1280}, {720}, {2, 0}, {0}, {2}})
-    ->ArgsProduct({{16, 64}, {1280}, {720}, {0}, {0, 1}, {0, 1}})
-    ->ArgNames({"instances", "w", "h", "mode", "rotating", "layout"})
+    ->ArgsProduct({{1, 16, 64}, {1280}, {720}, {2, 0}, {0}, {2}, {2}})
+    ->ArgsProduct({{16, 64}, {1280}, {720}, {0}, {0, 1}, {0, 1}, {2}})
+    ->ArgsProduct({{16, 64}, {1280}, {720}, {0}, {0, 1}, {0}, {0}})  // storage buffers: the reads' baseline
+    ->ArgNames({"instances", "w", "h", "mode", "rotating", "layout", "reads"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 

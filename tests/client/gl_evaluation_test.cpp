@@ -418,6 +418,44 @@ TEST(GlEvaluation, InstancesAreDrawnEachWithItsOwnStateWhereItStands) {
   EXPECT_THROW(renderer.render(std::span(&rest, 1)), RenderError) << "one frame per placed instance";
 }
 
+// Instances that see the same light read one light-dotted copy: it is
+// dotted once, a copy that holds a light is kept for whoever sees it next,
+// and each instance still shines as it does alone.
+TEST(GlEvaluation, InstancesThatSeeTheSameLightShareOneLightDot) {
+  const auto package = testing::make_plate_package();
+  const auto basis = basis_from_package(package, 1);
+  auto backend = make_render_backend("osmesa", 64, 64);
+  LowRankRenderer single(*backend, basis, 64, 64);
+  LowRankRenderer renderer(*backend, basis, 64, 64);
+  renderer.set_placements(grid_placements(rest_bounds(basis), 4));
+  const FrameState rest = portrait_frames(package, 0)[0], turned = portrait_frames(package, 0)[40];
+  ASSERT_NE(rest.support, turned.support);
+  std::vector<FrameState> frames(4, rest);
+  renderer.draw(frames);
+  EXPECT_EQ(renderer.light_dot_passes(), 1u) << "four instances, one light";
+  frames[2] = turned;
+  renderer.draw(frames);
+  EXPECT_EQ(renderer.light_dot_passes(), 2u) << "instance 2's door turned";
+  frames.assign(4, turned);
+  const VertexDump all_turned = renderer.evaluate(frames);
+  EXPECT_EQ(renderer.light_dot_passes(), 2u) << "the turned light's copy is kept";
+  frames[0] = rest;
+  const VertexDump mixed = renderer.evaluate(frames);
+  EXPECT_EQ(renderer.light_dot_passes(), 2u) << "and so is the rest light's";
+  const std::size_t values = 3 * static_cast<std::size_t>(basis.points);
+  struct Seen {
+    const VertexDump* dump;
+    std::size_t instance;
+    const FrameState* frame;
+  };
+  for (const Seen& c : {Seen{&all_turned, 3, &turned}, Seen{&mixed, 0, &rest}, Seen{&mixed, 1, &turned}}) {
+    const VertexDump one = single.evaluate(*c.frame);
+    for (std::size_t k = 0; k < values; ++k)
+      ASSERT_NEAR(c.dump->radiance[values * c.instance + k], one.radiance[k], 1e-6f)
+          << "instance " << c.instance << ", value " << k;
+  }
+}
+
 // Bases larger than one shader storage block are bound a block of points
 // at a time: with the block capped at 64 points of U_a (the fixture has 85
 // points), two blocks draw the same pixels and evaluate the same values as one.
@@ -480,6 +518,52 @@ TEST(GlEvaluation, BothBasisLayoutsGiveTheSameBits) {
       ::unsetenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES");
     }
   }
+}
+
+// The compute pass reads its buffers as storage buffers or as buffer
+// textures over them (llvmpipe's default): the same values summed in the same
+// order, so the same bits, with 32- and 16-bit bases, in point rows and point
+// tiles, with and without an appearance model (the fallback reads the normals
+// and the lights); point blocks read storage buffers whatever was set.
+TEST(GlEvaluation, BothComputeReadsGiveTheSameBits) {
+  auto backend = make_render_backend("osmesa", 96, 96);
+  for (bool appearance : {true, false}) {
+    testing::PlateOptions options;
+    options.appearance = appearance;
+    const auto package = testing::make_plate_package(options);
+    const auto basis = basis_from_package(package, 1);
+    const std::vector<FrameState> frames{portrait_frames(package, 0)[40], portrait_frames(package, 3)[20],
+                                         portrait_frames(package, 4)[10]};
+    for (auto precision : {BasisPrecision::float32, BasisPrecision::float16}) {
+      for (auto layout : {BasisLayout::point_rows, BasisLayout::point_tiles}) {
+        SCOPED_TRACE(std::string(appearance ? "appearance, " : "no appearance, ") +
+                     (precision == BasisPrecision::float16 ? "16-bit, " : "32-bit, ") +
+                     basis_layout_name(layout));
+        LowRankRenderer storage(*backend, basis, 96, 96, precision, layout);
+        LowRankRenderer textures(*backend, basis, 96, 96, precision, layout);
+        EXPECT_EQ(textures.compute_reads(), ComputeReads::buffer_textures) << "llvmpipe's default";
+        storage.set_compute_reads(ComputeReads::storage_buffers);
+        for (auto* r : {&storage, &textures}) {
+          r->set_evaluation(Evaluation::compute_pass);
+          r->set_placements(grid_placements(rest_bounds(basis), 3));
+        }
+        EXPECT_EQ(storage.compute_reads(), ComputeReads::storage_buffers);
+        const VertexDump a = storage.evaluate(frames), b = textures.evaluate(frames);
+        EXPECT_EQ(a.positions, b.positions);
+        EXPECT_EQ(a.radiance, b.radiance);
+        EXPECT_EQ(max_channel_difference(storage.render(frames), textures.render(frames)), 0);
+      }
+    }
+  }
+  const auto package = testing::make_plate_package();
+  const auto basis = basis_from_package(package, 1);
+  const std::size_t u_a_row = 48 * 4 * static_cast<std::size_t>((basis.rank_a + 3) / 4) * sizeof(float);
+  ::setenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES", std::to_string(64 * u_a_row).c_str(), 1);
+  LowRankRenderer blocks(*backend, basis, 96, 96);
+  ::unsetenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES");
+  blocks.set_evaluation(Evaluation::compute_pass);
+  ASSERT_EQ(blocks.point_blocks(), 2);
+  EXPECT_EQ(blocks.compute_reads(), ComputeReads::storage_buffers);
 }
 
 // --half stores U_u and U_a as 16-bit floats: the points move and shine as

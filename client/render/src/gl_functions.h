@@ -75,7 +75,12 @@ namespace phasecast::client::detail {
   X(PFNGLBEGINTRANSFORMFEEDBACKPROC, glBeginTransformFeedback)           \
   X(PFNGLENDTRANSFORMFEEDBACKPROC, glEndTransformFeedback)               \
   X(PFNGLMEMORYBARRIERPROC, glMemoryBarrier)                             \
-  X(PFNGLDISPATCHCOMPUTEPROC, glDispatchCompute)
+  X(PFNGLDISPATCHCOMPUTEPROC, glDispatchCompute)                         \
+  X(PFNGLGENTEXTURESPROC, glGenTextures)                                 \
+  X(PFNGLDELETETEXTURESPROC, glDeleteTextures)                           \
+  X(PFNGLACTIVETEXTUREPROC, glActiveTexture)                             \
+  X(PFNGLBINDTEXTUREPROC, glBindTexture)                                 \
+  X(PFNGLTEXBUFFERPROC, glTexBuffer)
 
 // One pointer per entry point, named as in GL.
 struct GlFunctions {

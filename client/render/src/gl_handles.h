@@ -88,6 +88,7 @@ using Framebuffer =
     GlHandle<GeneratedKind<&GlFunctions::glGenFramebuffers, &GlFunctions::glDeleteFramebuffers>>;
 using Renderbuffer =
     GlHandle<GeneratedKind<&GlFunctions::glGenRenderbuffers, &GlFunctions::glDeleteRenderbuffers>>;
+using Texture = GlHandle<GeneratedKind<&GlFunctions::glGenTextures, &GlFunctions::glDeleteTextures>>;
 using Shader = GlHandle<ShaderKind>;
 using Program = GlHandle<ProgramKind>;
 

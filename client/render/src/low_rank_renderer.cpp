@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -33,6 +34,7 @@ using detail::GlFunctions;
 using detail::GlProgram;
 using detail::GroundPlane;
 using detail::Renderbuffer;
+using detail::Texture;
 using detail::VertexArray;
 
 namespace {
@@ -115,9 +117,12 @@ std::vector<std::uint32_t> point_flags(const ClientBasis& basis) {
   return flags;
 }
 
-// Floats per instance in the Instances buffer (shaders/low_rank.vert):
-// placement and support (column-major mat4s), then 24 vec4s of light.
-constexpr std::size_t kInstanceFloats = 16 + 16 + 96;
+// Floats per instance in the Instances buffer (shaders/low_rank_eval.glsl):
+// placement and support (column-major mat4s), 24 vec4s of light, then the
+// light-dotted copy its points read.
+constexpr std::size_t kInstanceFloats = 4 * PHASECAST_INSTANCE_VEC4S;
+static_assert(kInstanceFloats == 16 + 16 + 96 + 4);
+using Lights = std::array<float, 96>;  // an instance's packed lights (instance_lights)
 
 // Support transform (3x4 row-major, support -> world) as a 4x4 for GLSL.
 Eigen::Matrix4f support_matrix(const FrameState& f) {
@@ -199,8 +204,11 @@ struct LowRankRenderer::Impl {
   int width, height;
   float radius;
   GlProgram program, static_program, dot_program, eval_program;
-  // Per instance: the lights its dotted form was made with.
-  std::vector<std::optional<std::array<float, 96>>> dotted_lights;
+  // Per light-dotted copy (one per instance allocated): the lights it was
+  // made with. Instances that see the same light read one copy
+  // (dotted_copy), so it is dotted once and read from the caches.
+  std::vector<std::optional<Lights>> dotted_lights;
+  std::vector<std::size_t> dotted_copy;  // per instance drawn
   // Per instance: the rotations its lights were last turned by, and those lights
   // (rotating SH coefficients costs more than a frame's upload; supports are often still).
   struct TurnedLights {
@@ -237,6 +245,14 @@ struct LowRankRenderer::Impl {
   bool split = false;
   bool half = false;  // U_u and U_a as 16-bit floats (--half)
   BasisLayout layout = BasisLayout::point_tiles;
+  // The compute pass's reads (ComputeReads): buffer textures over the storage
+  // buffers, on the texture units numbered as their bindings, made when the
+  // storage is; texel_eval_program is linked the first time it runs.
+  ComputeReads reads = ComputeReads::storage_buffers;
+  std::array<Texture, kBindingCount> texel_views;
+  std::array<std::size_t, kBindingCount> storage_bytes{};
+  bool texels_fit = false;  // every view within GL_MAX_TEXTURE_BUFFER_SIZE
+  GlProgram texel_eval_program, texel_dot_program;
 
   Impl(RenderBackend& b, const ClientBasis& bases, int w, int h, BasisPrecision precision,
        std::optional<BasisLayout> basis_layout)
@@ -249,6 +265,9 @@ struct LowRankRenderer::Impl {
         layout(basis_layout.value_or(llvmpipe() ? BasisLayout::point_rows : BasisLayout::point_tiles)) {
     basis.validate("renderer");
     if (llvmpipe()) keep_freed_heap();
+    r_u4 = (basis.rank_u + 3) / 4;  // the programs are compiled with them (with_defines)
+    r_a4 = (basis.rank_a + 3) / 4;
+    has_transfer = basis.has_transfer();
     radius = scene_radius(basis);
     view_radius = radius;
     camera = scene_camera(basis);
@@ -258,6 +277,7 @@ struct LowRankRenderer::Impl {
     dot_program = detail::link_compute_program(gl, with_defines(shaders::light_dot_comp), "light_dot.comp");
     eval_program = detail::link_compute_program(gl, with_defines(shaders::low_rank_comp), "low_rank.comp");
     evaluation = default_evaluation();
+    reads = llvmpipe() ? ComputeReads::buffer_textures : ComputeReads::storage_buffers;
     upload_bases();
     create_framebuffer();
     check("setting up the renderer");
@@ -272,13 +292,16 @@ struct LowRankRenderer::Impl {
                                                                            : Evaluation::per_point_pass;
   }
 
-  // A shader reading the bases, with PHASECAST_HALF_BASES (--half) and the
-  // tile size defined after its #version line: both are fixed per renderer,
-  // so no branch runs per basis value.
-  std::string with_defines(std::string_view source) const {
+  // A shader reading the bases, with PHASECAST_HALF_BASES (--half), the tile
+  // size, the ranks and whether there is transfer defined after its #version
+  // line: all are fixed per renderer, so no branch runs per basis value and
+  // the loops over the ranks unroll.
+  std::string with_defines(std::string_view source, std::string_view more = {}) const {
     std::string out(source);
-    const std::string defines = fmt::format("{}#define PHASECAST_POINT_TILE {}u\n",
-                                            half ? "#define PHASECAST_HALF_BASES\n" : "", point_tile());
+    const std::string defines = fmt::format(
+        "{}#define PHASECAST_POINT_TILE {}u\n#define PHASECAST_R_U4 {}\n#define PHASECAST_R_A4 {}\n"
+        "#define PHASECAST_HAS_TRANSFER {}\n{}",
+        half ? "#define PHASECAST_HALF_BASES\n" : "", point_tile(), r_u4, r_a4, has_transfer, more);
     out.insert(out.find('\n') + 1, defines);
     return out;
   }
@@ -326,13 +349,14 @@ struct LowRankRenderer::Impl {
     }
     gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[binding].get());
     const std::array<T, 4> padding{};
-    gl.glBufferData(GL_SHADER_STORAGE_BUFFER, data.empty() ? byte_size(std::vector<T>(4)) : byte_size(data),
-                    data.empty() ? padding.data() : data.data(), GL_STATIC_DRAW);
+    const auto bytes = data.empty() ? byte_size(std::vector<T>(4)) : byte_size(data);
+    gl.glBufferData(GL_SHADER_STORAGE_BUFFER, bytes, data.empty() ? padding.data() : data.data(),
+                    GL_STATIC_DRAW);
+    storage_bytes[binding] = static_cast<std::size_t>(bytes);
     gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, storage[binding].get());
   }
 
   void upload_bases() {
-    has_transfer = basis.has_transfer();
     upload_storage_buffers();
     // The client keeps only sizes and flags on the CPU once the GPU has the bases.
     basis.U_u = {};
@@ -344,8 +368,6 @@ struct LowRankRenderer::Impl {
 
   void upload_storage_buffers() {
     for (auto& buffer : storage) buffer = Buffer(gl);
-    r_u4 = (basis.rank_u + 3) / 4;
-    r_a4 = (basis.rank_a + 3) / 4;
     block_limit = storage_block_limit(gl);
     stride_points = round_up(basis.points, kBlockAlign);
     upload_storage(kMeanShape, basis.mean_shape, "mean_shape");
@@ -381,6 +403,78 @@ struct LowRankRenderer::Impl {
     turned_lights.assign(n, std::nullopt);
     allocated_instances = n;
     if (feedback_buffer) create_feedback_buffer();
+    attach_texel_views();
+  }
+
+  // The format a binding is read in as a buffer texture (low_rank_eval.glsl,
+  // light_dot.comp: PHASECAST_TEXEL_READS), and its texel's bytes; 0 for
+  // what the compute passes do not read.
+  std::pair<GLenum, std::size_t> texel_format(Binding b) const {
+    switch (b) {
+      case kMeanShape:
+      case kRestNormals:
+        return {GL_RGB32F, 12};
+      case kDisplacementBasis:
+        return half ? std::pair<GLenum, std::size_t>{GL_RG32UI, 8}
+                    : std::pair<GLenum, std::size_t>{GL_RGBA32F, 16};
+      case kTransferBasis:
+        return half ? std::pair<GLenum, std::size_t>{GL_RG32UI, 8}
+                    : std::pair<GLenum, std::size_t>{GL_RGBA32F, 16};
+      case kPointFlags:
+        return {GL_R32UI, 4};
+      case kMeanTransfer:
+      case kReduced:
+      case kMeanDotted:
+      case kBasisDotted:
+      case kInstances:
+        return {GL_RGBA32F, 16};
+      default:
+        return {0, 0};
+    }
+  }
+
+  // (Re)attaches every buffer texture to its storage buffer, whose data store
+  // the uploads above may have made anew.
+  void attach_texel_views() {
+    GLint limit = 0;
+    gl.glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &limit);
+    texels_fit = true;
+    for (GLuint b = 0; b < kBindingCount; ++b) {
+      const auto [format, texel] = texel_format(static_cast<Binding>(b));
+      if (format == 0) continue;
+      texels_fit = texels_fit && storage_bytes[b] / texel <= static_cast<std::size_t>(limit);
+      if (!texel_views[b]) texel_views[b] = Texture(gl);
+      gl.glBindTexture(GL_TEXTURE_BUFFER, texel_views[b].get());
+      gl.glTexBuffer(GL_TEXTURE_BUFFER, format, storage[b].get());
+    }
+    gl.glBindTexture(GL_TEXTURE_BUFFER, 0);
+  }
+
+  bool texel_reads() const { return reads == ComputeReads::buffer_textures && !split && texels_fit; }
+
+  // The compute passes' programs for their reads.
+  const GlProgram& compute_program() {
+    if (!texel_reads()) return eval_program;
+    if (!texel_eval_program) texel_eval_program = link_texel_program(shaders::low_rank_comp, "low_rank.comp");
+    return texel_eval_program;
+  }
+  const GlProgram& light_dot_program() {
+    if (!texel_reads()) return dot_program;
+    if (!texel_dot_program) texel_dot_program = link_texel_program(shaders::light_dot_comp, "light_dot.comp");
+    return texel_dot_program;
+  }
+  GlProgram link_texel_program(std::string_view source, const char* name) const {
+    return detail::link_compute_program(gl, with_defines(source, "#define PHASECAST_TEXEL_READS\n"), name);
+  }
+
+  // Texture units, like buffer bindings, belong to the context.
+  void bind_texel_views() {
+    for (GLuint b = 0; b < kBindingCount; ++b) {
+      if (!texel_views[b]) continue;
+      gl.glActiveTexture(GL_TEXTURE0 + b);
+      gl.glBindTexture(GL_TEXTURE_BUFFER, texel_views[b].get());
+    }
+    gl.glActiveTexture(GL_TEXTURE0);
   }
 
   // The triangles, recorded in vao: the in_draw evaluation draws with it.
@@ -485,9 +579,8 @@ struct LowRankRenderer::Impl {
   }
 
   // Binds points [first, first + count) of every per-point buffer, and of
-  // instance `instance`'s dotted values; a tiled buffer's range ends on a
-  // whole tile.
-  void bind_point_block(int first, int count, std::size_t instance) {
+  // light-dotted copy `copy`; a tiled buffer's range ends on a whole tile.
+  void bind_point_block(int first, int count, std::size_t copy) {
     const auto bpp = bytes_per_point();
     for (int b = 0; b < static_cast<int>(kBindingCount); ++b) {
       const auto size = bpp[static_cast<std::size_t>(b)];
@@ -496,7 +589,7 @@ struct LowRankRenderer::Impl {
       const bool tiled =
           b == kBasisDotted || b == kDisplacementBasis || b == kMeanTransfer || b == kTransferBasis;
       const std::size_t point =
-          (dotted ? instance * static_cast<std::size_t>(stride_points) : 0) + static_cast<std::size_t>(first);
+          (dotted ? copy * static_cast<std::size_t>(stride_points) : 0) + static_cast<std::size_t>(first);
       const auto points = static_cast<std::size_t>(tiled ? round_up(count, kBlockAlign) : count);
       gl.glBindBufferRange(GL_SHADER_STORAGE_BUFFER, static_cast<GLuint>(b),
                            storage[static_cast<std::size_t>(b)].get(), static_cast<GLintptr>(point * size),
@@ -518,16 +611,20 @@ struct LowRankRenderer::Impl {
   void set_low_rank_uniforms(std::span<const FrameState> frames) {
     set_evaluation_uniforms(program);
     std::vector<float> instances(frames.size() * kInstanceFloats);
+    std::vector<const Lights*> lights(frames.size());
     for (std::size_t i = 0; i < frames.size(); ++i) {
       const Eigen::Matrix4f& placement = placements[i];
       const Eigen::Matrix4f support = placement * support_matrix(frames[i]);
-      const auto& lights = lights_of(i, placement, support);
+      lights[i] = &lights_of(i, placement, support);
       float* out = &instances[i * kInstanceFloats];
       std::copy_n(placement.data(), 16, out);
       std::copy_n(support.data(), 16, out + 16);
-      std::copy(lights.begin(), lights.end(), out + 32);
-      if (has_transfer) update_light_dotted(i, lights);
+      std::copy(lights[i]->begin(), lights[i]->end(), out + 32);
     }
+    dotted_copy.assign(frames.size(), 0);
+    if (has_transfer) update_light_dotted(lights);
+    for (std::size_t i = 0; i < frames.size(); ++i)
+      instances[i * kInstanceFloats + 128] = static_cast<float>(dotted_copy[i]);
     program.use();  // update_light_dotted may have switched to dot_program
     gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kInstances].get());
     gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(instances), instances.data());
@@ -537,12 +634,9 @@ struct LowRankRenderer::Impl {
   // What low_rank_eval.glsl reads, for the vertex or the compute program.
   void set_evaluation_uniforms(const GlProgram& p) {
     p.use();
-    gl.glUniform1i(p.uniform("r_u4"), r_u4);
-    gl.glUniform1i(p.uniform("r_a4"), r_a4);
     gl.glUniform1i(p.uniform("first_point"), 0);
     gl.glUniform1i(p.uniform("instance_base"), 0);
     gl.glUniform1i(p.uniform("dotted_stride"), stride_points);
-    gl.glUniform1i(p.uniform("has_transfer"), has_transfer ? 1 : 0);
     gl.glUniform1i(p.uniform("points"), basis.points);
   }
 
@@ -561,8 +655,7 @@ struct LowRankRenderer::Impl {
   }
 
   // instance_lights, again only when the instance's rotations changed.
-  const std::array<float, 96>& lights_of(std::size_t i, const Eigen::Matrix4f& placement,
-                                         const Eigen::Matrix4f& support) {
+  const Lights& lights_of(std::size_t i, const Eigen::Matrix4f& placement, const Eigen::Matrix4f& support) {
     auto& seen = turned_lights[i];
     const Eigen::Matrix3f p = placement.topLeftCorner<3, 3>(), r = support.topLeftCorner<3, 3>();
     if (!seen || seen->placement != p || seen->support != r)
@@ -573,9 +666,8 @@ struct LowRankRenderer::Impl {
   // The world light as an instance's points see it (§5.3): rotated into the
   // instance's frame for free points and into its support frame for
   // attached ones. An unrotated placement leaves the world light as it is.
-  std::array<float, 96> instance_lights(const Eigen::Matrix4f& placement,
-                                        const Eigen::Matrix4f& support) const {
-    std::array<float, 96> lights{};
+  Lights instance_lights(const Eigen::Matrix4f& placement, const Eigen::Matrix4f& support) const {
+    Lights lights{};
     const Eigen::Matrix3d turn = placement.topLeftCorner<3, 3>().cast<double>();
     const auto world = turn.isIdentity(0) ? light.packed() : light_in_support_frame(light, turn).packed();
     const auto local = light_in_support_frame(light, support.topLeftCorner<3, 3>().cast<double>()).packed();
@@ -584,31 +676,62 @@ struct LowRankRenderer::Impl {
     return lights;
   }
 
-  // Re-dots the transfer bases with an instance's light when the light its
-  // points see changed (a new light or a rotated support); otherwise nothing to do.
-  void update_light_dotted(std::size_t instance, const std::array<float, 96>& lights) {
-    auto& dotted = dotted_lights[instance];
-    if (dotted && *dotted == lights) return;
-    dot_program.use();
-    gl.glUniform1i(dot_program.uniform("r_a4"), r_a4);
-    gl.glUniform4fv(dot_program.uniform("light"), 24, lights.data());
+  // Points each instance at a light-dotted copy made with the light it sees:
+  // one that holds it already, else a copy no instance needs this frame,
+  // dotted anew (a new light or a rotated support). Instances that see the
+  // same light share a copy.
+  void update_light_dotted(const std::vector<const Lights*>& lights) {
+    std::map<Lights, std::size_t> held;
+    for (std::size_t c = 0; c < dotted_lights.size(); ++c)
+      if (dotted_lights[c]) held.emplace(*dotted_lights[c], c);
+    std::vector<bool> needed(dotted_lights.size(), false);
+    std::vector<std::size_t> missing;
+    for (std::size_t i = 0; i < lights.size(); ++i) {
+      const auto it = held.find(*lights[i]);
+      if (it == held.end()) {
+        missing.push_back(i);
+      } else {
+        dotted_copy[i] = it->second;
+        needed[it->second] = true;
+      }
+    }
+    std::map<Lights, std::size_t> made;
+    std::size_t spare = 0;
+    for (const std::size_t i : missing) {
+      auto [it, fresh] = made.emplace(*lights[i], 0);
+      if (fresh) {
+        while (needed[spare]) ++spare;  // copies >= instances >= lights in use
+        needed[spare] = true;
+        it->second = spare;
+        dot_light_into(spare, *lights[i]);
+      }
+      dotted_copy[i] = it->second;
+    }
+  }
+
+  // Dots the transfer bases with `lights` into light-dotted copy `copy`.
+  void dot_light_into(std::size_t copy, const Lights& lights) {
+    const GlProgram& dot = light_dot_program();
+    dot.use();
+    if (texel_reads()) bind_texel_views();
+    gl.glUniform4fv(dot.uniform("light"), 24, lights.data());
     auto dispatch = [&](int count, int out_base) {
-      gl.glUniform1i(dot_program.uniform("points"), count);
-      gl.glUniform1i(dot_program.uniform("out_base"), out_base);
+      gl.glUniform1i(dot.uniform("points"), count);
+      gl.glUniform1i(dot.uniform("out_base"), out_base);
       gl.glDispatchCompute(static_cast<GLuint>((count + 63) / 64), 1, 1);
     };
     if (!split) {
-      dispatch(basis.points, static_cast<int>(instance) * stride_points);
+      dispatch(basis.points, static_cast<int>(copy) * stride_points);
     } else {
       for (int first = 0; first < basis.points; first += block_points) {
         const int count = std::min(block_points, basis.points - first);
-        bind_point_block(first, count, instance);
+        bind_point_block(first, count, copy);
         dispatch(count, 0);
       }
       bind_storage();
     }
-    gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    dotted = lights;
+    gl.glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+    dotted_lights[copy] = lights;
     ++light_dot_passes;
   }
 
@@ -659,12 +782,14 @@ struct LowRankRenderer::Impl {
   // would (feedback_buffer), for the triangle draw's vertex attributes.
   void compute_pass(std::span<const FrameState> frames) {
     set_uniforms(program, frames);  // lights, dotted transfer, q and the instances' data
-    set_evaluation_uniforms(eval_program);
+    const GlProgram& eval = compute_program();
+    set_evaluation_uniforms(eval);
+    if (texel_reads()) bind_texel_views();
     gl.glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kEvaluated, feedback_buffer.get());
     auto dispatch = [&](int count, int out_base, int out_stride, std::size_t instances) {
-      gl.glUniform1i(eval_program.uniform("points"), count);
-      gl.glUniform1i(eval_program.uniform("out_base"), out_base);
-      gl.glUniform1i(eval_program.uniform("out_stride"), out_stride);
+      gl.glUniform1i(eval.uniform("points"), count);
+      gl.glUniform1i(eval.uniform("out_base"), out_base);
+      gl.glUniform1i(eval.uniform("out_stride"), out_stride);
       gl.glDispatchCompute(static_cast<GLuint>((count + 63) / 64), static_cast<GLuint>(instances), 1);
     };
     if (!split) {
@@ -675,7 +800,7 @@ struct LowRankRenderer::Impl {
         gl.glUniform1i(eval_program.uniform("instance_base"), static_cast<GLint>(i));
         for (int first = 0; first < basis.points; first += block_points) {
           const int count = std::min(block_points, basis.points - first);
-          bind_point_block(first, count, i);
+          bind_point_block(first, count, dotted_copy[i]);
           dispatch(count, static_cast<int>(i) * basis.points + first, 0, 1);
         }
       }
@@ -701,7 +826,7 @@ struct LowRankRenderer::Impl {
       gl.glUniform1i(program.uniform("instance_base"), static_cast<GLint>(i));
       for (int first = 0; first < basis.points; first += block_points) {
         const int count = std::min(block_points, basis.points - first);
-        bind_point_block(first, count, i);
+        bind_point_block(first, count, dotted_copy[i]);
         gl.glUniform1i(program.uniform("first_point"), first);
         const auto at = (i * static_cast<std::size_t>(basis.points) + static_cast<std::size_t>(first)) * 6 *
                         sizeof(float);
@@ -874,6 +999,12 @@ Evaluation LowRankRenderer::evaluation() const {
 }
 BasisLayout LowRankRenderer::basis_layout() const {
   return impl_->layout;
+}
+void LowRankRenderer::set_compute_reads(ComputeReads reads) {
+  impl_->reads = reads;
+}
+ComputeReads LowRankRenderer::compute_reads() const {
+  return impl_->texel_reads() ? ComputeReads::buffer_textures : ComputeReads::storage_buffers;
 }
 void LowRankRenderer::set_backdrop(Backdrop backdrop) {
   impl_->set_backdrop(backdrop);

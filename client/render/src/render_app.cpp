@@ -25,14 +25,18 @@ namespace phasecast::client {
 namespace {
 
 // What the GPU holds: ", 312 bytes per point on the GPU (16-bit bases, point
-// rows), bases bound in 3 blocks of points" (the blocks only when they exceed
-// one storage block).
+// rows, read as buffer textures), bases bound in 3 blocks of points" (the
+// reads only for the compute pass, the blocks only when they exceed one
+// storage block).
 std::string gpu_note(const LowRankRenderer& renderer, bool half) {
   const int n = renderer.point_blocks();
   const char* layout = basis_layout_name(renderer.basis_layout());
+  const std::string reads = renderer.evaluation() == Evaluation::compute_pass
+                                ? fmt::format(", read as {}", compute_reads_name(renderer.compute_reads()))
+                                : "";
   return fmt::format(
-      ", {} bytes per point on the GPU ({}{}){}", renderer.gpu_bytes_per_point(),
-      half ? "16-bit bases, " : "", layout,
+      ", {} bytes per point on the GPU ({}{}{}){}", renderer.gpu_bytes_per_point(),
+      half ? "16-bit bases, " : "", layout, reads,
       n > 1 ? fmt::format(", bases bound in {} blocks of points (larger than one storage block)", n) : "");
 }
 

@@ -77,6 +77,19 @@ inline const char* basis_layout_name(BasisLayout layout) {
   return layout == BasisLayout::point_tiles ? "point tiles" : "point rows";
 }
 
+// How the compute passes (the light dot, and Evaluation::compute_pass) read
+// the bases, the light-dotted transfer, q and the instances: as shader
+// storage buffers, or as buffer textures over the same buffers (texelFetch).
+// Same values and sums, so the same bits. llvmpipe (Mesa 22) loads from a storage buffer one
+// lane at a time and fetches texels as one gather for all lanes: buffer
+// textures are its default (measured 2-4 times faster there,
+// docs/performance-client.md), storage buffers elsewhere. Scenes whose bases
+// are bound in blocks of points always read storage buffers.
+enum class ComputeReads { storage_buffers, buffer_textures };
+inline const char* compute_reads_name(ComputeReads reads) {
+  return reads == ComputeReads::buffer_textures ? "buffer textures" : "storage buffers";
+}
+
 class LowRankRenderer {
  public:
   // The backend's context must stay current and alive while the renderer lives.
@@ -96,6 +109,10 @@ class LowRankRenderer {
   void set_evaluation(Evaluation evaluation);
   Evaluation evaluation() const;
   BasisLayout basis_layout() const;
+  void set_compute_reads(ComputeReads reads);
+  // What the compute passes read through (storage buffers for point blocks,
+  // whatever was set).
+  ComputeReads compute_reads() const;
   void set_backdrop(Backdrop backdrop);
 
   // Draws the frame into the offscreen framebuffer (and the window, if any).
