@@ -13,7 +13,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <numbers>
+#include <optional>
 #include <random>
+#include <string_view>
 
 namespace phasecast::client {
 namespace {
@@ -420,39 +422,60 @@ TEST(GlEvaluation, InstancesAreDrawnEachWithItsOwnStateWhereItStands) {
 
 // Instances that see the same light read one light-dotted copy: it is
 // dotted once, a copy that holds a light is kept for whoever sees it next,
-// and each instance still shines as it does alone.
+// and each instance still shines as it does alone, on every evaluation path
+// and with the bases bound in blocks of points (where copy and instance
+// numbers part: instance 1 reads copy 0 below).
 TEST(GlEvaluation, InstancesThatSeeTheSameLightShareOneLightDot) {
   const auto package = testing::make_plate_package();
   const auto basis = basis_from_package(package, 1);
   auto backend = make_render_backend("osmesa", 64, 64);
   LowRankRenderer single(*backend, basis, 64, 64);
-  LowRankRenderer renderer(*backend, basis, 64, 64);
-  renderer.set_placements(grid_placements(rest_bounds(basis), 4));
   const FrameState rest = portrait_frames(package, 0)[0], turned = portrait_frames(package, 0)[40];
   ASSERT_NE(rest.support, turned.support);
-  std::vector<FrameState> frames(4, rest);
-  renderer.draw(frames);
-  EXPECT_EQ(renderer.light_dot_passes(), 1u) << "four instances, one light";
-  frames[2] = turned;
-  renderer.draw(frames);
-  EXPECT_EQ(renderer.light_dot_passes(), 2u) << "instance 2's door turned";
-  frames.assign(4, turned);
-  const VertexDump all_turned = renderer.evaluate(frames);
-  EXPECT_EQ(renderer.light_dot_passes(), 2u) << "the turned light's copy is kept";
-  frames[0] = rest;
-  const VertexDump mixed = renderer.evaluate(frames);
-  EXPECT_EQ(renderer.light_dot_passes(), 2u) << "and so is the rest light's";
   const std::size_t values = 3 * static_cast<std::size_t>(basis.points);
-  struct Seen {
-    const VertexDump* dump;
-    std::size_t instance;
-    const FrameState* frame;
-  };
-  for (const Seen& c : {Seen{&all_turned, 3, &turned}, Seen{&mixed, 0, &rest}, Seen{&mixed, 1, &turned}}) {
-    const VertexDump one = single.evaluate(*c.frame);
-    for (std::size_t k = 0; k < values; ++k)
-      ASSERT_NEAR(c.dump->radiance[values * c.instance + k], one.radiance[k], 1e-6f)
-          << "instance " << c.instance << ", value " << k;
+  const std::size_t u_a_row = 48 * 4 * static_cast<std::size_t>((basis.rank_a + 3) / 4) * sizeof(float);
+  std::optional<Image> per_point_image;
+  for (const char* config : {"compute_pass", "per_point_pass", "in_draw", "blocks"}) {
+    SCOPED_TRACE(config);
+    const bool blocks = std::string_view(config) == "blocks";
+    if (blocks) ::setenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES", std::to_string(64 * u_a_row).c_str(), 1);
+    LowRankRenderer renderer(*backend, basis, 64, 64);
+    ::unsetenv("PHASECAST_MAX_STORAGE_BLOCK_BYTES");
+    ASSERT_EQ(renderer.point_blocks(), blocks ? 2 : 1);
+    if (std::string_view(config) == "per_point_pass") renderer.set_evaluation(Evaluation::per_point_pass);
+    if (std::string_view(config) == "in_draw") renderer.set_evaluation(Evaluation::in_draw);
+    renderer.set_placements(grid_placements(rest_bounds(basis), 4));
+    std::vector<FrameState> frames(4, rest);
+    renderer.draw(frames);
+    EXPECT_EQ(renderer.light_dot_passes(), 1u) << "four instances, one light";
+    frames[2] = turned;
+    renderer.draw(frames);
+    EXPECT_EQ(renderer.light_dot_passes(), 2u) << "instance 2's door turned";
+    frames.assign(4, turned);
+    const VertexDump all_turned = renderer.evaluate(frames);
+    EXPECT_EQ(renderer.light_dot_passes(), 2u) << "the turned light's copy is kept";
+    frames[0] = rest;
+    frames[1] = rest;
+    const VertexDump mixed = renderer.evaluate(frames);
+    EXPECT_EQ(renderer.light_dot_passes(), 2u) << "and so is the rest light's";
+    struct Seen {
+      const VertexDump* dump;
+      std::size_t instance;
+      const FrameState* frame;
+    };
+    for (const Seen& c : {Seen{&all_turned, 3, &turned}, Seen{&mixed, 0, &rest}, Seen{&mixed, 1, &rest},
+                          Seen{&mixed, 2, &turned}}) {
+      const VertexDump one = single.evaluate(*c.frame);
+      for (std::size_t k = 0; k < values; ++k)
+        ASSERT_NEAR(c.dump->radiance[values * c.instance + k], one.radiance[k], 1e-6f)
+            << "instance " << c.instance << ", value " << k;
+    }
+    // The triangle draw's own evaluation reads the copies as the per-point pass does.
+    if (std::string_view(config) == "per_point_pass") per_point_image = renderer.render(frames);
+    if (std::string_view(config) == "in_draw") {
+      ASSERT_TRUE(per_point_image);
+      EXPECT_EQ(max_channel_difference(renderer.render(frames), *per_point_image), 0);
+    }
   }
 }
 
