@@ -80,9 +80,9 @@ inline const char* basis_layout_name(BasisLayout layout) {
 // How the compute passes (the light dot, and Evaluation::compute_pass) read
 // the bases, the light-dotted transfer, q and the instances: as shader
 // storage buffers, or as buffer textures over the same buffers (texelFetch).
-// Same values and sums, so the same bits. llvmpipe (Mesa 22) loads from a storage buffer one
-// lane at a time and fetches texels as one gather for all lanes: buffer
-// textures are its default (measured 2-4 times faster there,
+// Same values and sums, so the same bits. llvmpipe (Mesa 22) loads from a
+// storage buffer one lane at a time and fetches texels as one gather for all
+// lanes: buffer textures are its default (frames 1.1-1.7 times faster there,
 // docs/performance-client.md), storage buffers elsewhere. Scenes whose bases
 // are bound in blocks of points always read storage buffers.
 enum class ComputeReads { storage_buffers, buffer_textures };
