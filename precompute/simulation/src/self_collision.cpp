@@ -136,18 +136,20 @@ std::vector<std::array<int, 2>> surface_edges(const Eigen::MatrixXi& triangles) 
 
 namespace {
 
-// Smallest distance between vertices that share no triangle, and whether any
-// pair is nearer than `close` (vertices hashed into cells of that size).
+// Smallest distance between surface vertices that share no triangle, and
+// whether any pair is nearer than `close` (vertices hashed into cells of that
+// size). Only the surface collides: a rod's or a brace's vertex numbered
+// among the surface's is not one of its points.
 double closest_non_neighbours(const Eigen::VectorXd& x, const std::set<std::pair<int, int>>& neighbours,
-                              int vertices, double close) {
+                              const std::vector<int>& surface, double close) {
   std::vector<Eigen::AlignedBox3d> boxes;
-  for (int v = 0; v < vertices; ++v) {
+  for (int v : surface)
     boxes.emplace_back(point(x, v).array() - 0.5 * close, point(x, v).array() + 0.5 * close);
-  }
   const BoxHash hash(boxes);
   double closest = std::numeric_limits<double>::infinity();
-  for (int v = 0; v < vertices; ++v) {
-    for (int u : hash.overlapping(boxes[static_cast<size_t>(v)])) {
+  for (std::size_t i = 0; i < surface.size(); ++i) {
+    for (int j : hash.overlapping(boxes[i])) {
+      const int v = surface[i], u = surface[static_cast<std::size_t>(j)];
       if (u <= v || neighbours.count({v, u})) continue;
       closest = std::min(closest, (point(x, v) - point(x, u)).norm());
     }
@@ -163,16 +165,17 @@ ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::Matrix
   for (Eigen::Index f = 0; f < triangles.rows(); ++f)
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) neighbours.insert({triangles(f, a), triangles(f, b)});
+  std::set<int> on_surface(triangles.data(), triangles.data() + triangles.size());
+  const std::vector<int> surface(on_surface.begin(), on_surface.end());
   ContactSummary s;
   s.frames = static_cast<int>(positions.rows());
   s.closest = std::numeric_limits<double>::infinity();
-  const int vertices = triangles.size() ? triangles.maxCoeff() + 1 : 0;
   for (Eigen::Index f = 0; f < positions.rows(); ++f) {
     const Eigen::VectorXd x = positions.row(f).cast<double>().transpose();
     const int pairs = count_intersecting_pairs(x, triangles);
     s.frames_intersecting += pairs > 0;
     s.worst_intersecting = std::max(s.worst_intersecting, pairs);
-    const double closest = closest_non_neighbours(x, neighbours, vertices, close_distance);
+    const double closest = closest_non_neighbours(x, neighbours, surface, close_distance);
     s.frames_close += closest < close_distance;
     s.closest = std::min(s.closest, closest);
   }

@@ -102,6 +102,26 @@ SheetOutcome throw_sheet(bool self_collision) {
   return out;
 }
 
+// The close count measures the colliding surface: a vertex of no triangle
+// (a rod's, a stem frame's point at the end of a brace) numbered among the
+// surface's vertices is not one of its points, however near a leaf it lies.
+TEST(ContactSummary, OnlySurfaceVerticesCountAsClose) {
+  Eigen::MatrixXi triangles(2, 3);
+  triangles << 0, 1, 2, 4, 5, 6;  // vertex 3 is on no triangle
+  const double gap = 0.01;        // between the two triangles, m
+  const std::vector<Vector3d> points = {Vector3d(0, 0, 0),     Vector3d(0.1, 0, 0), Vector3d(0, 0.1, 0),
+                                        Vector3d(0.001, 0, 0), Vector3d(0, 0, gap), Vector3d(0.1, 0, gap),
+                                        Vector3d(0, 0.1, gap)};
+  MatrixXfR frames(1, 3 * static_cast<Eigen::Index>(points.size()));
+  for (std::size_t v = 0; v < points.size(); ++v)
+    for (int c = 0; c < 3; ++c)
+      frames(0, 3 * static_cast<Eigen::Index>(v) + c) = static_cast<float>(points[v][c]);
+  const ContactSummary wide = summarize_contact(frames, triangles, 0.02);
+  EXPECT_EQ(wide.frames_close, 1);
+  EXPECT_NEAR(wide.closest, gap, 1e-6) << "vertex 3, 1 mm from vertex 0, does not count";
+  EXPECT_EQ(summarize_contact(frames, triangles, 0.005).frames_close, 0);
+}
+
 TEST(SelfCollision, WithoutItASheetPassesThroughAnother) {
   const auto o = throw_sheet(false);
   EXPECT_LT(o.upper_y, o.lower_under_y);
