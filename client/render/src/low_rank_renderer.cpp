@@ -245,9 +245,9 @@ struct LowRankRenderer::Impl {
   bool split = false;
   bool half = false;  // U_u and U_a as 16-bit floats (--half)
   BasisLayout layout = BasisLayout::point_tiles;
-  // The compute pass's reads (ComputeReads): buffer textures over the storage
-  // buffers, on the texture units numbered as their bindings, made when the
-  // storage is; texel_eval_program is linked the first time it runs.
+  // The compute passes' reads (ComputeReads): buffer textures over the
+  // storage buffers, on the texture units numbered as their bindings, made
+  // when the storage is; the texel programs are linked the first time they run.
   ComputeReads reads = ComputeReads::storage_buffers;
   std::array<Texture, kBindingCount> texel_views;
   std::array<std::size_t, kBindingCount> storage_bytes{};
