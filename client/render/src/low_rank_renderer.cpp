@@ -69,8 +69,8 @@ constexpr int kHeapBlock = 32 << 20;  // glibc's largest mmap threshold on 64-bi
 
 void keep_freed_heap() {
 #if defined(__GLIBC__)
-  static const bool kept =
-      mallopt(M_TRIM_THRESHOLD, kKeptHeap) == 1 && mallopt(M_MMAP_THRESHOLD, kHeapBlock) == 1;
+  // Each is set on its own (a refused one leaves the other's effect); once per process.
+  static const int kept = mallopt(M_TRIM_THRESHOLD, kKeptHeap) + mallopt(M_MMAP_THRESHOLD, kHeapBlock);
   (void)kept;
 #endif
 }
