@@ -18,8 +18,8 @@
 #define PHASECAST_BINDING_POINT_FLAGS 4         // bit 0 deformable, bit 1 attached
 #define PHASECAST_BINDING_REST_NORMALS 5        // 3S
 #define PHASECAST_BINDING_REDUCED 6             // per instance: q_u (r_u4 vec4s) then q_a (r_a4)
-#define PHASECAST_BINDING_MEAN_DOTTED 7         // [instance][S]: xyz = M-bar_c . L_c
-#define PHASECAST_BINDING_BASIS_DOTTED 8        // [instance] tiled, W = 3 r_a4: (U_a . L)_j of channel c at c r_a4 + b
+#define PHASECAST_BINDING_MEAN_DOTTED 7         // [dotted copy][S]: xyz = M-bar_c . L_c
+#define PHASECAST_BINDING_BASIS_DOTTED 8        // [dotted copy] tiled, W = 3 r_a4: (U_a . L)_j of channel c at c r_a4 + b
 #define PHASECAST_BINDING_INSTANCES 9           // per instance: placement, support, lights
 #define PHASECAST_BINDING_EVALUATED 10          // low_rank.comp's output: 6 floats per point and instance
 #define PHASECAST_BINDING_COUNT 11

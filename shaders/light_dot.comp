@@ -49,14 +49,14 @@ vec4 U_a_at(uint i) {
 }
 uint flags_at(uint v) { return texelFetch(flags_texels, int(v)).x; }
 #endif
-layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [instance][S]: xyz = M_bar_c . L_c
-layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [instance] tiled, [3][r_a4] per point: (U_a . L)_j
+layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) writeonly buffer MeanDotted { vec4 M_dot[]; };   // [dotted copy][S]: xyz = M_bar_c . L_c
+layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) writeonly buffer BasisDotted { vec4 U_dot[]; };  // [dotted copy] tiled, [3][r_a4] per point: (U_a . L)_j
 
 const int r_a4 = PHASECAST_R_A4;  // defined by the renderer (low_rank_eval.glsl)
 
 uniform vec4 light[24];  // the instance's, as in low_rank.vert: its frame at 0, its support frame at 12
 uniform int points;      // points to dot: S, or the block's (low_rank.vert, "point blocks")
-uniform int out_base;    // where the instance's dotted values start (each instance sees the light its own way)
+uniform int out_base;    // where the dotted copy's values start (one copy per light the instances see)
 
 void main() {
   uint v = gl_GlobalInvocationID.x;

@@ -17,8 +17,8 @@ layout(std430, binding = PHASECAST_BINDING_DISPLACEMENT_BASIS) readonly buffer D
 layout(std430, binding = PHASECAST_BINDING_POINT_FLAGS) readonly buffer PointFlags { uint flags[]; };         // bit 0 deformable, 1 attached
 layout(std430, binding = PHASECAST_BINDING_REST_NORMALS) readonly buffer RestNormals { float normals[]; };     // 3S
 layout(std430, binding = PHASECAST_BINDING_REDUCED) readonly buffer Reduced { vec4 q[]; };                // [instance]: q_u (r_u4) then q_a (r_a4)
-layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) readonly buffer MeanDotted { vec4 M_dot[]; };         // [instance][S]: xyz = M_bar_c . L_c
-layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) readonly buffer BasisDotted { vec4 U_dot[]; };        // [instance] tiled, 3 r_a4 per point: (U_a . L)_j
+layout(std430, binding = PHASECAST_BINDING_MEAN_DOTTED) readonly buffer MeanDotted { vec4 M_dot[]; };         // [dotted copy][S]: xyz = M_bar_c . L_c
+layout(std430, binding = PHASECAST_BINDING_BASIS_DOTTED) readonly buffer BasisDotted { vec4 U_dot[]; };        // [dotted copy] tiled, 3 r_a4 per point: (U_a . L)_j
 
 // SH light, coefficient 16c + k in light[base + 4c + k / 4][k % 4]; base 0 is
 // the world light rotated into the instance's frame, base 12 the same light
@@ -52,7 +52,7 @@ vec4 light_of(uint i, int k) { return instances[i].light[k]; }
 uint dotted_copy_of(uint i) { return uint(instances[i].dotted.x); }
 #else
 // The same buffers read as buffer textures on the texture units numbered as
-// their storage bindings (low_rank.comp on llvmpipe, ComputeReads): Mesa 22's
+// their storage bindings (low_rank.comp and light_dot.comp on llvmpipe, ComputeReads): Mesa 22's
 // llvmpipe loads from a storage buffer one lane at a time, with a branch per
 // lane and value, while a texel fetch is one gather for all lanes
 // (docs/performance-client.md). The values and the sums are the same.

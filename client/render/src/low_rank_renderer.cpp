@@ -69,8 +69,12 @@ constexpr int kHeapBlock = 32 << 20;  // glibc's largest mmap threshold on 64-bi
 
 void keep_freed_heap() {
 #if defined(__GLIBC__)
-  // Each is set on its own (a refused one leaves the other's effect); once per process.
-  static const int kept = mallopt(M_TRIM_THRESHOLD, kKeptHeap) + mallopt(M_MMAP_THRESHOLD, kHeapBlock);
+  // Once per process, each on its own (a refused one leaves the other set).
+  static const bool kept = [] {
+    mallopt(M_TRIM_THRESHOLD, kKeptHeap);
+    mallopt(M_MMAP_THRESHOLD, kHeapBlock);
+    return true;
+  }();
   (void)kept;
 #endif
 }
@@ -121,7 +125,8 @@ std::vector<std::uint32_t> point_flags(const ClientBasis& basis) {
 // placement and support (column-major mat4s), 24 vec4s of light, then the
 // light-dotted copy its points read.
 constexpr std::size_t kInstanceFloats = 4 * PHASECAST_INSTANCE_VEC4S;
-static_assert(kInstanceFloats == 16 + 16 + 96 + 4);
+constexpr std::size_t kDottedCopyFloat = 16 + 16 + 96;  // where the dotted copy's number goes
+static_assert(kInstanceFloats == kDottedCopyFloat + 4);
 using Lights = std::array<float, 96>;  // an instance's packed lights (instance_lights)
 
 // Support transform (3x4 row-major, support -> world) as a 4x4 for GLSL.
@@ -415,8 +420,6 @@ struct LowRankRenderer::Impl {
       case kRestNormals:
         return {GL_RGB32F, 12};
       case kDisplacementBasis:
-        return half ? std::pair<GLenum, std::size_t>{GL_RG32UI, 8}
-                    : std::pair<GLenum, std::size_t>{GL_RGBA32F, 16};
       case kTransferBasis:
         return half ? std::pair<GLenum, std::size_t>{GL_RG32UI, 8}
                     : std::pair<GLenum, std::size_t>{GL_RGBA32F, 16};
@@ -624,7 +627,7 @@ struct LowRankRenderer::Impl {
     dotted_copy.assign(frames.size(), 0);
     if (has_transfer) update_light_dotted(lights);
     for (std::size_t i = 0; i < frames.size(); ++i)
-      instances[i * kInstanceFloats + 128] = static_cast<float>(dotted_copy[i]);
+      instances[i * kInstanceFloats + kDottedCopyFloat] = static_cast<float>(dotted_copy[i]);
     program.use();  // update_light_dotted may have switched to dot_program
     gl.glBindBuffer(GL_SHADER_STORAGE_BUFFER, storage[kInstances].get());
     gl.glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, byte_size(instances), instances.data());
@@ -795,9 +798,9 @@ struct LowRankRenderer::Impl {
     if (!split) {
       dispatch(basis.points, 0, basis.points, frames.size());
     } else {
-      gl.glUniform1i(eval_program.uniform("dotted_stride"), 0);
+      gl.glUniform1i(eval.uniform("dotted_stride"), 0);
       for (std::size_t i = 0; i < frames.size(); ++i) {
-        gl.glUniform1i(eval_program.uniform("instance_base"), static_cast<GLint>(i));
+        gl.glUniform1i(eval.uniform("instance_base"), static_cast<GLint>(i));
         for (int first = 0; first < basis.points; first += block_points) {
           const int count = std::min(block_points, basis.points - first);
           bind_point_block(first, count, dotted_copy[i]);
