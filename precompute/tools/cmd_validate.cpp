@@ -8,6 +8,7 @@
 #include "phasecast/precompute/validation/playback.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <fstream>
@@ -19,7 +20,7 @@ namespace {
 
 struct ValidateOptions {
   std::string scene;
-  std::string package;
+  std::vector<std::string> packages;
   std::vector<std::string> schedules;
   int random = 0;
   std::uint64_t seed = 1;
@@ -50,20 +51,22 @@ void print_schedule(const ScheduleFigures& g) {
       g.max_intersecting_pairs);
 }
 
-void print_summary(const char* what, const nlohmann::json& j) {
+void print_summary(const std::string& what, const nlohmann::json& j) {
   fmt::print(
-      "{}: median NRMSE {:.3f}; moving segments with motion ratio in [{}, {}]: {}/{}; switches with "
-      "jump <= {}x local motion: {}/{}; served frames with self-intersections: {}\n",
-      what, j["median_nrmse"].get<double>(), kMotionLow, kMotionHigh, j["moving_segments_within"].get<int>(),
-      j["moving_segments"].get<int>(), kJumpRatio, j["switches_within"].get<int>(), j["switches"].get<int>(),
-      j["frames_with_intersections"].get<int>());
+      "{}: median NRMSE {:.3f}, 90th percentile {:.3f}; moving segments with motion ratio in [{}, {}]: "
+      "{}/{}; "
+      "switches with jump <= {}x local motion: {}/{}; served frames with self-intersections: {}\n",
+      what, j["median_nrmse"].get<double>(), j["p90_nrmse"].get<double>(), kMotionLow, kMotionHigh,
+      j["moving_segments_within"].get<int>(), j["moving_segments"].get<int>(), kJumpRatio,
+      j["switches_within"].get<int>(), j["switches"].get<int>(), j["frames_with_intersections"].get<int>());
 }
 
-void run_validate(const ValidateOptions& o) {
-  const Scene scene = load_scene_file(o.scene);
-  auto package = std::make_shared<const core::ScenePackage>(core::read_package(o.package));
-  const PaletteRules rules = make_palette_rules(scene);
-  std::vector<std::pair<std::string, std::vector<ScheduleItem>>> work;
+struct Schedule {
+  std::string kind;  // "given" or "random"
+  std::vector<ScheduleItem> items;
+};
+
+std::vector<Schedule> schedules_to_play(const ValidateOptions& o, const Scene& scene) {
   std::vector<std::string> given = o.schedules;
   if (given.empty() && o.random == 0) {
     if (scene.standard_schedule.empty())
@@ -72,37 +75,94 @@ void run_validate(const ValidateOptions& o) {
           o.scene));
     given.push_back(scene.standard_schedule);
   }
-  for (const auto& text : given) work.emplace_back("given", parse_schedule(text, scene));
+  std::vector<Schedule> work;
+  for (const auto& text : given) work.push_back({"given", parse_schedule(text, scene)});
+  const PaletteRules rules = make_palette_rules(scene);
   for (int k = 0; k < o.random; ++k)
-    work.emplace_back("random", random_schedule(rules, scene.simulation.frame_dt, o.seed, k, o.items));
-  fmt::print("validate {}: {} against the full simulation, {} schedule(s)\n", scene.name, o.package,
-             work.size());
-  nlohmann::json report = {{"scene", scene.name}, {"package", o.package}, {"seed", o.seed}};
-  ValidationSummary given_summary, random_summary;
+    work.push_back({"random", random_schedule(rules, scene.simulation.frame_dt, o.seed, k, o.items)});
+  return work;
+}
+
+// One package's figures over every schedule, as the report and the summary lines show them.
+struct PackageReport {
+  std::string path;
+  std::shared_ptr<const core::ScenePackage> package;
+  nlohmann::json schedules = nlohmann::json::array();
+  ValidationSummary given, random;
+};
+
+// Every package is read and checked against the scene before anything is simulated.
+std::vector<PackageReport> read_packages(const ValidateOptions& o, const Scene& scene) {
+  std::vector<PackageReport> out;
+  for (const auto& path : o.packages) {
+    auto package = std::make_shared<const core::ScenePackage>(core::read_package(path));
+    try {
+      check_package_of(scene, *package);
+    } catch (const std::invalid_argument& e) {
+      std::string why = e.what();
+      if (why.starts_with("validate: ")) why.erase(0, 10);
+      throw std::invalid_argument(fmt::format("validate: {}: {}", path, why));
+    }
+    PackageReport& r = out.emplace_back();
+    r.path = path;
+    r.package = std::move(package);
+  }
+  return out;
+}
+
+void write_json(const ValidateOptions& o, const Scene& scene, const std::vector<PackageReport>& reports) {
+  const auto report_of = [&](const PackageReport& r) {
+    nlohmann::json j = {
+        {"scene", scene.name}, {"package", r.path}, {"seed", o.seed}, {"schedules", r.schedules}};
+    if (r.given.nrmse.size()) j["summary_given"] = r.given.to_json();
+    if (o.random > 0) j["summary_random"] = r.random.to_json();
+    return j;
+  };
+  nlohmann::json report;
+  if (reports.size() == 1) {
+    report = report_of(reports.front());
+  } else {
+    report = {{"scene", scene.name}, {"seed", o.seed}, {"packages", nlohmann::json::array()}};
+    for (const auto& r : reports) report["packages"].push_back(report_of(r));
+  }
+  std::ofstream out(o.json);
+  out << report.dump(2) << "\n";
+  out.close();
+  if (!out) throw std::runtime_error(fmt::format("validate: cannot write --json '{}'", o.json));
+  fmt::print("wrote {}\n", o.json);
+}
+
+void run_validate(const ValidateOptions& o) {
+  const Scene scene = load_scene_file(o.scene);
+  std::vector<PackageReport> reports = read_packages(o, scene);
+  const std::vector<Schedule> work = schedules_to_play(o, scene);
+  fmt::print("validate {}: {} against the full simulation, {} schedule(s)\n", scene.name,
+             fmt::join(o.packages, ", "), work.size());
+  ValidationOptions v;
+  v.intersections = !o.no_intersections;
   for (size_t i = 0; i < work.size(); ++i) {
     const auto& [kind, schedule] = work[i];
     fmt::print("schedule {}/{} ({}): {}\n", i + 1, work.size(), kind, schedule_text(scene, schedule));
     core::ProgressBar bar(fmt::format("simulate {}/{}", i + 1, work.size()));
-    ValidationOptions v;
-    v.intersections = !o.no_intersections;
-    v.progress = [&bar](int done, int total) { bar.update(done, total); };
-    const ScheduleFigures g = validate_schedule(scene, package, schedule, v);
+    const SimulatedSchedule truth =
+        simulate_truth(scene, schedule, [&bar](int done, int total) { bar.update(done, total); });
     bar.finish();
-    print_schedule(g);
-    (kind == "given" ? given_summary : random_summary).add(g);
-    auto j = to_json(g);
-    j["kind"] = kind;
-    report["schedules"].push_back(std::move(j));
+    for (auto& r : reports) {
+      if (reports.size() > 1) fmt::print(" {}:\n", r.path);
+      const ScheduleFigures g = compare_playback(scene, r.package, truth, v);
+      print_schedule(g);
+      (kind == "given" ? r.given : r.random).add(g);
+      auto j = to_json(g);
+      j["kind"] = kind;
+      r.schedules.push_back(std::move(j));
+    }
   }
-  if (!given.empty()) print_summary("given schedules", report["summary_given"] = given_summary.to_json());
-  if (o.random > 0) print_summary("random schedules", report["summary_random"] = random_summary.to_json());
-  if (!o.json.empty()) {
-    std::ofstream out(o.json);
-    out << report.dump(2) << "\n";
-    out.close();
-    if (!out) throw std::runtime_error(fmt::format("validate: cannot write --json '{}'", o.json));
-    fmt::print("wrote {}\n", o.json);
+  for (const auto& r : reports) {
+    const std::string of = reports.size() > 1 ? r.path + ": " : "";
+    if (r.given.nrmse.size()) print_summary(of + "given schedules", r.given.to_json());
+    if (o.random > 0) print_summary(of + "random schedules", r.random.to_json());
   }
+  if (!o.json.empty()) write_json(o, scene, reports);
 }
 
 }  // namespace
@@ -116,7 +176,10 @@ void add_validate_command(CLI::App& app) {
       "the same frames through the server's synthesis engine, and report NRMSE, motion ratios, blend jumps, "
       "speeds at IRF ends and self-intersections.");
   cmd->add_option("scene", o->scene, "scene file (.toml)")->required();
-  cmd->add_option("package", o->package, "scene package of that scene (.h5)")->required();
+  cmd->add_option("packages", o->packages,
+                  "scene packages of that scene (.h5); several are measured on the same simulations, each "
+                  "schedule simulated once")
+      ->required();
   cmd->add_option(
       "--schedule", o->schedules,
       "schedule \"open 0.8; stop 1.5; ...\" (repeatable; default: the scene's [validation] schedule)");

@@ -30,15 +30,6 @@ std::uint64_t stream(std::uint64_t seed, std::uint64_t purpose) {
 constexpr std::uint64_t kGuide = 0x6775696465ULL;     // "guide"
 constexpr std::uint64_t kDirected = 0x6469726563ULL;  // "direc"
 
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const double at = p * static_cast<double>(v.size() - 1);
-  const auto lo = static_cast<size_t>(std::floor(at));
-  const size_t hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
-}
-
 // How far a segment plays from the target: out of the motion range first
 // (|log ratio| plus 1, so any such segment ranks above any NRMSE one), then
 // its NRMSE above the median target; 0 when it plays within both.
@@ -104,8 +95,8 @@ FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& p
   f.schedules = static_cast<int>(summary.nrmse.size());
   f.seed = seed;
   f.items = items;
-  f.median_nrmse = percentile(summary.nrmse, 0.5);
-  f.p90_nrmse = percentile(summary.nrmse, 0.9);
+  f.median_nrmse = summary.median_nrmse();
+  f.p90_nrmse = summary.p90_nrmse();
   f.moving = summary.moving;
   f.moving_within = summary.moving_within;
   f.switches = summary.switches;

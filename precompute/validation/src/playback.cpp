@@ -146,6 +146,16 @@ void check_render_surface(const Scene& scene, const RenderSurface& surface, cons
   }
 }
 
+void check_package_of(const Scene& scene, const RenderSurface& surface, const core::ScenePackage& package) {
+  const double dt = scene.simulation.frame_dt;
+  if (std::abs(package.attributes.dt - dt) > 1e-9 || package.attributes.scene != scene.name) {
+    throw std::invalid_argument(
+        fmt::format("validate: package of scene '{}' at dt {} s does not match scene file '{}' at dt {} s",
+                    package.attributes.scene, package.attributes.dt, scene.name, dt));
+  }
+  check_render_surface(scene, surface, package.mesh);
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
@@ -177,18 +187,24 @@ void ValidationSummary::add(const ScheduleFigures& g) {
   intersecting_frames += g.frames_with_intersections;
 }
 
-double ValidationSummary::median_nrmse() const {
+double ValidationSummary::nrmse_percentile(double p) const {
   if (nrmse.empty()) return 0;
   std::vector<double> v = nrmse;
   std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : (v[n / 2 - 1] + v[n / 2]) / 2;
+  const double at = p * static_cast<double>(v.size() - 1);
+  const auto lo = static_cast<size_t>(std::floor(at));
+  const size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
 }
 
 nlohmann::json ValidationSummary::to_json() const {
-  return {{"median_nrmse", median_nrmse()},          {"moving_segments", moving},
-          {"moving_segments_within", moving_within}, {"switches", switches},
-          {"switches_within", switches_within},      {"frames_with_intersections", intersecting_frames}};
+  return {{"median_nrmse", median_nrmse()},
+          {"p90_nrmse", p90_nrmse()},
+          {"moving_segments", moving},
+          {"moving_segments_within", moving_within},
+          {"switches", switches},
+          {"switches_within", switches_within},
+          {"frames_with_intersections", intersecting_frames}};
 }
 
 std::string schedule_text(const Scene& scene, const std::vector<ScheduleItem>& schedule) {
@@ -199,18 +215,29 @@ std::string schedule_text(const Scene& scene, const std::vector<ScheduleItem>& s
   return s;
 }
 
+void check_package_of(const Scene& scene, const core::ScenePackage& package) {
+  check_package_of(scene, render_surface(scene), package);
+}
+
+SimulatedSchedule simulate_truth(const Scene& scene, const std::vector<ScheduleItem>& schedule,
+                                 const ProgressCallback& progress) {
+  const OrbitStore truth = simulate_schedule(scene, schedule, progress);
+  return {schedule, embedded_frames(render_surface(scene), truth.positions)};
+}
+
 ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core::ScenePackage> package,
                                   const std::vector<ScheduleItem>& schedule, const ValidationOptions& o) {
-  const double dt = scene.simulation.frame_dt;
-  if (std::abs(package->attributes.dt - dt) > 1e-9 || package->attributes.scene != scene.name) {
-    throw std::invalid_argument(
-        fmt::format("validate: package of scene '{}' at dt {} s does not match scene file '{}' at dt {} s",
-                    package->attributes.scene, package->attributes.dt, scene.name, dt));
-  }
+  check_package_of(scene, *package);
+  return compare_playback(scene, package, simulate_truth(scene, schedule, o.progress), o);
+}
+
+ScheduleFigures compare_playback(const Scene& scene, std::shared_ptr<const core::ScenePackage> package,
+                                 const SimulatedSchedule& truth, const ValidationOptions& o) {
   const RenderSurface surface = render_surface(scene);
-  check_render_surface(scene, surface, package->mesh);
-  const OrbitStore truth = simulate_schedule(scene, schedule, o.progress);
-  const Eigen::MatrixXd sim = embedded_frames(surface, truth.positions);
+  check_package_of(scene, surface, *package);
+  const double dt = scene.simulation.frame_dt;
+  const std::vector<ScheduleItem>& schedule = truth.items;
+  const Eigen::MatrixXd& sim = truth.frames;
   const int N = static_cast<int>(sim.rows());
   std::vector<int> starts;
   for (int f = 0; const auto& item : schedule) starts.push_back(f), f += schedule_frames(item.duration, dt);

@@ -271,5 +271,44 @@ TEST(ValidateCli, WritesEveryFigureAsJsonAndRejectsAMissingSchedule) {
   EXPECT_NE(other.err.find("does not match scene file"), std::string::npos) << other.err;
 }
 
+// Several packages of one scene are measured on one simulation per schedule:
+// each gets the figures it gets alone, and a package of another scene is
+// refused, by its path, before anything is simulated.
+TEST(ValidateCli, SeveralPackagesAreMeasuredOnTheSameSimulations) {
+  const auto dir = testing::scratch_dir("validate_several");
+  auto still = *package();
+  still.portrait.q_u.setZero();
+  core::write_package(still, dir / "still.h5");
+  const auto both =
+      testing::run_tool("phasecast-precompute",
+                        {"validate", kScene.string(), kPackage.string(), (dir / "still.h5").string(),
+                         "--schedule", kStandard, "--random", "1", "--json", (dir / "both.json").string()});
+  ASSERT_EQ(both.exit_code, 0) << both.err;
+  const auto alone = testing::run_tool(
+      "phasecast-precompute", {"validate", kScene.string(), kPackage.string(), "--schedule", kStandard,
+                               "--random", "1", "--json", (dir / "alone.json").string()});
+  ASSERT_EQ(alone.exit_code, 0) << alone.err;
+  nlohmann::json j, one;
+  std::ifstream(dir / "both.json") >> j;
+  std::ifstream(dir / "alone.json") >> one;
+  ASSERT_EQ(j["packages"].size(), 2u);
+  EXPECT_EQ(j["packages"][0]["schedules"], one["schedules"]);
+  EXPECT_EQ(j["packages"][0]["summary_random"], one["summary_random"]);
+  EXPECT_GT(j["packages"][1]["summary_given"]["median_nrmse"].get<double>(), 0.8);  // the still package
+  EXPECT_LT(j["packages"][0]["summary_given"]["median_nrmse"].get<double>(), 0.5);
+  EXPECT_NE(both.out.find(kPackage.string() + ": given schedules: median NRMSE"), std::string::npos)
+      << both.out;
+  EXPECT_NE(both.out.find("still.h5: random schedules: median NRMSE"), std::string::npos) << both.out;
+  EXPECT_NE(both.out.find("90th percentile"), std::string::npos);
+
+  const auto plant = phasecast::testing::source_dir() / "tests/data/packages/plant_pot.h5";
+  const auto mixed = testing::run_tool("phasecast-precompute",
+                                       {"validate", kScene.string(), kPackage.string(), plant.string()});
+  EXPECT_NE(mixed.exit_code, 0);
+  EXPECT_NE(mixed.err.find("validate: " + plant.string() + ": package of scene"), std::string::npos)
+      << mixed.err;
+  EXPECT_EQ(mixed.out.find("schedule 1/"), std::string::npos) << "nothing is simulated: " << mixed.out;
+}
+
 }  // namespace
 }  // namespace phasecast::precompute

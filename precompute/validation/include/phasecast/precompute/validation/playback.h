@@ -70,6 +70,21 @@ ScheduleFigures validate_schedule(const Scene& scene, std::shared_ptr<const core
                                   const std::vector<ScheduleItem>& schedule,
                                   const ValidationOptions& options = {});
 
+// The same in two steps, so one simulation measures several packages of a
+// scene: the truth of a schedule on the render surface, then each package's
+// playback against it.
+struct SimulatedSchedule {
+  std::vector<ScheduleItem> items;
+  Eigen::MatrixXd frames;  // N x 3P: the render surface's points, frame by frame
+};
+SimulatedSchedule simulate_truth(const Scene& scene, const std::vector<ScheduleItem>& schedule,
+                                 const ProgressCallback& progress = {});
+ScheduleFigures compare_playback(const Scene& scene, std::shared_ptr<const core::ScenePackage> package,
+                                 const SimulatedSchedule& truth, const ValidationOptions& options = {});
+// Throws, naming both, when `package` is not a package of `scene` (name, dt,
+// render surface at rest): before anything is simulated.
+void check_package_of(const Scene& scene, const core::ScenePackage& package);
+
 // The `index`-th random schedule of `items` entries: drawn as the sampler
 // draws (palette rules, the support's range, T in (t_min, t_max) clipped to
 // the range), from an independent random stream, starting from rest.
@@ -92,7 +107,10 @@ struct ValidationSummary {
   int moving = 0, moving_within = 0, switches = 0, switches_within = 0, intersecting_frames = 0;
 
   void add(const ScheduleFigures& figures);
-  double median_nrmse() const;
+  double median_nrmse() const { return nrmse_percentile(0.5); }
+  double p90_nrmse() const { return nrmse_percentile(0.9); }
+  double nrmse_percentile(
+      double p) const;  // linear between ranks: the median of an even count is the middle mean
   nlohmann::json to_json() const;
 };
 
