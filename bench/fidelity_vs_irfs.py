@@ -18,6 +18,7 @@ import json
 import os
 import subprocess
 import time
+import tomllib
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEFAULT_SCENES = ["scenes/cloth_door.toml", "scenes/toy_dashboard.toml", "scenes/plant_pot.toml"]
@@ -101,7 +102,6 @@ def main():
 def standard_of(scene):
     """The scene's [validation] schedule (validate plays it when given no --schedule; here it is named
     so that the random schedules play beside it)."""
-    import tomllib
     with open(os.path.join(ROOT, scene), "rb") as f:
         return tomllib.load(f)["validation"]["schedule"]
 

@@ -96,13 +96,7 @@ std::vector<PackageReport> read_packages(const ValidateOptions& o, const Scene& 
   std::vector<PackageReport> out;
   for (const auto& path : o.packages) {
     auto package = std::make_shared<const core::ScenePackage>(core::read_package(path));
-    try {
-      check_package_of(scene, *package);
-    } catch (const std::invalid_argument& e) {
-      std::string why = e.what();
-      if (why.starts_with("validate: ")) why.erase(0, 10);
-      throw std::invalid_argument(fmt::format("validate: {}: {}", path, why));
-    }
+    check_package_of(scene, *package, path);
     PackageReport& r = out.emplace_back();
     r.path = path;
     r.package = std::move(package);

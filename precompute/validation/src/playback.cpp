@@ -130,7 +130,8 @@ Eigen::MatrixXd embedded_frames(const RenderSurface& surface, const MatrixXfR& f
 }
 
 // The package's first P scene points must be the scene's render surface at rest.
-void check_render_surface(const Scene& scene, const RenderSurface& surface, const core::SceneMesh& mesh) {
+void check_render_surface(const Scene& scene, const RenderSurface& surface, const core::SceneMesh& mesh,
+                          const std::string& who) {
   const MatrixXfR rest = embed_positions(surface.embedding(), scene.model.rest.cast<float>());
   const Eigen::Index P = surface.points();
   const bool same =
@@ -138,22 +139,25 @@ void check_render_surface(const Scene& scene, const RenderSurface& surface, cons
                                     .cwiseAbs()
                                     .maxCoeff() <= 1e-5f;
   if (!same) {
-    throw std::invalid_argument(
-        fmt::format("validate: the package's scene points are not the {} render-surface points of scene file "
-                    "'{}' (was the "
-                    "package built from another version of it?)",
-                    P, scene.name));
+    throw std::invalid_argument(fmt::format(
+        "validate: {}the package's scene points are not the {} render-surface points of scene file "
+        "'{}' (was the "
+        "package built from another version of it?)",
+        who, P, scene.name));
   }
 }
 
-void check_package_of(const Scene& scene, const RenderSurface& surface, const core::ScenePackage& package) {
+// `path`, when given, names the package in the messages.
+void check_package_of(const Scene& scene, const RenderSurface& surface, const core::ScenePackage& package,
+                      const std::string& path = {}) {
+  const std::string who = path.empty() ? "" : path + ": ";
   const double dt = scene.simulation.frame_dt;
   if (std::abs(package.attributes.dt - dt) > 1e-9 || package.attributes.scene != scene.name) {
     throw std::invalid_argument(
-        fmt::format("validate: package of scene '{}' at dt {} s does not match scene file '{}' at dt {} s",
-                    package.attributes.scene, package.attributes.dt, scene.name, dt));
+        fmt::format("validate: {}package of scene '{}' at dt {} s does not match scene file '{}' at dt {} s",
+                    who, package.attributes.scene, package.attributes.dt, scene.name, dt));
   }
-  check_render_surface(scene, surface, package.mesh);
+  check_render_surface(scene, surface, package.mesh, who);
 }
 
 double median(std::vector<double> v) {
@@ -215,8 +219,8 @@ std::string schedule_text(const Scene& scene, const std::vector<ScheduleItem>& s
   return s;
 }
 
-void check_package_of(const Scene& scene, const core::ScenePackage& package) {
-  check_package_of(scene, render_surface(scene), package);
+void check_package_of(const Scene& scene, const core::ScenePackage& package, const std::string& path) {
+  check_package_of(scene, render_surface(scene), package, path);
 }
 
 SimulatedSchedule simulate_truth(const Scene& scene, const std::vector<ScheduleItem>& schedule,

@@ -81,9 +81,10 @@ SimulatedSchedule simulate_truth(const Scene& scene, const std::vector<ScheduleI
                                  const ProgressCallback& progress = {});
 ScheduleFigures compare_playback(const Scene& scene, std::shared_ptr<const core::ScenePackage> package,
                                  const SimulatedSchedule& truth, const ValidationOptions& options = {});
-// Throws, naming both, when `package` is not a package of `scene` (name, dt,
-// render surface at rest): before anything is simulated.
-void check_package_of(const Scene& scene, const core::ScenePackage& package);
+// Throws, naming both (and `path`, when given), when `package` is not a
+// package of `scene` (name, dt, render surface at rest): before anything is
+// simulated.
+void check_package_of(const Scene& scene, const core::ScenePackage& package, const std::string& path = {});
 
 // The `index`-th random schedule of `items` entries: drawn as the sampler
 // draws (palette rules, the support's range, T in (t_min, t_max) clipped to
@@ -109,8 +110,8 @@ struct ValidationSummary {
   void add(const ScheduleFigures& figures);
   double median_nrmse() const { return nrmse_percentile(0.5); }
   double p90_nrmse() const { return nrmse_percentile(0.9); }
-  double nrmse_percentile(
-      double p) const;  // linear between ranks: the median of an even count is the middle mean
+  // Linear between ranks: the median of an even count is the mean of the middle two.
+  double nrmse_percentile(double p) const;
   nlohmann::json to_json() const;
 };
 
