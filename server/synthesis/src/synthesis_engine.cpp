@@ -124,14 +124,15 @@ PhaseState state_now(const SceneModel& s, const InstanceState& st) {
   return x;
 }
 
-// Starts IRF `irf` of entry `entry` from state x' (eq. 12: offset x' - x_start, decaying from t = 0).
-void start_irf(const SceneModel& s, InstanceState& st, int entry, int irf, const PhaseState& x) {
+// Plays IRF `irf` of entry `entry` from its step `t` (0: its start) and state
+// x' (eq. 12: offset x' - x_node, decaying from then on).
+void start_irf(const SceneModel& s, InstanceState& st, int entry, int irf, const PhaseState& x, int t = 0) {
   const auto& pp = s.data->portrait;
-  const int start = pp.irf_start[at(irf)];
+  const int start = pp.irf_start[at(irf)] + t;
   st.mode = Mode::playing;
   st.palette_index = entry;
   st.irf = irf;
-  st.irf_t = 0;
+  st.irf_t = static_cast<std::uint32_t>(t);
   st.offset_q_u = x.q_u - pp.q_u.row(start).transpose();
   st.offset_qdot_u = x.qdot_u - pp.qdot_u.row(start).transpose();
   st.offset_q_a = x.q_a - pp.q_a.row(start).transpose();
@@ -155,10 +156,15 @@ void come_to_rest(const SceneModel& s, InstanceState& st) {
 }
 
 // End of the IRF of entry d (/palette/on_end): rest, or continue blended on
-// the nearest IRF of the same entry (hold: the forcing persists) or of the
-// follow-up entry.
+// the follow-up entry's nearest IRF, or (hold: the forcing persists) at the
+// IRF's orbit extension, a node inside another IRF of the same entry.
 void end_of_irf(const SceneModel& s, InstanceState& st, std::int32_t rule) {
   const int d = st.palette_index;
+  const auto& extension = s.extension[at(st.irf)];
+  if (rule == core::kEndHold && extension.irf >= 0) {
+    start_irf(s, st, d, extension.irf, state_now(s, st), extension.t);
+    return;
+  }
   const int next = rule == core::kEndHold ? d : rule;
   const int irf = next >= 0 ? s.data->portrait.nearest_irf(current_node(s, st), next) : -1;
   if (irf < 0) {
@@ -182,6 +188,69 @@ bool range_reached(const core::SupportKinematics& k, double s) {
 // its range in the entry's direction.
 bool drives_within_range(const core::SupportKinematics& k, double s) {
   return k.pulse_tau == 0 && k.rate != 0 && k.range_max > k.range_min && !range_reached(k, s);
+}
+
+// Whether IRFs of entry d may run out while the interaction persists: it
+// holds (on_end), or it drives a limited support, which the instance keeps
+// driving until the range ends.
+bool may_hold(const core::ImpulsePalette& p, int d) {
+  const auto& k = p.kinematics[at(d)];
+  return p.on_end[at(d)] == core::kEndHold || (k.pulse_tau == 0 && k.rate != 0 && k.range_max > k.range_min);
+}
+
+// Frames an orbit extension leaves at least, so that it is not itself over at once.
+constexpr int kMinExtensionFrames = 2;
+
+// Orbit extension of IRF i (§3.5: orbits "terminating close enough ... to be
+// smoothly blended to other orbits ... can be extended"): of the nodes of the
+// other IRFs of its entry with kMinExtensionFrames left, the one nearest its
+// last node under eq. 9; of those within kSameStateFraction of the portrait's
+// radius of the nearest, the one with the most frames left, then the nearest,
+// then the lowest node. Its start, where the sampled impulse begins, is one of
+// them: the extension is never farther than the IRF cache's nearest start.
+SceneModel::Extension orbit_extension(const core::ScenePackage& pkg, int i, double band) {
+  const auto& pp = pkg.portrait;
+  const int from = pp.irf_start[at(i)] + pp.irf_length[at(i)] - 1;
+  const auto distance = [&](int node) {
+    return core::phase_distance_squared(pp.q_u.row(from), pp.qdot_u.row(from), pp.q_u.row(node),
+                                        pp.qdot_u.row(node), pkg.attributes.beta);
+  };
+  const auto candidates = [&](auto&& visit) {
+    for (int j = 0; j < pp.irf_count(); ++j) {
+      if (j == i || pp.irf_palette[at(j)] != pp.irf_palette[at(i)]) continue;
+      for (int t = 0; t + kMinExtensionFrames <= pp.irf_length[at(j)]; ++t) visit(j, t);
+    }
+  };
+  double nearest = std::numeric_limits<double>::infinity();
+  candidates([&](int j, int t) { nearest = std::min(nearest, distance(pp.irf_start[at(j)] + t)); });
+  const double reach = std::sqrt(nearest) + band;
+  SceneModel::Extension best;
+  int best_left = 0;
+  double best_distance = 0;
+  candidates([&](int j, int t) {
+    const double d = distance(pp.irf_start[at(j)] + t);
+    const int left = pp.irf_length[at(j)] - t;
+    if (std::sqrt(d) > reach) return;
+    if (left > best_left || (left == best_left && d < best_distance)) {
+      best = {j, t};
+      best_left = left;
+      best_distance = d;
+    }
+  });
+  return best;
+}
+
+std::vector<SceneModel::Extension> orbit_extensions(const core::ScenePackage& pkg) {
+  const auto& pp = pkg.portrait;
+  const Eigen::VectorXd radius_squared = pp.q_u.cast<double>().rowwise().squaredNorm() +
+                                         pkg.attributes.beta * pp.qdot_u.cast<double>().rowwise().squaredNorm();
+  const double radius = radius_squared.size() ? std::sqrt(radius_squared.maxCoeff()) : 0.0;
+  const double band = core::kSameStateFraction * radius;
+  std::vector<SceneModel::Extension> extensions(at(pp.irf_count()));
+  for (int i = 0; i < pp.irf_count(); ++i) {
+    if (may_hold(pkg.palette, pp.irf_palette[at(i)])) extensions[at(i)] = orbit_extension(pkg, i, band);
+  }
+  return extensions;
 }
 
 // Displacement pulse of a jolt (pulse_tau > 0): rate * tau e^(-tau / pulse_tau),
@@ -276,6 +345,7 @@ int SynthesisEngine::add_scene(std::shared_ptr<const core::ScenePackage> data,
       s.rest_node = n;
     }
   }
+  s.extension = orbit_extensions(*data);
   s.data = std::move(data);
   scenes_.push_back(std::move(s));
   return static_cast<int>(scenes_.size()) - 1;

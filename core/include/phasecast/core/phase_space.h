@@ -15,6 +15,12 @@
 
 namespace phasecast::core {
 
+// Two states within this fraction of the portrait's radius (the largest
+// sqrt(||q||^2 + beta ||q̇||^2) of its nodes) count as one under eq. 9: of such
+// near-equal candidates the IRF cache and the server's orbit extension take
+// the one with the most frames left to play.
+inline constexpr double kSameStateFraction = 0.01;
+
 template <class QA, class VA, class QB, class VB>
 double phase_distance_squared(const Eigen::MatrixBase<QA>& q_a, const Eigen::MatrixBase<VA>& qdot_a,
                               const Eigen::MatrixBase<QB>& q_b, const Eigen::MatrixBase<VB>& qdot_b,

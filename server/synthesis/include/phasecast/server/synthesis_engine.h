@@ -35,6 +35,15 @@ struct SceneModel {
   double blend_lambda = 1;  // eq. 12 decay rate, 1/s (package value unless overridden)
   int rest_node =
       0;  // IRF start nearest the undeformed rest shape at zero velocity (eq. 9): the settled rest
+  // Where a held interaction goes on when IRF i runs out (§3.5's orbit
+  // extension, chosen at run time): step `t` of another IRF `irf` of the same
+  // entry, the node nearest IRF i's last node under eq. 9. irf = -1 for IRFs
+  // of entries that never hold.
+  struct Extension {
+    std::int32_t irf = -1;
+    std::int32_t t = 0;
+  };
+  std::vector<Extension> extension;  // per IRF
 };
 
 // What an instance is doing (docs/server.md, "Instance states").

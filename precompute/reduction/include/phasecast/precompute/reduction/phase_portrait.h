@@ -4,6 +4,7 @@
 // reference cache. Reduced velocities (eq. 8) are core::orbit_velocities.
 
 #include "phasecast/core/eigen_types.h"
+#include "phasecast/core/phase_space.h"
 
 #include <cstdint>
 #include <vector>
@@ -15,7 +16,7 @@ double default_beta(const MatrixXfR& q_u, const MatrixXfR& qdot_u);
 
 // Starts within this share of the portrait's radius (the largest |[q, sqrt(beta) q̇]|)
 // of the nearest one are one state for playback (measured in docs/sampling.md).
-inline constexpr double kSameStartFraction = 0.01;
+inline constexpr double kSameStartFraction = core::kSameStateFraction;
 
 // §5.2: for every node j and palette entry d, the IRF of entry d to play from
 // node j, or -1 if entry d has no IRF: of the IRFs whose start is within
