@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <compare>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -30,14 +31,24 @@ std::uint64_t stream(std::uint64_t seed, std::uint64_t purpose) {
 constexpr std::uint64_t kGuide = 0x6775696465ULL;     // "guide"
 constexpr std::uint64_t kDirected = 0x6469726563ULL;  // "direc"
 
-// How far a segment plays from the target: out of the motion range first
-// (|log ratio| plus 1, so any such segment ranks above any NRMSE one), then
-// its NRMSE above the median target; 0 when it plays within both.
-double badness(const SegmentFigures& s, double typical, const FidelityTarget& t) {
-  if (!s.refused.empty() || !is_moving(s, typical)) return 0;
+// How far a segment plays from the target, compared tier first: refused
+// (guide schedules follow the palette's rules, so its entry has no IRF cached
+// at the state the user reaches and nothing of it plays), then out of the
+// motion range by |log ratio|, then NRMSE above the median target by how
+// much. {0, 0} when it plays within both.
+struct Badness {
+  int tier = 0;  // 2 refused, 1 motion out of range, 0 NRMSE
+  double amount = 0;
+  auto operator<=>(const Badness&) const = default;
+  bool any() const { return tier > 0 || amount > 0; }
+};
+
+Badness badness(const SegmentFigures& s, double typical, const FidelityTarget& t) {
+  if (!s.refused.empty()) return {2, 0};
+  if (!is_moving(s, typical)) return {};
   if (s.motion_ratio < kMotionLow || s.motion_ratio > kMotionHigh)
-    return 1 + std::abs(std::log(std::max(s.motion_ratio, 1e-6)));
-  return s.nrmse > t.median_nrmse ? s.nrmse / t.median_nrmse - 1 : 0;
+    return {1, std::abs(std::log(std::max(s.motion_ratio, 1e-6)))};
+  return {0, s.nrmse > t.median_nrmse ? s.nrmse / t.median_nrmse - 1 : 0};
 }
 
 int irfs_of(const SampleStageOptions& round) {
@@ -107,7 +118,7 @@ FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& p
 std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
                                                          const FidelityTarget& target, int count) {
   struct Candidate {
-    double badness;
+    Badness badness;
     size_t schedule, segment;
   };
   std::vector<Candidate> candidates;
@@ -115,8 +126,8 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
     const auto& g = played[i].figures;
     const double typical = typical_motion(g);
     for (size_t m = 0; m < g.segments.size() && m < played[i].items.size(); ++m) {
-      const double b = badness(g.segments[m], typical, target);
-      if (b > 0) candidates.push_back({b, i, m});
+      const Badness b = badness(g.segments[m], typical, target);
+      if (b.any()) candidates.push_back({b, i, m});
     }
   }
   // The worst first; equals in schedule and segment order (stable), so every rank picks alike.

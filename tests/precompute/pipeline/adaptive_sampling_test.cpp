@@ -1,0 +1,53 @@
+// The adaptive sampler's choice of where to direct its next chains
+// (docs/sampling.md, "Adaptive sampling"): the worst guide segments first.
+
+#include "phasecast/precompute/pipeline/adaptive_sampling.h"
+
+#include <gtest/gtest.h>
+
+namespace phasecast::precompute {
+namespace {
+
+SegmentFigures moving_segment(double motion_ratio, double nrmse, std::string refused = {}) {
+  SegmentFigures s;
+  s.frames = 20;
+  s.simulated_motion = 1e-3;
+  s.motion_ratio = motion_ratio;
+  s.nrmse = nrmse;
+  s.refused = std::move(refused);
+  return s;
+}
+
+// A schedule of four segments of entries 0..3; `bad` replaces segment `at`.
+PlayedSchedule schedule_with(size_t at, const SegmentFigures& bad) {
+  PlayedSchedule p;
+  for (int k = 0; k < 4; ++k) {
+    p.items.push_back({k, 0.4});
+    p.figures.segments.push_back(moving_segment(1.0, 0.01));
+  }
+  p.figures.segments[at] = bad;
+  return p;
+}
+
+TEST(AdaptiveSampling, RefusedSegmentsComeFirstThenMotionOutOfRangeThenNrmse) {
+  FidelityTarget target;
+  target.median_nrmse = 0.15;
+  const std::vector<PlayedSchedule> played{
+      schedule_with(0, moving_segment(1.0, 0.6)),                                  // NRMSE 4x the target
+      schedule_with(1, moving_segment(3.0, 0.05)),                                 // 3x the simulated motion
+      schedule_with(3, moving_segment(0.0, 1.0, "no IRF of 'close' is cached")),  // the server refused it
+      schedule_with(2, moving_segment(1.0, 0.01)),                                 // plays well throughout
+  };
+  const auto lead_ins = directed_lead_ins(played, target, 4);
+  // Each lead-in is its schedule up to and including the segment to sample.
+  ASSERT_EQ(lead_ins.size(), 3u);
+  EXPECT_EQ(lead_ins[0].size(), 4u);
+  EXPECT_EQ(lead_ins[0].back().entry, 3);
+  EXPECT_EQ(lead_ins[1].size(), 2u);
+  EXPECT_EQ(lead_ins[1].back().entry, 1);
+  EXPECT_EQ(lead_ins[2].size(), 1u);
+  EXPECT_EQ(directed_lead_ins(played, target, 1).size(), 1u);
+}
+
+}  // namespace
+}  // namespace phasecast::precompute
