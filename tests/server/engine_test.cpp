@@ -163,14 +163,18 @@ TEST(Engine, TheDoorKeepsOpeningUntilItsStopThenTheFollowUpThenRest) {
   // by another open IRF: the interaction persists while the door can move.
   auto stop = tick_frame(e, id);
   int frames = 0, irfs = 1;
+  bool extended = false;  // an IRF ran out and play went on inside another (the orbit extension)
   for (int irf = stop.irf; stop.palette_index == kOpen && frames < 10000; stop = tick_frame(e, id)) {
     ++frames;
-    irfs += std::exchange(irf, stop.irf) != stop.irf;
+    const bool switched = std::exchange(irf, stop.irf) != stop.irf;
+    irfs += switched;
+    extended |= switched && stop.irf_t > 0;
   }
   const double swept = frames * pkg.attributes.dt * k.rate;  // on_end(open) = stop, at the range end
   EXPECT_NEAR(swept, k.range_max, k.rate * pkg.attributes.dt + 1e-6) << "the door opened " << swept << " rad";
   EXPECT_GT(frames, pkg.portrait.irf_length[static_cast<size_t>(pkg.portrait.nearest_irf(0, kOpen))]);
   EXPECT_GE(irfs, 2);
+  EXPECT_TRUE(extended);
   EXPECT_EQ(stop.palette_index, kStop);
   EXPECT_EQ(pkg.portrait.irf_palette[static_cast<size_t>(stop.irf)], kStop);
   EXPECT_EQ(stop.irf_t, 0u);
@@ -220,7 +224,10 @@ double node_distance(const core::ScenePackage& pkg, int a, int b) {
 }
 
 TEST(Engine, HoldRuleContinuesAtTheNearestNodeOfAnotherIrfOfTheSameEntry) {
-  auto p = testing::make_plate_package();
+  testing::PlateOptions o;
+  o.irfs_per_entry = 5;  // several other IRFs to choose among
+  o.appearance = false;
+  auto p = testing::make_plate_package(o);
   p.palette.on_end[kOpen] = core::kEndHold;
   p.palette.kinematics[kOpen].rate = 0;  // keep the range from ending it first
   const auto pkg = std::make_shared<const core::ScenePackage>(std::move(p));
@@ -233,25 +240,34 @@ TEST(Engine, HoldRuleContinuesAtTheNearestNodeOfAnotherIrfOfTheSameEntry) {
   const int len = pp.irf_length[static_cast<size_t>(irf)];
   for (int t = 1; t <= len; ++t) f = tick_frame(e, id);
   EXPECT_EQ(f.palette_index, kOpen);
-  // Brute force over every node of the entry's other IRFs with 2 frames left:
-  // the nearest, and of the nodes within 1 % of the portrait's radius of it
-  // (the plate's consecutive nodes are that close) the one with most frames left.
+  // Brute force in double from the state the hold blends from (the last node
+  // one step on): of each other IRF of the entry its nearest node past the
+  // start with 2 frames left; of those within 1 % of the portrait's radius of
+  // the nearest, the one with most frames left.
   const int last_node = pp.irf_start[static_cast<size_t>(irf)] + len - 1;
+  const Eigen::RowVectorXd qdot = pp.qdot_u.row(last_node).cast<double>();
+  const Eigen::RowVectorXd q = pp.q_u.row(last_node).cast<double>() + pkg->attributes.dt * qdot;
+  const auto distance = [&](int node) {
+    return std::sqrt((pp.q_u.row(node).cast<double>() - q).squaredNorm() +
+                     pkg->attributes.beta * (pp.qdot_u.row(node).cast<double>() - qdot).squaredNorm());
+  };
   double radius = 0;
   for (int n = 0; n < pp.nodes(); ++n) radius = std::max(radius, node_distance(*pkg, n, -1));
-  std::vector<std::tuple<double, int, int>> candidates;  // distance, IRF, step
+  std::vector<std::tuple<double, int, int>> nearest_of_each;  // distance, IRF, step
   for (int j = 0; j < pp.irf_count(); ++j) {
     if (j == irf || pp.irf_palette[static_cast<size_t>(j)] != kOpen) continue;
-    for (int t = 0; t + 2 <= pp.irf_length[static_cast<size_t>(j)]; ++t)
-      candidates.emplace_back(node_distance(*pkg, last_node, pp.irf_start[static_cast<size_t>(j)] + t), j, t);
+    std::tuple<double, int, int> c{std::numeric_limits<double>::infinity(), j, -1};
+    for (int t = 1; t + 2 <= pp.irf_length[static_cast<size_t>(j)]; ++t)
+      c = std::min(c, std::tuple(distance(pp.irf_start[static_cast<size_t>(j)] + t), j, t));
+    if (std::get<2>(c) > 0) nearest_of_each.push_back(c);
   }
-  ASSERT_FALSE(candidates.empty());
-  const double nearest = std::get<0>(*std::ranges::min_element(candidates));
+  ASSERT_GE(nearest_of_each.size(), 2u) << "vacuous: the plate needs several other open IRFs";
+  const double nearest = std::get<0>(*std::ranges::min_element(nearest_of_each));
   const auto frames_left = [&](const auto& c) {
     return pp.irf_length[static_cast<size_t>(std::get<1>(c))] - std::get<2>(c);
   };
   std::tuple<double, int, int> expected{0, -1, 0};
-  for (const auto& c : candidates) {
+  for (const auto& c : nearest_of_each) {
     if (std::get<0>(c) > nearest + 0.01 * radius) continue;
     if (std::get<1>(expected) < 0 || frames_left(c) > frames_left(expected) ||
         (frames_left(c) == frames_left(expected) && std::get<0>(c) < std::get<0>(expected)))
@@ -259,10 +275,14 @@ TEST(Engine, HoldRuleContinuesAtTheNearestNodeOfAnotherIrfOfTheSameEntry) {
   }
   EXPECT_EQ(f.irf, std::get<1>(expected));
   EXPECT_EQ(f.irf_t, static_cast<std::uint32_t>(std::get<2>(expected)));
-  EXPECT_GT(std::get<2>(expected), 0) << "vacuous: the extension is an IRF start";
-  // Never farther than the start the IRF cache names: the jump it blends away is at most that one's.
-  const int cached = pp.nearest_irf(last_node, kOpen);
-  EXPECT_LE(nearest, node_distance(*pkg, last_node, pp.irf_start[static_cast<size_t>(cached)]));
+  // Eq. 12 from that node: the offset is taken there and decays from the next frame.
+  const int node = pp.irf_start[static_cast<size_t>(f.irf)] + static_cast<int>(f.irf_t);
+  const auto next = tick_frame(e, id);
+  ASSERT_EQ(next.irf, f.irf);
+  ASSERT_EQ(next.irf_t, f.irf_t + 1);
+  const float w = static_cast<float>(std::exp(-pkg->attributes.blend_lambda * pkg->attributes.dt));
+  const VectorXf expected_q = pp.q_u.row(node + 1).transpose() + w * (f.q_u - pp.q_u.row(node).transpose());
+  EXPECT_LT((next.q_u - expected_q).norm(), 1e-5f * (1 + expected_q.norm()));
 }
 
 TEST(Engine, DoorStopsWhenItReachesTheEndOfItsRange) {

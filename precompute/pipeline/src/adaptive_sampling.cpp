@@ -31,21 +31,21 @@ std::uint64_t stream(std::uint64_t seed, std::uint64_t purpose) {
 constexpr std::uint64_t kGuide = 0x6775696465ULL;     // "guide"
 constexpr std::uint64_t kDirected = 0x6469726563ULL;  // "direc"
 
-// How far a segment plays from the target, compared tier first: refused
-// (guide schedules follow the palette's rules, so its entry has no IRF cached
-// at the state the user reaches and nothing of it plays), then out of the
-// motion range by |log ratio|, then NRMSE above the median target by how
-// much. {0, 0} when it plays within both.
+// How far a segment plays from the target, compared tier first: an entry
+// the package has no IRF of (the server refused it: nothing of it plays),
+// then out of the motion range by |log ratio|, then NRMSE above the median
+// target by how much. {0, 0} when it plays within both, and for segments
+// refused by a palette rule, which a chain of that entry cannot mend.
 struct Badness {
-  int tier = 0;  // 2 refused, 1 motion out of range, 0 NRMSE
+  int tier = 0;  // 2 no IRF of the entry, 1 motion out of range, 0 NRMSE
   double amount = 0;
   auto operator<=>(const Badness&) const = default;
   bool any() const { return tier > 0 || amount > 0; }
 };
 
 Badness badness(const SegmentFigures& s, double typical, const FidelityTarget& t) {
-  if (!s.refused.empty()) return {2, 0};
-  if (!is_moving(s, typical)) return {};
+  if (s.unsampled) return {2, 0};
+  if (!s.refused.empty() || !is_moving(s, typical)) return {};
   if (s.motion_ratio < kMotionLow || s.motion_ratio > kMotionHigh)
     return {1, std::abs(std::log(std::max(s.motion_ratio, 1e-6)))};
   return {0, s.nrmse > t.median_nrmse ? s.nrmse / t.median_nrmse - 1 : 0};

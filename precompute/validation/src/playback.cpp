@@ -260,6 +260,8 @@ ScheduleFigures compare_playback(const Scene& scene, std::shared_ptr<const core:
     SegmentFigures g = segment(sim, served.x, starts[k], schedule_frames(schedule[k].duration, dt), scale);
     g.entry = scene.palette[static_cast<size_t>(schedule[k].entry)].name;
     g.refused = served.refused[k];
+    g.unsampled = !g.refused.empty() && std::ranges::find(package->portrait.irf_palette, schedule[k].entry) ==
+                                            package->portrait.irf_palette.end();
     out.segments.push_back(std::move(g));
   }
   for (int f = 0; f < N; ++f) {

@@ -202,42 +202,45 @@ bool may_hold(const core::ImpulsePalette& p, int d) {
 constexpr int kMinExtensionFrames = 2;
 
 // Orbit extension of IRF i (§3.5: orbits "terminating close enough ... to be
-// smoothly blended to other orbits ... can be extended"): of the nodes of the
-// other IRFs of its entry with kMinExtensionFrames left, the one nearest its
-// last node under eq. 9; of those within kSameStateFraction of the portrait's
-// radius of the nearest, the one with the most frames left, then the nearest,
-// then the lowest node. Its start, where the sampled impulse begins, is one of
-// them: the extension is never farther than the IRF cache's nearest start.
+// smoothly blended to other orbits ... can be extended"), from the state
+// end_of_irf blends from: the last node one step on. Of each other IRF of the
+// entry, its node nearest that state under eq. 9, past its start (a start
+// holds the velocity before the impulse: playing on from it is the onset
+// again) and with kMinExtensionFrames left. Of those IRFs' nodes within
+// kSameStateFraction of the portrait's radius of the nearest, the one with
+// the most frames left, then the nearest, then the lowest IRF: the cache's
+// rule, across IRFs, so that the extension never rewinds along one orbit.
 SceneModel::Extension orbit_extension(const core::ScenePackage& pkg, int i, double band) {
   const auto& pp = pkg.portrait;
-  const int from = pp.irf_start[at(i)] + pp.irf_length[at(i)] - 1;
-  const auto distance = [&](int node) {
-    return core::phase_distance_squared(pp.q_u.row(from), pp.qdot_u.row(from), pp.q_u.row(node),
-                                        pp.qdot_u.row(node), pkg.attributes.beta);
+  const int last = pp.irf_start[at(i)] + pp.irf_length[at(i)] - 1;
+  const VectorXf qdot = pp.qdot_u.row(last).transpose();
+  const VectorXf q = pp.q_u.row(last).transpose() + static_cast<float>(pkg.attributes.dt) * qdot;
+  struct Candidate {
+    SceneModel::Extension at;
+    double distance = std::numeric_limits<double>::infinity();
   };
-  const auto candidates = [&](auto&& visit) {
-    for (int j = 0; j < pp.irf_count(); ++j) {
-      if (j == i || pp.irf_palette[at(j)] != pp.irf_palette[at(i)]) continue;
-      for (int t = 0; t + kMinExtensionFrames <= pp.irf_length[at(j)]; ++t) visit(j, t);
+  std::vector<Candidate> nearest_of_each;
+  for (int j = 0; j < pp.irf_count(); ++j) {
+    if (j == i || pp.irf_palette[at(j)] != pp.irf_palette[at(i)]) continue;
+    Candidate c;
+    for (int t = 1; t + kMinExtensionFrames <= pp.irf_length[at(j)]; ++t) {
+      const int node = pp.irf_start[at(j)] + t;
+      const double d = core::phase_distance_squared(q, qdot, pp.q_u.row(node).transpose(),
+                                                    pp.qdot_u.row(node).transpose(), pkg.attributes.beta);
+      if (d < c.distance) c = {{j, t}, d};
     }
-  };
-  double nearest = std::numeric_limits<double>::infinity();
-  candidates([&](int j, int t) { nearest = std::min(nearest, distance(pp.irf_start[at(j)] + t)); });
+    if (c.at.irf >= 0) nearest_of_each.push_back(c);
+  }
+  if (nearest_of_each.empty()) return {};
+  const double nearest = std::ranges::min(nearest_of_each, {}, &Candidate::distance).distance;
   const double reach = std::sqrt(nearest) + band;
-  SceneModel::Extension best;
-  int best_left = 0;
-  double best_distance = 0;
-  candidates([&](int j, int t) {
-    const double d = distance(pp.irf_start[at(j)] + t);
-    const int left = pp.irf_length[at(j)] - t;
-    if (std::sqrt(d) > reach) return;
-    if (left > best_left || (left == best_left && d < best_distance)) {
-      best = {j, t};
-      best_left = left;
-      best_distance = d;
-    }
-  });
-  return best;
+  const auto left = [&](const Candidate& c) { return pp.irf_length[at(c.at.irf)] - c.at.t; };
+  const Candidate* best = nullptr;
+  for (const auto& c : nearest_of_each) {
+    if (std::sqrt(c.distance) > reach) continue;
+    if (!best || left(c) > left(*best) || (left(c) == left(*best) && c.distance < best->distance)) best = &c;
+  }
+  return best->at;
 }
 
 std::vector<SceneModel::Extension> orbit_extensions(const core::ScenePackage& pkg) {

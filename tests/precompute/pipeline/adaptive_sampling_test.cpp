@@ -8,8 +8,10 @@
 namespace phasecast::precompute {
 namespace {
 
-SegmentFigures moving_segment(double motion_ratio, double nrmse, std::string refused = {}) {
+SegmentFigures moving_segment(double motion_ratio, double nrmse, std::string refused = {},
+                              bool unsampled = false) {
   SegmentFigures s;
+  s.unsampled = unsampled;
   s.frames = 20;
   s.simulated_motion = 1e-3;
   s.motion_ratio = motion_ratio;
@@ -29,14 +31,15 @@ PlayedSchedule schedule_with(size_t at, const SegmentFigures& bad) {
   return p;
 }
 
-TEST(AdaptiveSampling, RefusedSegmentsComeFirstThenMotionOutOfRangeThenNrmse) {
+TEST(AdaptiveSampling, EntriesWithoutIrfsComeFirstThenMotionOutOfRangeThenNrmse) {
   FidelityTarget target;
   target.median_nrmse = 0.15;
   const std::vector<PlayedSchedule> played{
       schedule_with(0, moving_segment(1.0, 0.6)),                                  // NRMSE 4x the target
       schedule_with(1, moving_segment(3.0, 0.05)),                                 // 3x the simulated motion
-      schedule_with(3, moving_segment(0.0, 1.0, "no IRF of 'close' is cached")),  // the server refused it
-      schedule_with(2, moving_segment(1.0, 0.01)),                                 // plays well throughout
+      schedule_with(3, moving_segment(0.0, 1.0, "'close' has no sampled IRF", true)),  // nothing plays
+      schedule_with(2, moving_segment(1.0, 0.01)),                                      // plays well throughout
+      schedule_with(2, moving_segment(0.0, 1.0, "'close' is not allowed after 'open'")),  // a rule's refusal
   };
   const auto lead_ins = directed_lead_ins(played, target, 4);
   // Each lead-in is its schedule up to and including the segment to sample.

@@ -36,9 +36,11 @@ struct SceneModel {
   int rest_node =
       0;  // IRF start nearest the undeformed rest shape at zero velocity (eq. 9): the settled rest
   // Where a held interaction goes on when IRF i runs out (§3.5's orbit
-  // extension, chosen at run time): step `t` of another IRF `irf` of the same
-  // entry, the node nearest IRF i's last node under eq. 9. irf = -1 for IRFs
-  // of entries that never hold.
+  // extension, chosen when the scene is loaded): step `t` > 0 of another IRF
+  // `irf` of the same entry, near IRF i's last state under eq. 9 (the rule:
+  // orbit_extension in synthesis_engine.cpp). irf = -1 for IRFs of entries
+  // that never hold, or with no other IRF of 3 frames or more to go on in;
+  // then the IRF cache's nearest start plays.
   struct Extension {
     std::int32_t irf = -1;
     std::int32_t t = 0;

@@ -27,6 +27,7 @@ struct SegmentFigures {
   int first_frame = 0;
   int frames = 0;
   std::string refused;          // non-empty: the server refused the entry (the rule it broke)
+  bool unsampled = false;       // refused because the package has no IRF of the entry at all
   double nrmse = 0;             // RMS(served - simulated) over RMS(simulated - the schedule's mean shape)
   double motion_ratio = 0;      // sum |x(f+1) - x(f)|^2, served over simulated
   double simulated_motion = 0;  // RMS per-vertex motion per frame of the simulation (m)
