@@ -177,25 +177,30 @@ void end_of_irf(const SceneModel& s, InstanceState& st, std::int32_t rule) {
   start_irf(s, st, next, irf, state_now(s, st));
 }
 
+// Whether the entry drives a limited support at a steady rate (not a jolt;
+// range min == max means unlimited).
+bool drives_limited_support(const core::SupportKinematics& k) {
+  return k.pulse_tau == 0 && k.rate != 0 && k.range_max > k.range_min;
+}
+
 // Whether the support coordinate has reached the end of its range in the
 // direction the active entry drives it (the door stops at its 90 degrees).
 bool range_reached(const core::SupportKinematics& k, double s) {
-  if (k.pulse_tau > 0 || k.rate == 0 || !(k.range_max > k.range_min)) return false;  // min == max: unlimited
+  if (!drives_limited_support(k)) return false;
   return k.rate > 0 ? s >= k.range_max : s <= k.range_min;
 }
 
 // Whether the entry moves a limited support that has not reached the end of
 // its range in the entry's direction.
 bool drives_within_range(const core::SupportKinematics& k, double s) {
-  return k.pulse_tau == 0 && k.rate != 0 && k.range_max > k.range_min && !range_reached(k, s);
+  return drives_limited_support(k) && !range_reached(k, s);
 }
 
 // Whether IRFs of entry d may run out while the interaction persists: it
 // holds (on_end), or it drives a limited support, which the instance keeps
 // driving until the range ends.
 bool may_hold(const core::ImpulsePalette& p, int d) {
-  const auto& k = p.kinematics[at(d)];
-  return p.on_end[at(d)] == core::kEndHold || (k.pulse_tau == 0 && k.rate != 0 && k.range_max > k.range_min);
+  return p.on_end[at(d)] == core::kEndHold || drives_limited_support(p.kinematics[at(d)]);
 }
 
 // Frames an orbit extension leaves at least, so that it is not itself over at once.
@@ -245,8 +250,9 @@ SceneModel::Extension orbit_extension(const core::ScenePackage& pkg, int i, doub
 
 std::vector<SceneModel::Extension> orbit_extensions(const core::ScenePackage& pkg) {
   const auto& pp = pkg.portrait;
-  const Eigen::VectorXd radius_squared = pp.q_u.cast<double>().rowwise().squaredNorm() +
-                                         pkg.attributes.beta * pp.qdot_u.cast<double>().rowwise().squaredNorm();
+  const Eigen::VectorXd radius_squared =
+      pp.q_u.cast<double>().rowwise().squaredNorm() +
+      pkg.attributes.beta * pp.qdot_u.cast<double>().rowwise().squaredNorm();
   const double radius = radius_squared.size() ? std::sqrt(radius_squared.maxCoeff()) : 0.0;
   const double band = core::kSameStateFraction * radius;
   std::vector<SceneModel::Extension> extensions(at(pp.irf_count()));

@@ -35,10 +35,10 @@ TEST(AdaptiveSampling, EntriesWithoutIrfsComeFirstThenMotionOutOfRangeThenNrmse)
   FidelityTarget target;
   target.median_nrmse = 0.15;
   const std::vector<PlayedSchedule> played{
-      schedule_with(0, moving_segment(1.0, 0.6)),                                  // NRMSE 4x the target
-      schedule_with(1, moving_segment(3.0, 0.05)),                                 // 3x the simulated motion
+      schedule_with(0, moving_segment(1.0, 0.6)),   // NRMSE 4x the target
+      schedule_with(1, moving_segment(3.0, 0.05)),  // 3x the simulated motion
       schedule_with(3, moving_segment(0.0, 1.0, "'close' has no sampled IRF", true)),  // nothing plays
-      schedule_with(2, moving_segment(1.0, 0.01)),                                      // plays well throughout
+      schedule_with(2, moving_segment(1.0, 0.01)),  // plays well throughout
       schedule_with(2, moving_segment(0.0, 1.0, "'close' is not allowed after 'open'")),  // a rule's refusal
   };
   const auto lead_ins = directed_lead_ins(played, target, 4);
