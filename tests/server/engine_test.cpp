@@ -285,6 +285,48 @@ TEST(Engine, HoldRuleContinuesAtTheNearestNodeOfAnotherIrfOfTheSameEntry) {
   EXPECT_LT((next.q_u - expected_q).norm(), 1e-5f * (1 + expected_q.norm()));
 }
 
+// The extension's rule on nodes placed by hand around the state IRF a's hold
+// blends from (x: a's last node one step on). IRF b: its start is x itself, a
+// start being the impulse's onset again; its step 5 is nearest. IRF c: its
+// step 1 is within the 1 % band of the nearest and has more frames left; its
+// last step is x too, with too few frames left. Each rule picks a different node.
+TEST(Engine, OrbitExtensionSkipsStartsAndShortTailsAndPrefersMoreFramesLeftWithinTheBand) {
+  testing::PlateOptions o;
+  o.irfs_per_entry = 3;
+  o.appearance = false;
+  auto p = testing::make_plate_package(o);
+  p.palette.on_end[kOpen] = core::kEndHold;
+  auto& pp = p.portrait;
+  std::vector<int> open;
+  for (int j = 0; j < pp.irf_count(); ++j)
+    if (pp.irf_palette[static_cast<size_t>(j)] == kOpen) open.push_back(j);
+  ASSERT_EQ(open.size(), 3u);
+  const int a = open[0], b = open[1], c = open[2];
+  const auto start = [&](int j) { return pp.irf_start[static_cast<size_t>(j)]; };
+  const auto length = [&](int j) { return pp.irf_length[static_cast<size_t>(j)]; };
+  double radius = 0;
+  for (int n = 0; n < pp.nodes(); ++n) radius = std::max(radius, node_distance(p, n, -1));
+  const int last = start(a) + length(a) - 1;
+  const Eigen::RowVectorXf qdot = pp.qdot_u.row(last);
+  const Eigen::RowVectorXf x = pp.q_u.row(last) + static_cast<float>(p.attributes.dt) * qdot;
+  Eigen::RowVectorXf along = Eigen::RowVectorXf::Zero(x.size());
+  along[0] = static_cast<float>(radius);
+  const auto place = [&](int j, int t, float offset) {
+    pp.q_u.row(start(j) + t) = x + offset * along;
+    pp.qdot_u.row(start(j) + t) = qdot;
+  };
+  for (const int j : {b, c})
+    for (int t = 0; t < length(j); ++t) place(j, t, 0.5f);  // far from x
+  place(b, 0, 0);
+  place(b, 5, 0.002f);
+  place(c, 1, 0.008f);  // within 0.002 + 1 % of the radius (which only grows)
+  place(c, length(c) - 1, 0);
+  auto e = engine_with(std::make_shared<const core::ScenePackage>(std::move(p)));
+  const auto& extension = e.scenes()[0].extension[static_cast<size_t>(a)];
+  EXPECT_EQ(extension.irf, c);
+  EXPECT_EQ(extension.t, 1);
+}
+
 TEST(Engine, DoorStopsWhenItReachesTheEndOfItsRange) {
   testing::PlateOptions o;
   o.irf_length = 200;  // longer than the 2 s the door needs to open 90 degrees
