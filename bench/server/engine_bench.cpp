@@ -1,6 +1,7 @@
 // Engine throughput: instance-ticks per second on one core at the paper's
 // cloth ranks, with impulses arriving all the time (about one per instance
-// per second of simulated time), and the bytes one frame costs on the wire.
+// per second of simulated time), the bytes one frame costs on the wire, and
+// the cost of loading a scene with and without the orbit extension's search.
 
 #include "bench_scene.h"
 #include "phasecast/core/basis.h"
@@ -8,6 +9,8 @@
 #include "phasecast/server/wire.h"
 
 #include <benchmark/benchmark.h>
+
+#include <algorithm>
 
 namespace phasecast::bench {
 namespace {
@@ -72,6 +75,32 @@ void BM_BytesPerFrame(benchmark::State& state) {
   state.counters["full_over_frame"] = static_cast<double>(core::full_vertex_bytes(*scene)) / wire;
 }
 BENCHMARK(BM_BytesPerFrame);
+
+// Loading a scene (add_scene): arg 1 is the package as is, whose open and
+// close entries drive the door's limited range and so get an orbit extension
+// per IRF (docs/server.md); arg 0 is the same package with no entry that
+// holds, the baseline without the extension's search.
+void BM_AddScene(benchmark::State& state) {
+  auto scene = cloth_ranks_scene();
+  if (state.range(0) == 0) {
+    auto copy = std::make_shared<core::ScenePackage>(*scene);
+    for (auto& k : copy->palette.kinematics) k.rate = 0;
+    for (auto& rule : copy->palette.on_end)
+      if (rule == core::kEndHold) rule = core::kEndRest;
+    scene = copy;
+  }
+  std::int64_t extended = 0;
+  for (auto _ : state) {
+    SynthesisEngine engine;
+    engine.add_scene(scene, "cloth_ranks.h5", 0);
+    benchmark::DoNotOptimize(engine.scenes().data());
+    extended = std::ranges::count_if(engine.scenes()[0].extension, [](const auto& x) { return x.irf >= 0; });
+  }
+  state.counters["extended_irfs"] = static_cast<double>(extended);
+  state.counters["irfs"] = scene->portrait.irf_count();
+  state.counters["nodes"] = scene->portrait.nodes();
+}
+BENCHMARK(BM_AddScene)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace phasecast::bench
