@@ -78,13 +78,15 @@ BENCHMARK(BM_BytesPerFrame);
 
 // Loading a scene (add_scene): arg 1 is the package as is, whose open and
 // close entries drive the door's limited range and so get an orbit extension
-// per IRF (docs/server.md); arg 0 is the same package with no entry that
-// holds, the baseline without the extension's search.
+// per IRF (docs/server.md); arg 0 is the same package with every entry's
+// support rate at 0, so that none drives the range and no IRF gets an
+// extension: the baseline without the extension's search.
 void BM_AddScene(benchmark::State& state) {
   auto scene = cloth_ranks_scene();
   if (state.range(0) == 0) {
     auto copy = std::make_shared<core::ScenePackage>(*scene);
     for (auto& k : copy->palette.kinematics) k.rate = 0;
+    // The plate has no hold rule; a package with one would keep its extensions.
     for (auto& rule : copy->palette.on_end)
       if (rule == core::kEndHold) rule = core::kEndRest;
     scene = copy;

@@ -289,13 +289,13 @@ TEST(Engine, HoldRuleContinuesAtTheNearestNodeOfAnotherIrfOfTheSameEntry) {
 // blends from (x: a's last node one step on). IRF b: its start is x itself, a
 // start being the impulse's onset again; its step 5 is nearest. IRF c: its
 // step 1 is within the 1 % band of the nearest and has more frames left; its
-// last step is x too, with too few frames left. Each rule picks a different node.
+// last step is x too, with too few frames left. The rule and each of its three
+// mutants (starts allowed, 1 frame left allowed, no band) pick different nodes.
 TEST(Engine, OrbitExtensionSkipsStartsAndShortTailsAndPrefersMoreFramesLeftWithinTheBand) {
   testing::PlateOptions o;
   o.irfs_per_entry = 3;
   o.appearance = false;
-  auto p = testing::make_plate_package(o);
-  p.palette.on_end[kOpen] = core::kEndHold;
+  auto p = testing::make_plate_package(o);  // `open` drives the door's limited range: it holds
   auto& pp = p.portrait;
   std::vector<int> open;
   for (int j = 0; j < pp.irf_count(); ++j)
@@ -319,8 +319,11 @@ TEST(Engine, OrbitExtensionSkipsStartsAndShortTailsAndPrefersMoreFramesLeftWithi
     for (int t = 0; t < length(j); ++t) place(j, t, 0.5f);  // far from x
   place(b, 0, 0);
   place(b, 5, 0.002f);
-  place(c, 1, 0.008f);  // within 0.002 + 1 % of the radius (which only grows)
+  place(c, 1, 0.008f);  // within 0.002 + 1 % of the radius while the radius keeps 60 % of itself
   place(c, length(c) - 1, 0);
+  double radius_now = 0;
+  for (int n = 0; n < pp.nodes(); ++n) radius_now = std::max(radius_now, node_distance(p, n, -1));
+  ASSERT_GE(radius_now, 0.6 * radius) << "the band would no longer reach c's step 1";
   auto e = engine_with(std::make_shared<const core::ScenePackage>(std::move(p)));
   const auto& extension = e.scenes()[0].extension[static_cast<size_t>(a)];
   EXPECT_EQ(extension.irf, c);
