@@ -91,14 +91,15 @@ void BM_AddScene(benchmark::State& state) {
       if (rule == core::kEndHold) rule = core::kEndRest;
     scene = copy;
   }
-  std::int64_t extended = 0;
   for (auto _ : state) {
     SynthesisEngine engine;
     engine.add_scene(scene, "cloth_ranks.h5", 0);
     benchmark::DoNotOptimize(engine.scenes().data());
-    extended = std::ranges::count_if(engine.scenes()[0].extension, [](const auto& x) { return x.irf >= 0; });
   }
-  state.counters["extended_irfs"] = static_cast<double>(extended);
+  SynthesisEngine engine;  // outside the timed loop
+  engine.add_scene(scene, "cloth_ranks.h5", 0);
+  state.counters["extended_irfs"] = static_cast<double>(
+      std::ranges::count_if(engine.scenes()[0].extension, [](const auto& x) { return x.irf >= 0; }));
   state.counters["irfs"] = scene->portrait.irf_count();
   state.counters["nodes"] = scene->portrait.nodes();
 }

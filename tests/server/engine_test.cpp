@@ -223,6 +223,13 @@ double node_distance(const core::ScenePackage& pkg, int a, int b) {
                    pkg.attributes.beta * (row(pp.qdot_u, a) - row(pp.qdot_u, b)).squaredNorm());
 }
 
+// The portrait's radius: the largest eq. 9 distance of a node from the origin.
+double portrait_radius(const core::ScenePackage& pkg) {
+  double radius = 0;
+  for (int n = 0; n < pkg.portrait.nodes(); ++n) radius = std::max(radius, node_distance(pkg, n, -1));
+  return radius;
+}
+
 TEST(Engine, HoldRuleContinuesAtTheNearestNodeOfAnotherIrfOfTheSameEntry) {
   testing::PlateOptions o;
   o.irfs_per_entry = 5;  // several other IRFs to choose among
@@ -251,8 +258,7 @@ TEST(Engine, HoldRuleContinuesAtTheNearestNodeOfAnotherIrfOfTheSameEntry) {
     return std::sqrt((pp.q_u.row(node).cast<double>() - q).squaredNorm() +
                      pkg->attributes.beta * (pp.qdot_u.row(node).cast<double>() - qdot).squaredNorm());
   };
-  double radius = 0;
-  for (int n = 0; n < pp.nodes(); ++n) radius = std::max(radius, node_distance(*pkg, n, -1));
+  const double radius = portrait_radius(*pkg);
   std::vector<std::tuple<double, int, int>> nearest_of_each;  // distance, IRF, step
   for (int j = 0; j < pp.irf_count(); ++j) {
     if (j == irf || pp.irf_palette[static_cast<size_t>(j)] != kOpen) continue;
@@ -304,8 +310,7 @@ TEST(Engine, OrbitExtensionSkipsStartsAndShortTailsAndPrefersMoreFramesLeftWithi
   const int a = open[0], b = open[1], c = open[2];
   const auto start = [&](int j) { return pp.irf_start[static_cast<size_t>(j)]; };
   const auto length = [&](int j) { return pp.irf_length[static_cast<size_t>(j)]; };
-  double radius = 0;
-  for (int n = 0; n < pp.nodes(); ++n) radius = std::max(radius, node_distance(p, n, -1));
+  const double radius = portrait_radius(p);
   const int last = start(a) + length(a) - 1;
   const Eigen::RowVectorXf qdot = pp.qdot_u.row(last);
   const Eigen::RowVectorXf x = pp.q_u.row(last) + static_cast<float>(p.attributes.dt) * qdot;
@@ -321,9 +326,7 @@ TEST(Engine, OrbitExtensionSkipsStartsAndShortTailsAndPrefersMoreFramesLeftWithi
   place(b, 5, 0.002f);
   place(c, 1, 0.008f);  // within 0.002 + 1 % of the radius while the radius keeps 60 % of itself
   place(c, length(c) - 1, 0);
-  double radius_now = 0;
-  for (int n = 0; n < pp.nodes(); ++n) radius_now = std::max(radius_now, node_distance(p, n, -1));
-  ASSERT_GE(radius_now, 0.6 * radius) << "the band would no longer reach c's step 1";
+  ASSERT_GE(portrait_radius(p), 0.6 * radius) << "the band would no longer reach c's step 1";
   auto e = engine_with(std::make_shared<const core::ScenePackage>(std::move(p)));
   const auto& extension = e.scenes()[0].extension[static_cast<size_t>(a)];
   EXPECT_EQ(extension.irf, c);
