@@ -14,6 +14,7 @@
 #include <compare>
 #include <memory>
 #include <optional>
+#include <set>
 #include <stdexcept>
 
 namespace phasecast::precompute {
@@ -133,6 +134,15 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
   // The worst first; equals in schedule and segment order (stable), so every rank picks alike.
   std::stable_sort(candidates.begin(), candidates.end(),
                    [](const Candidate& a, const Candidate& b) { return a.badness > b.badness; });
+  // An entry without IRFs gets one chain before any gets a second: two chains
+  // of one such entry while another has none leave the other unplayable.
+  const auto unsampled_end = std::partition_point(candidates.begin(), candidates.end(),
+                                                  [](const Candidate& c) { return c.badness.tier == 2; });
+  std::vector<Candidate> firsts, repeats;
+  std::set<int> entries;
+  for (auto c = candidates.begin(); c != unsampled_end; ++c)
+    (entries.insert(played[c->schedule].items[c->segment].entry).second ? firsts : repeats).push_back(*c);
+  std::copy(repeats.begin(), repeats.end(), std::copy(firsts.begin(), firsts.end(), candidates.begin()));
   std::vector<std::vector<ScheduleItem>> out;
   for (const auto& c : candidates) {
     if (static_cast<int>(out.size()) >= count) break;

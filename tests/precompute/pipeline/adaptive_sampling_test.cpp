@@ -52,5 +52,22 @@ TEST(AdaptiveSampling, EntriesWithoutIrfsComeFirstThenMotionOutOfRangeThenNrmse)
   EXPECT_EQ(directed_lead_ins(played, target, 1).size(), 1u);
 }
 
+TEST(AdaptiveSampling, EveryEntryWithoutIrfsGetsAChainBeforeAnyGetsASecond) {
+  FidelityTarget target;
+  target.median_nrmse = 0.15;
+  const auto unsampled = moving_segment(0.0, 1.0, "no sampled IRF", true);
+  // Entry 3 has no IRF in the first two schedules, entry 1 only in the third.
+  const std::vector<PlayedSchedule> played{schedule_with(3, unsampled), schedule_with(3, unsampled),
+                                           schedule_with(1, unsampled),
+                                           schedule_with(0, moving_segment(3.0, 0.05))};
+  const auto lead_ins = directed_lead_ins(played, target, 3);
+  ASSERT_EQ(lead_ins.size(), 3u);
+  EXPECT_EQ(lead_ins[0].back().entry, 3);
+  EXPECT_EQ(lead_ins[1].back().entry, 1);  // before entry 3's second segment
+  EXPECT_EQ(lead_ins[2].back().entry, 3);
+  EXPECT_EQ(lead_ins[2].size(), 4u);  // the second schedule's, in schedule order
+  EXPECT_EQ(directed_lead_ins(played, target, 4).back().size(), 1u);  // then motion out of range
+}
+
 }  // namespace
 }  // namespace phasecast::precompute

@@ -71,9 +71,10 @@ struct AdaptiveOptions {
 };
 
 // The lead-ins of the next round: the guide schedules' worst moving segments
-// (motion ratio out of [0.67, 1.5] first, by |log ratio|, then by NRMSE above
-// the target), each the schedule's items up to and through the segment; at
-// most `count`, none for a segment that already plays within the target.
+// (an entry without IRFs first, one segment per such entry before any second;
+// then motion ratio out of [0.67, 1.5], by |log ratio|; then NRMSE above the
+// target), each the schedule's items up to and through the segment; at most
+// `count`, none for a segment that already plays within the target.
 std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
                                                          const FidelityTarget& target, int count);
 
