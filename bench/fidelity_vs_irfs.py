@@ -8,7 +8,9 @@ held-out random schedules of their own seed, never the sampler's.
                               [--held-out 20] [--items 4] [--fidelity-seed 99] [--bin build/bin] [--out DIR]
 
 `--reuse` measures packages already in DIR instead of sampling them again. `--adaptive N` adds, per seed, `--until-fidelity 0.001 --budget-irfs N` from a first round of half
-that (its whole budget: the target is never met), measured on the same schedules.
+that (its whole budget: the target is never met), measured on the same schedules; `--target T` samples
+towards T instead (it may stop early: the row gives the IRFs it took) and `--first-irfs F` sets the
+first round.
 Prints one markdown row per scene, IRF count and seed, then the fewest IRFs at which every seed meets
 median 0.15, 90th percentile 0.25 and 95 % of moving segments in range; writes every figure to
 DIR/fidelity.json.
@@ -16,6 +18,7 @@ DIR/fidelity.json.
 import argparse
 import json
 import os
+import re
 import subprocess
 import time
 import tomllib
@@ -26,21 +29,31 @@ CHAINS = 4  # run's default; the IRF count varies --irfs-per-chain
 TARGET = {"median": 0.15, "p90": 0.25, "in_range": 0.95}
 
 
-def sample(precompute, scene, out, seed, irfs, adaptive, reuse):
-    """One package; returns its path and the minutes `run` took. A small draw may leave an entry without
-    IRFs: the package is still measured (that entry plays nothing)."""
-    name = f"{os.path.splitext(os.path.basename(scene))[0]}-{'adaptive' if adaptive else 'random'}-{irfs}-{seed}.h5"
-    package = os.path.join(out, name)
-    per_chain = (irfs // 2 if adaptive else irfs) // CHAINS
+def sample(precompute, scene, out, seed, irfs, adaptive, args):
+    """One package; returns its path, the minutes `run` took and the IRFs it sampled. A small draw may
+    leave an entry without IRFs: the package is still measured (that entry plays nothing)."""
+    kind = f"adaptive{args.target:g}" if adaptive else "random"
+    package = os.path.join(out, f"{os.path.splitext(os.path.basename(scene))[0]}-{kind}-{irfs}-{seed}.h5")
+    per_chain = ((args.first_irfs or irfs // 2) if adaptive else irfs) // CHAINS
     command = [precompute, "run", scene, "-o", package, "--seed", str(seed), "--chains", str(CHAINS),
                "--irfs-per-chain", str(per_chain), "--no-appearance", "--no-check", "--allow-missing-entries"]
-    if adaptive:
-        command += ["--until-fidelity", "0.001", "--budget-irfs", str(irfs)]
-    if reuse and os.path.exists(package):
-        return package, None
-    start = time.monotonic()
-    subprocess.run(command, check=True, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return package, (time.monotonic() - start) / 60
+    if adaptive:  # the held-out figures are validate's below, on the same schedules as the random packages'
+        command += ["--until-fidelity", str(args.target), "--budget-irfs", str(irfs), "--held-out-schedules", "0"]
+    log = package + ".log"
+    if not (args.reuse and os.path.exists(package)):
+        start = time.monotonic()
+        with open(log, "w") as f:
+            subprocess.run(command, check=True, cwd=ROOT, stdout=f, stderr=subprocess.DEVNULL)
+        minutes = (time.monotonic() - start) / 60
+    else:
+        minutes = None
+    return package, minutes, sampled_irfs(log) if adaptive else irfs
+
+
+def sampled_irfs(log):
+    """The IRFs adaptive sampling took, from run's last report line ("... after R rounds, N IRFs")."""
+    found = re.findall(r"adaptive sampling: .* after \d+ rounds, (\d+) IRFs", open(log).read()) if os.path.exists(log) else []
+    return int(found[-1]) if found else None
 
 
 def figures(report):
@@ -62,6 +75,8 @@ def main():
     parser.add_argument("--irfs", type=int, nargs="+", default=[16, 32, 64, 128], help=f"multiples of {CHAINS}")
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--adaptive", type=int, default=0, help="also adaptive packages of this IRF budget")
+    parser.add_argument("--target", type=float, default=0.001, help="the adaptive packages' --until-fidelity")
+    parser.add_argument("--first-irfs", type=int, default=0, help=f"their first round (multiple of {CHAINS}; 0: half the budget)")
     parser.add_argument("--held-out", type=int, default=20)
     parser.add_argument("--items", type=int, default=4)
     parser.add_argument("--fidelity-seed", type=int, default=99)
@@ -77,7 +92,7 @@ def main():
     for scene in args.scenes:
         runs = [(irfs, seed, False) for irfs in args.irfs for seed in args.seeds]
         runs += [(args.adaptive, seed, True) for seed in args.seeds if args.adaptive]
-        made = [(irfs, seed, adaptive, *sample(precompute, scene, args.out, seed, irfs, adaptive, args.reuse))
+        made = [(irfs, seed, adaptive, *sample(precompute, scene, args.out, seed, irfs, adaptive, args))
                 for irfs, seed, adaptive in runs]
         json_path = os.path.join(args.out, os.path.basename(scene) + ".json")
         subprocess.run([precompute, "validate", scene, *[m[3] for m in made], "--schedule", standard_of(scene),
@@ -85,10 +100,12 @@ def main():
                         str(args.fidelity_seed), "--no-intersections", "--json", json_path],
                        check=True, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         reports = json.load(open(json_path))["packages"]
-        for (irfs, seed, adaptive, _, minutes), report in zip(made, reports):
+        for (irfs, seed, adaptive, _, minutes, took), report in zip(made, reports):
             f = figures(report)
-            results.append({"scene": scene, "irfs": irfs, "seed": seed, "adaptive": adaptive, "minutes": minutes, **f})
-            print(f"| {os.path.basename(scene)} | {'adaptive' if adaptive else 'random'} | {irfs} | {seed} | "
+            results.append({"scene": scene, "irfs": irfs, "seed": seed, "adaptive": adaptive, "minutes": minutes,
+                            "sampled_irfs": took, **f})
+            sampling = f"adaptive to {args.target:g}, budget {irfs}" if adaptive else "random"
+            print(f"| {os.path.basename(scene)} | {sampling} | {took} | {seed} | "
                   f"{'-' if minutes is None else f'{minutes:.1f}'} | {f['standard']:.3f} ({', '.join(map(str, f['ratios']))}) | "
                   f"{f['median']:.3f} / {f['p90']:.3f} | {f['moving']} ({100 * f['in_range']:.0f} %) |", flush=True)
     for scene in args.scenes:
