@@ -52,6 +52,26 @@ Badness badness(const SegmentFigures& s, double typical, const FidelityTarget& t
   return {0, s.nrmse > t.median_nrmse ? s.nrmse / t.median_nrmse - 1 : 0};
 }
 
+// A guide segment a directed chain may start from.
+struct Candidate {
+  Badness badness;
+  size_t schedule, segment;
+};
+
+// Reorders the unsampled tier (at the front of `sorted`) so that an entry
+// without IRFs gets one chain before any gets a second: two chains of one such
+// entry while another has none leave the other unplayable.
+void one_chain_per_unsampled_entry_first(std::vector<Candidate>& sorted,
+                                         const std::vector<PlayedSchedule>& played) {
+  const auto unsampled_end = std::partition_point(sorted.begin(), sorted.end(),
+                                                  [](const Candidate& c) { return c.badness.tier == 2; });
+  std::vector<Candidate> firsts, repeats;
+  std::set<int> entries;
+  for (auto c = sorted.begin(); c != unsampled_end; ++c)
+    (entries.insert(played[c->schedule].items[c->segment].entry).second ? firsts : repeats).push_back(*c);
+  std::copy(repeats.begin(), repeats.end(), std::copy(firsts.begin(), firsts.end(), sorted.begin()));
+}
+
 int irfs_of(const SampleStageOptions& round) {
   return round.sampling.chains * round.sampling.irfs_per_chain;
 }
@@ -118,10 +138,6 @@ FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& p
 
 std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
                                                          const FidelityTarget& target, int count) {
-  struct Candidate {
-    Badness badness;
-    size_t schedule, segment;
-  };
   std::vector<Candidate> candidates;
   for (size_t i = 0; i < played.size(); ++i) {
     const auto& g = played[i].figures;
@@ -134,15 +150,7 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
   // The worst first; equals in schedule and segment order (stable), so every rank picks alike.
   std::stable_sort(candidates.begin(), candidates.end(),
                    [](const Candidate& a, const Candidate& b) { return a.badness > b.badness; });
-  // An entry without IRFs gets one chain before any gets a second: two chains
-  // of one such entry while another has none leave the other unplayable.
-  const auto unsampled_end = std::partition_point(candidates.begin(), candidates.end(),
-                                                  [](const Candidate& c) { return c.badness.tier == 2; });
-  std::vector<Candidate> firsts, repeats;
-  std::set<int> entries;
-  for (auto c = candidates.begin(); c != unsampled_end; ++c)
-    (entries.insert(played[c->schedule].items[c->segment].entry).second ? firsts : repeats).push_back(*c);
-  std::copy(repeats.begin(), repeats.end(), std::copy(firsts.begin(), firsts.end(), candidates.begin()));
+  one_chain_per_unsampled_entry_first(candidates, played);
   std::vector<std::vector<ScheduleItem>> out;
   for (const auto& c : candidates) {
     if (static_cast<int>(out.size()) >= count) break;
