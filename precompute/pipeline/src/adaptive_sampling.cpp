@@ -58,18 +58,19 @@ struct Candidate {
   size_t schedule, segment;
 };
 
-// Reorders the unsampled tier (at the front of `sorted`) so that an entry
-// without IRFs gets one chain before any gets a second: two chains of one such
-// entry while another has none leave the other unplayable.
-void one_chain_per_unsampled_entry_first(std::vector<Candidate>& sorted,
-                                         const std::vector<PlayedSchedule>& played) {
-  const auto unsampled_end = std::partition_point(sorted.begin(), sorted.end(),
-                                                  [](const Candidate& c) { return c.badness.tier == 2; });
-  std::vector<Candidate> firsts, repeats;
+// While entries have no IRF, a round samples one chain per such entry and
+// nothing else: the server refuses them, so every segment after one plays
+// from a state the simulation never reaches, and its figures say little about
+// where else IRFs are wanted until the next round judges the mended package.
+void only_one_chain_per_unsampled_entry(std::vector<Candidate>& sorted,
+                                        const std::vector<PlayedSchedule>& played) {
+  if (sorted.empty() || sorted.front().badness.tier != 2) return;
+  std::vector<Candidate> firsts;
   std::set<int> entries;
-  for (auto c = sorted.begin(); c != unsampled_end; ++c)
-    (entries.insert(played[c->schedule].items[c->segment].entry).second ? firsts : repeats).push_back(*c);
-  std::copy(repeats.begin(), repeats.end(), std::copy(firsts.begin(), firsts.end(), sorted.begin()));
+  for (const auto& c : sorted)
+    if (c.badness.tier == 2 && entries.insert(played[c.schedule].items[c.segment].entry).second)
+      firsts.push_back(c);
+  sorted = std::move(firsts);
 }
 
 int irfs_of(const SampleStageOptions& round) {
@@ -150,7 +151,7 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
   // The worst first; equals in schedule and segment order (stable), so every rank picks alike.
   std::stable_sort(candidates.begin(), candidates.end(),
                    [](const Candidate& a, const Candidate& b) { return a.badness > b.badness; });
-  one_chain_per_unsampled_entry_first(candidates, played);
+  only_one_chain_per_unsampled_entry(candidates, played);
   std::vector<std::vector<ScheduleItem>> out;
   for (const auto& c : candidates) {
     if (static_cast<int>(out.size()) >= count) break;

@@ -31,42 +31,40 @@ PlayedSchedule schedule_with(size_t at, const SegmentFigures& bad) {
   return p;
 }
 
-TEST(AdaptiveSampling, EntriesWithoutIrfsComeFirstThenMotionOutOfRangeThenNrmse) {
+TEST(AdaptiveSampling, MotionOutOfRangeComesBeforeNrmseAndRefusalsAreSkipped) {
   FidelityTarget target;
   target.median_nrmse = 0.15;
   const std::vector<PlayedSchedule> played{
       schedule_with(0, moving_segment(1.0, 0.6)),   // NRMSE 4x the target
       schedule_with(1, moving_segment(3.0, 0.05)),  // 3x the simulated motion
-      schedule_with(3, moving_segment(0.0, 1.0, "'close' has no sampled IRF", true)),  // nothing plays
       schedule_with(2, moving_segment(1.0, 0.01)),  // plays well throughout
       schedule_with(2, moving_segment(0.0, 1.0, "'close' is not allowed after 'open'")),  // a rule's refusal
   };
   const auto lead_ins = directed_lead_ins(played, target, 4);
   // Each lead-in is its schedule up to and including the segment to sample.
-  ASSERT_EQ(lead_ins.size(), 3u);
-  EXPECT_EQ(lead_ins[0].size(), 4u);
-  EXPECT_EQ(lead_ins[0].back().entry, 3);
-  EXPECT_EQ(lead_ins[1].size(), 2u);
-  EXPECT_EQ(lead_ins[1].back().entry, 1);
-  EXPECT_EQ(lead_ins[2].size(), 1u);
+  ASSERT_EQ(lead_ins.size(), 2u);
+  EXPECT_EQ(lead_ins[0].size(), 2u);
+  EXPECT_EQ(lead_ins[0].back().entry, 1);
+  EXPECT_EQ(lead_ins[1].size(), 1u);
   EXPECT_EQ(directed_lead_ins(played, target, 1).size(), 1u);
 }
 
-TEST(AdaptiveSampling, EveryEntryWithoutIrfsGetsAChainBeforeAnyGetsASecond) {
+TEST(AdaptiveSampling, WhileEntriesHaveNoIrfARoundSamplesOneChainOfEachAndNothingElse) {
   FidelityTarget target;
   target.median_nrmse = 0.15;
   const auto unsampled = moving_segment(0.0, 1.0, "no sampled IRF", true);
-  // Entry 3 has no IRF in the first two schedules, entry 1 only in the third.
-  const std::vector<PlayedSchedule> played{schedule_with(3, unsampled), schedule_with(3, unsampled),
-                                           schedule_with(1, unsampled),
-                                           schedule_with(0, moving_segment(3.0, 0.05))};
-  const auto lead_ins = directed_lead_ins(played, target, 3);
-  ASSERT_EQ(lead_ins.size(), 3u);
+  // Entry 3 has no IRF in the second and third schedules, entry 1 only in the
+  // fourth; the first schedule's motion is out of range.
+  const std::vector<PlayedSchedule> played{schedule_with(0, moving_segment(3.0, 0.05)),
+                                           schedule_with(3, unsampled), schedule_with(3, unsampled),
+                                           schedule_with(1, unsampled)};
+  const auto lead_ins = directed_lead_ins(played, target, 4);
+  ASSERT_EQ(lead_ins.size(), 2u);
   EXPECT_EQ(lead_ins[0].back().entry, 3);
+  EXPECT_EQ(lead_ins[0].size(), 4u);
   EXPECT_EQ(lead_ins[1].back().entry, 1);  // before entry 3's second segment
-  EXPECT_EQ(lead_ins[2].back().entry, 3);
-  EXPECT_EQ(lead_ins[2].size(), 4u);  // the second schedule's, in schedule order
-  EXPECT_EQ(directed_lead_ins(played, target, 4).back().size(), 1u);  // then motion out of range
+  EXPECT_EQ(lead_ins[1].size(), 2u);
+  EXPECT_EQ(directed_lead_ins(played, target, 1).size(), 1u);
 }
 
 }  // namespace

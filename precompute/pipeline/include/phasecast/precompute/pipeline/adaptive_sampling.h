@@ -70,11 +70,11 @@ struct AdaptiveOptions {
   int directed_extra_irfs = 2;  // IRFs a directed chain draws after the segment's
 };
 
-// The lead-ins of the next round: the guide schedules' worst moving segments
-// (an entry without IRFs first, one segment per such entry before any second;
-// then motion ratio out of [0.67, 1.5], by |log ratio|; then NRMSE above the
-// target), each the schedule's items up to and through the segment; at most
-// `count`, none for a segment that already plays within the target.
+// The lead-ins of the next round, each the schedule's items up to and through
+// a segment, at most `count`. While some entry has no IRF: one segment of
+// each such entry and nothing else. Otherwise the guide schedules' worst
+// moving segments: motion ratio out of [0.67, 1.5], by |log ratio|, then
+// NRMSE above the target; none for a segment that plays within the target.
 std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
                                                          const FidelityTarget& target, int count);
 
