@@ -2,6 +2,7 @@
 
 #include "commands.h"
 #include "phasecast/core/package.h"
+#include "phasecast/core/progress.h"
 #include "phasecast/precompute/pipeline/adaptive_sampling.h"
 #include "phasecast/precompute/pipeline/report_text.h"
 #include "stage_options.h"
@@ -179,8 +180,11 @@ void add_run_command(CLI::App& app) {
     check_every_entry_sampled(reduced.package, *o);
     const int held_out = o->held_out_schedules >= 0 ? o->held_out_schedules : (o->until_fidelity ? 20 : 0);
     if (held_out > 0) {
+      core::ProgressBar bar{"held-out schedules"};
       const auto f =
-          measure_fidelity(scene, reduced.package, held_out_seed(*o), held_out, o->adaptive.schedule_items);
+          measure_fidelity(scene, reduced.package, held_out_seed(*o), held_out, o->adaptive.schedule_items,
+                           nullptr, [&bar](int done, int total) { bar.update(done, total); });
+      bar.finish();
       if (reduced.writer) {
         fmt::print("{}", fidelity_text(f, "held-out"));
         store_fidelity(f, fidelity, reduced.package, o->output);

@@ -3,6 +3,7 @@
 
 #include "phasecast/precompute/pipeline/adaptive_sampling.h"
 
+#include "phasecast/core/progress.h"
 #include "phasecast/precompute/distributed/ranks.h"
 #include "phasecast/precompute/validation/playback.h"
 #include "stopwatch.h"
@@ -12,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <compare>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <set>
@@ -111,7 +113,8 @@ std::optional<SampleStageOptions> next_round(const SampleStageOptions& first, co
 }  // namespace
 
 FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
-                                 int schedules, int items, std::vector<PlayedSchedule>* played) {
+                                 int schedules, int items, std::vector<PlayedSchedule>* played,
+                                 const ProgressCallback& progress) {
   const auto rules = make_palette_rules(scene);
   const auto shared = std::make_shared<const core::ScenePackage>(package);
   ValidationSummary summary;
@@ -123,6 +126,7 @@ FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& p
     p.figures = validate_schedule(scene, shared, p.items, options);
     summary.add(p.figures);
     if (played) played->push_back(std::move(p));
+    if (progress) progress(k + 1, schedules);
   }
   FidelityFigures f;
   f.schedules = static_cast<int>(summary.nrmse.size());
@@ -152,6 +156,8 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
   std::stable_sort(candidates.begin(), candidates.end(),
                    [](const Candidate& a, const Candidate& b) { return a.badness > b.badness; });
   only_one_chain_per_unsampled_entry(candidates, played);
+  if (!candidates.empty() && candidates.front().badness.tier != 2)
+    count = std::min(count, std::max(1, target_shortfall(played, target)));
   std::vector<std::vector<ScheduleItem>> out;
   for (const auto& c : candidates) {
     if (static_cast<int>(out.size()) >= count) break;
@@ -159,6 +165,19 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
     out.emplace_back(items.begin(), items.begin() + static_cast<std::ptrdiff_t>(c.segment + 1));
   }
   return out;
+}
+
+int target_shortfall(const std::vector<PlayedSchedule>& played, const FidelityTarget& target) {
+  ValidationSummary s;
+  for (const auto& p : played) s.add(p.figures);
+  const int out_of_range =
+      static_cast<int>(std::ceil(target.moving_in_range * s.moving - 1e-9)) - s.moving_within;
+  std::sort(s.nrmse.begin(), s.nrmse.end(), std::greater<>());
+  int schedules = 0;
+  while (schedules < static_cast<int>(s.nrmse.size()) &&
+         (s.median_nrmse() > target.median_nrmse || s.p90_nrmse() > target.p90_nrmse))
+    s.nrmse[static_cast<size_t>(schedules++)] = 0;  // as if that schedule played true
+  return std::max(out_of_range, schedules);
 }
 
 std::string fidelity_text(const FidelityFigures& f, const char* which) {
@@ -224,8 +243,11 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
     AdaptiveRound round;
     for (const auto& k : rounds) round.irfs += irfs_of(k);
     round.directed = r == 0 ? 0 : rounds.back().sampling.chains;
-    round.guide = measure_fidelity(scene, reduced.package, stream(first.sampling.seed, kGuide + r),
-                                   o.guide_schedules, o.schedule_items, &played);
+    core::ProgressBar bar{fmt::format("round {} guide schedules", r)};
+    round.guide =
+        measure_fidelity(scene, reduced.package, stream(first.sampling.seed, kGuide + r), o.guide_schedules,
+                         o.schedule_items, &played, [&bar](int done, int total) { bar.update(done, total); });
+    bar.finish();
     report.rounds.push_back(round);
     if (report.writer)
       fmt::print(stderr,

@@ -245,6 +245,9 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
   EXPECT_NE(r.out.find("directed chains added)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("adaptive sampling: IRF budget spent after "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("fidelity (held-out, 4 random schedules of 4 entries"), std::string::npos) << r.out;
+  // Guide and held-out schedules are full simulations: minutes each on a large scene.
+  EXPECT_NE(r.err.find("round 1 guide schedules: 3/3 (100%)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("held-out schedules: 4/4 (100%)"), std::string::npos) << r.err;
   const auto p = core::read_package(pkg);
   ASSERT_TRUE(p.fidelity && p.fidelity->target_median_nrmse);
   EXPECT_EQ(p.fidelity->schedules, 4);

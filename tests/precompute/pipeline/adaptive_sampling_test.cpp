@@ -67,5 +67,33 @@ TEST(AdaptiveSampling, WhileEntriesHaveNoIrfARoundSamplesOneChainOfEachAndNothin
   EXPECT_EQ(directed_lead_ins(played, target, 1).size(), 1u);
 }
 
+// Ten guide schedules of four moving segments each, playing true but for
+// `bad`, which replaces segment 0 of the first schedules, one each.
+std::vector<PlayedSchedule> ten_schedules(const std::vector<std::pair<SegmentFigures, double>>& bad) {
+  std::vector<PlayedSchedule> played;
+  for (size_t k = 0; k < 10; ++k) {
+    played.push_back(schedule_with(0, k < bad.size() ? bad[k].first : moving_segment(1.0, 0.01)));
+    played.back().figures.nrmse = k < bad.size() ? bad[k].second : 0.01;
+  }
+  return played;
+}
+
+TEST(AdaptiveSampling, OnceEveryEntryHasIrfsARoundSamplesNoMoreChainsThanTheTargetLacks) {
+  FidelityTarget target;  // median 0.15, 90th percentile 0.25, 95 % in range
+  // Three of 40 moving segments out of range (one more than 95 % allows) and
+  // three schedules above the median target, which the percentiles absorb.
+  const auto out = moving_segment(3.0, 0.1), above = moving_segment(1.0, 0.2);
+  const auto played =
+      ten_schedules({{out, 0.1}, {out, 0.1}, {out, 0.1}, {above, 0.2}, {above, 0.2}, {above, 0.2}});
+  EXPECT_EQ(target_shortfall(played, target), 1);
+  ASSERT_EQ(directed_lead_ins(played, target, 4).size(), 1u);  // of six candidates
+  // Three schedules at 0.5: the 90th percentile meets 0.25 once two of them do.
+  const auto worse = moving_segment(1.0, 0.5);
+  const auto tail = ten_schedules({{worse, 0.5}, {worse, 0.5}, {worse, 0.5}});
+  EXPECT_EQ(target_shortfall(tail, target), 2);
+  EXPECT_EQ(directed_lead_ins(tail, target, 4).size(), 2u);
+  EXPECT_EQ(target_shortfall(ten_schedules({{above, 0.2}}), target), 0);
+}
+
 }  // namespace
 }  // namespace phasecast::precompute

@@ -51,14 +51,16 @@ struct FidelityFigures {
 };
 
 // Plays `schedules` random schedules of `items` entries (random_schedule with
-// `seed`) both ways. With `segments` non-null, every schedule's segments and
-// items are handed back for the directed chains.
+// `seed`) both ways. With `played` non-null, every schedule's segments and
+// items are handed back for the directed chains; `progress` hears schedules
+// done / total (each is a full simulation: minutes on a large scene).
 struct PlayedSchedule {
   std::vector<ScheduleItem> items;
   ScheduleFigures figures;
 };
 FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
-                                 int schedules, int items, std::vector<PlayedSchedule>* played = nullptr);
+                                 int schedules, int items, std::vector<PlayedSchedule>* played = nullptr,
+                                 const ProgressCallback& progress = {});
 
 struct AdaptiveOptions {
   FidelityTarget target;
@@ -74,9 +76,18 @@ struct AdaptiveOptions {
 // a segment, at most `count`. While some entry has no IRF: one segment of
 // each such entry and nothing else. Otherwise the guide schedules' worst
 // moving segments: motion ratio out of [0.67, 1.5], by |log ratio|, then
-// NRMSE above the target; none for a segment that plays within the target.
+// NRMSE above the target; none for a segment that plays within the target;
+// and no more of them than the guide figures fall short of the target by
+// (target_shortfall).
 std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
                                                          const FidelityTarget& target, int count);
+
+// How many guide schedules or segments keep `played` from the target, each
+// of which a directed chain mends at best: the moving segments out of range
+// beyond the share the target allows, or the fewest worst schedules whose
+// NRMSE must come down for the median and the 90th percentile to meet it,
+// whichever is more. 0 when the figures meet the target.
+int target_shortfall(const std::vector<PlayedSchedule>& played, const FidelityTarget& target);
 
 struct AdaptiveRound {
   int irfs = 0;           // sampled in all, this round's included
