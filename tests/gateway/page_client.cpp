@@ -88,7 +88,7 @@ std::optional<v1::PageEvent> PageClient::next(std::chrono::milliseconds timeout)
   return event;
 }
 
-v1::Reply PageClient::call(v1::Request request) {
+v1::Reply PageClient::call(v1::Request request, const std::function<void(const v1::Frame&)>& on_frame) {
   request.set_id(next_id_++);
   v1::PageMessage m;
   *m.mutable_request() = request;
@@ -97,6 +97,7 @@ v1::Reply PageClient::call(v1::Request request) {
     const auto e = next();
     if (!e) throw std::runtime_error("no reply through the gateway");
     if (e->has_reply() && e->reply().id() == request.id()) return e->reply();
+    if (e->has_frame() && on_frame) on_frame(e->frame());
   }
   throw std::runtime_error("the reply never came among the frames");
 }

@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -31,8 +32,9 @@ class PageClient {
   // The next event, or nothing within `timeout` (the connection is then
   // unusable) or when the gateway closed it (close_code() says why).
   std::optional<v1::PageEvent> next(std::chrono::milliseconds timeout = std::chrono::seconds(10));
-  // Sends a request with a fresh id and returns its reply, skipping frames.
-  v1::Reply call(v1::Request request);
+  // Sends a request with a fresh id and returns its reply, passing the frames
+  // that come before it to `on_frame` (or skipping them).
+  v1::Reply call(v1::Request request, const std::function<void(const v1::Frame&)>& on_frame = {});
   void subscribe(const std::vector<std::uint32_t>& instances);
   std::optional<int> close_code() const { return close_code_; }
   const std::string& last_error() const { return last_error_; }
