@@ -280,8 +280,8 @@ TEST(Gateway, RequestsBeyondTheInFlightBoundWaitUnreadAndAreAllAnswered) {
     m.mutable_request()->mutable_list_scenes();
     page.send(m);
   }
-  // The first 4 reach the server however slowly this machine runs; then the
-  // gateway has had half a second to read past the bound, if it would.
+  // The gateway forwards the first 4 however slowly this machine runs; then it
+  // has had half a second to read past the bound, if it would.
   const auto forwarded = [&] { return gateway_stats(gateway)["requests_forwarded"].get<int>(); };
   for (int i = 0; i < 1000 && forwarded() < 4; ++i) std::this_thread::sleep_for(10ms);
   std::this_thread::sleep_for(500ms);
