@@ -105,8 +105,9 @@ void add_fidelity_options(CLI::App* cmd, Options& o) {
   cmd->add_option("--budget-minutes", o.adaptive.budget_minutes,
                   "with --until-fidelity: start no round after this many minutes")
       ->check(CLI::Range(0.0, 1e7));
-  cmd->add_option("--guide-schedules", o.adaptive.guide_schedules,
-                  "with --until-fidelity: random schedules each round is judged on")
+  cmd->add_option(
+         "--guide-schedules", o.adaptive.guide_schedules,
+         "with --until-fidelity: random schedules, drawn and simulated once, every round is judged on")
       ->check(CLI::Range(1, 10000))
       ->capture_default_str();
   cmd->add_option("--held-out-schedules", o.held_out_schedules,

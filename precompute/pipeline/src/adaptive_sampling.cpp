@@ -79,55 +79,49 @@ int irfs_of(const SampleStageOptions& round) {
   return round.sampling.chains * round.sampling.irfs_per_chain;
 }
 
+// The guide schedule's items up to and through the segment.
+std::vector<ScheduleItem> lead_in(const std::vector<PlayedSchedule>& played, const GuideSegment& s) {
+  const auto& items = played[s.schedule].items;
+  return {items.begin(), items.begin() + static_cast<std::ptrdiff_t>(s.segment + 1)};
+}
+
 // The round after `round_index` judged `played`: its directed chains, at most
-// as many as the budget allows.
+// as many as the budget allows. Marks the segments they start from in
+// `directed`, which the guide schedules keep from round to round.
 std::optional<SampleStageOptions> next_round(const SampleStageOptions& first, const AdaptiveOptions& o,
-                                             const std::vector<PlayedSchedule>& played, int round_index,
+                                             const std::vector<PlayedSchedule>& played,
+                                             std::vector<std::vector<bool>>& directed, int round_index,
                                              int irfs_so_far, const std::filesystem::path& work) {
   const int wanted = o.directed_chains > 0 ? o.directed_chains : first.sampling.chains;
-  auto lead_ins = directed_lead_ins(played, o.target, wanted);
+  auto segments = directed_segments(played, o.target, wanted);
   // Every chain of a round samples as many IRFs: the segment's, then random
   // ones (the lead-in before it is simulated, not recorded). What does not
   // fit the budget goes: random IRFs first, then chains.
   int extra = o.directed_extra_irfs;
   const auto cost = [&](size_t n) { return static_cast<int>(n) * (1 + extra); };
-  const auto over = [&] { return o.budget_irfs > 0 && irfs_so_far + cost(lead_ins.size()) > o.budget_irfs; };
-  while (!lead_ins.empty() && over()) {
+  const auto over = [&] { return o.budget_irfs > 0 && irfs_so_far + cost(segments.size()) > o.budget_irfs; };
+  while (!segments.empty() && over()) {
     if (extra > 0) {
       --extra;
     } else {
-      lead_ins.pop_back();
+      segments.pop_back();
       extra = o.directed_extra_irfs;
     }
   }
-  if (lead_ins.empty()) return std::nullopt;
+  if (segments.empty()) return std::nullopt;
   SampleStageOptions next = first;
-  next.sampling.chains = static_cast<int>(lead_ins.size());
-  next.sampling.irfs_per_chain = cost(lead_ins.size()) / next.sampling.chains;
+  next.sampling.chains = static_cast<int>(segments.size());
+  next.sampling.irfs_per_chain = cost(segments.size()) / next.sampling.chains;
   next.sampling.seed = stream(first.sampling.seed, kDirected + static_cast<std::uint64_t>(round_index));
-  next.sampling.lead_ins = std::move(lead_ins);
+  for (const auto& s : segments) {
+    next.sampling.lead_ins.push_back(lead_in(played, s));
+    directed[s.schedule][s.segment] = true;
+  }
   next.work_dir = work / fmt::format("round-{}", round_index + 1);
   return next;
 }
 
-}  // namespace
-
-FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
-                                 int schedules, int items, std::vector<PlayedSchedule>* played,
-                                 const ProgressCallback& progress) {
-  const auto rules = make_palette_rules(scene);
-  const auto shared = std::make_shared<const core::ScenePackage>(package);
-  ValidationSummary summary;
-  ValidationOptions options;
-  options.intersections = false;
-  for (int k = 0; k < schedules; ++k) {
-    PlayedSchedule p{random_schedule(rules, scene.simulation.frame_dt, seed, k, items), {}};
-    if (p.items.empty()) continue;
-    p.figures = validate_schedule(scene, shared, p.items, options);
-    summary.add(p.figures);
-    if (played) played->push_back(std::move(p));
-    if (progress) progress(k + 1, schedules);
-  }
+FidelityFigures figures_of(const ValidationSummary& summary, std::uint64_t seed, int items) {
   FidelityFigures f;
   f.schedules = static_cast<int>(summary.nrmse.size());
   f.seed = seed;
@@ -141,13 +135,95 @@ FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& p
   return f;
 }
 
-std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
-                                                         const FidelityTarget& target, int count) {
+// The guide schedules of every round: drawn once, so a round is judged on
+// the schedules whose segments the previous round's chains were directed at,
+// and simulated once while their truths fit kKeptTruthBytes (a large render
+// surface's are simulated again each round, to the same frames).
+class GuideSchedules {
+ public:
+  GuideSchedules(const Scene& scene, std::uint64_t seed, int schedules, int items)
+      : scene_(scene), seed_(seed), items_(items) {
+    const auto rules = make_palette_rules(scene);
+    for (int k = 0; k < schedules; ++k) {
+      auto drawn = random_schedule(rules, scene.simulation.frame_dt, seed, k, items);
+      if (!drawn.empty()) schedules_.push_back(std::move(drawn));
+    }
+    truths_.resize(schedules_.size());
+    directed_.resize(schedules_.size());
+  }
+
+  // Segments that had a directed chain: a second from the same state would sample the same IRF.
+  std::vector<std::vector<bool>>& directed() { return directed_; }
+
+  FidelityFigures play(const core::ScenePackage& package, std::vector<PlayedSchedule>& played,
+                       const ProgressCallback& progress) {
+    const auto shared = std::make_shared<const core::ScenePackage>(package);
+    ValidationOptions options;
+    options.intersections = false;
+    ValidationSummary summary;
+    for (size_t k = 0; k < schedules_.size(); ++k) {
+      PlayedSchedule p{schedules_[k], compare_playback(scene_, shared, truth(k), options), {}};
+      directed_[k].resize(p.items.size());
+      p.directed = directed_[k];
+      summary.add(p.figures);
+      played.push_back(std::move(p));
+      if (progress) progress(static_cast<int>(k + 1), static_cast<int>(schedules_.size()));
+    }
+    return figures_of(summary, seed_, items_);
+  }
+
+ private:
+  static constexpr size_t kKeptTruthBytes = size_t{1} << 30;
+
+  const SimulatedSchedule& truth(size_t k) {
+    if (truths_[k]) return *truths_[k];
+    scratch_ = simulate_truth(scene_, schedules_[k]);
+    const auto bytes = static_cast<size_t>(scratch_.frames.size()) * sizeof(double);
+    if (kept_bytes_ + bytes > kKeptTruthBytes) return scratch_;
+    kept_bytes_ += bytes;
+    truths_[k] = std::move(scratch_);
+    return *truths_[k];
+  }
+
+  const Scene& scene_;
+  std::uint64_t seed_;
+  int items_;
+  std::vector<std::vector<ScheduleItem>> schedules_;
+  std::vector<std::optional<SimulatedSchedule>> truths_;
+  std::vector<std::vector<bool>> directed_;
+  SimulatedSchedule scratch_;
+  size_t kept_bytes_ = 0;
+};
+
+}  // namespace
+
+FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
+                                 int schedules, int items, std::vector<PlayedSchedule>* played,
+                                 const ProgressCallback& progress) {
+  const auto rules = make_palette_rules(scene);
+  const auto shared = std::make_shared<const core::ScenePackage>(package);
+  ValidationSummary summary;
+  ValidationOptions options;
+  options.intersections = false;
+  for (int k = 0; k < schedules; ++k) {
+    PlayedSchedule p{random_schedule(rules, scene.simulation.frame_dt, seed, k, items), {}, {}};
+    if (p.items.empty()) continue;
+    p.figures = validate_schedule(scene, shared, p.items, options);
+    summary.add(p.figures);
+    if (played) played->push_back(std::move(p));
+    if (progress) progress(k + 1, schedules);
+  }
+  return figures_of(summary, seed, items);
+}
+
+std::vector<GuideSegment> directed_segments(const std::vector<PlayedSchedule>& played,
+                                            const FidelityTarget& target, int count) {
   std::vector<Candidate> candidates;
   for (size_t i = 0; i < played.size(); ++i) {
     const auto& g = played[i].figures;
     const double typical = typical_motion(g);
     for (size_t m = 0; m < g.segments.size() && m < played[i].items.size(); ++m) {
+      if (m < played[i].directed.size() && played[i].directed[m]) continue;
       const Badness b = badness(g.segments[m], typical, target);
       if (b.any()) candidates.push_back({b, i, m});
     }
@@ -158,12 +234,18 @@ std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<Playe
   only_one_chain_per_unsampled_entry(candidates, played);
   if (!candidates.empty() && candidates.front().badness.tier != 2)
     count = std::min(count, std::max(1, target_shortfall(played, target)));
-  std::vector<std::vector<ScheduleItem>> out;
+  std::vector<GuideSegment> out;
   for (const auto& c : candidates) {
     if (static_cast<int>(out.size()) >= count) break;
-    const auto& items = played[c.schedule].items;
-    out.emplace_back(items.begin(), items.begin() + static_cast<std::ptrdiff_t>(c.segment + 1));
+    out.push_back({c.schedule, c.segment});
   }
+  return out;
+}
+
+std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
+                                                         const FidelityTarget& target, int count) {
+  std::vector<std::vector<ScheduleItem>> out;
+  for (const auto& s : directed_segments(played, target, count)) out.push_back(lead_in(played, s));
   return out;
 }
 
@@ -235,6 +317,7 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
   report.writer = Ranks::world().rank() == 0;
   AppearanceChoices no_appearance;
   no_appearance.skip = true;
+  GuideSchedules guides(scene, stream(first.sampling.seed, kGuide), o.guide_schedules, o.schedule_items);
   for (int r = 0;; ++r) {
     report.sampled = run_sample_rounds(scene, rounds, orbits);
     const auto round_package = work / fmt::format("round-{}.h5", r);
@@ -245,8 +328,7 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
     round.directed = r == 0 ? 0 : rounds.back().sampling.chains;
     core::ProgressBar bar{fmt::format("round {} guide schedules", r)};
     round.guide =
-        measure_fidelity(scene, reduced.package, stream(first.sampling.seed, kGuide + r), o.guide_schedules,
-                         o.schedule_items, &played, [&bar](int done, int total) { bar.update(done, total); });
+        guides.play(reduced.package, played, [&bar](int done, int total) { bar.update(done, total); });
     bar.finish();
     report.rounds.push_back(round);
     if (report.writer)
@@ -264,11 +346,12 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
       report.stopped = "time budget spent";
       break;
     }
-    auto next = next_round(first, o, played, r, round.irfs, work);
+    auto next = next_round(first, o, played, guides.directed(), r, round.irfs, work);
     if (!next) {
-      report.stopped = directed_lead_ins(played, o.target, 1).empty()
-                           ? "no guide segment left that plays out of the target"
-                           : "IRF budget spent";
+      report.stopped =
+          directed_lead_ins(played, o.target, 1).empty()
+              ? "no guide segment left that plays out of the target and has had no directed chain"
+              : "IRF budget spent";
       break;
     }
     rounds.push_back(std::move(*next));

@@ -17,6 +17,8 @@
 #include <algorithm>
 #include <chrono>
 #include <csignal>
+#include <regex>
+#include <set>
 #include <thread>
 
 namespace phasecast {
@@ -243,6 +245,13 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
       << r.out;
   EXPECT_NE(r.out.find("adaptive round 1: "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("directed chains added)"), std::string::npos) << r.out;
+  // Every round is judged on the same guide schedules (drawn and simulated once).
+  const std::regex guide_seed{R"(adaptive round \d+: .*fidelity \(guide, .*, seed (\d+)\))"};
+  std::set<std::string> guide_seeds;
+  for (auto it = std::sregex_iterator(r.out.begin(), r.out.end(), guide_seed); it != std::sregex_iterator();
+       ++it)
+    guide_seeds.insert((*it)[1].str());
+  EXPECT_EQ(guide_seeds.size(), 1u) << r.out;
   EXPECT_NE(r.out.find("adaptive sampling: IRF budget spent after "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("fidelity (held-out, 4 random schedules of 4 entries"), std::string::npos) << r.out;
   // Guide and held-out schedules are full simulations: minutes each on a large scene.

@@ -95,5 +95,26 @@ TEST(AdaptiveSampling, OnceEveryEntryHasIrfsARoundSamplesNoMoreChainsThanTheTarg
   EXPECT_EQ(target_shortfall(ten_schedules({{above, 0.2}}), target), 0);
 }
 
+// The guide schedules stay from round to round, so a segment a directed chain
+// started from is judged again by the next round; a second chain from that
+// state would sample the same IRF again, and goes to the next worst instead.
+TEST(AdaptiveSampling, ASegmentThatHadADirectedChainIsNotChosenAgain) {
+  FidelityTarget target;
+  const auto out = moving_segment(3.0, 0.1), further = moving_segment(4.0, 0.1);
+  auto played = ten_schedules({{further, 0.1}, {out, 0.1}, {out, 0.1}, {out, 0.1}});
+  ASSERT_EQ(target_shortfall(played, target), 2);
+  auto chosen = directed_segments(played, target, 4);
+  ASSERT_EQ(chosen.size(), 2u);
+  EXPECT_EQ(chosen[0].schedule, 0u);  // the furthest out of range
+  EXPECT_EQ(chosen[1].schedule, 1u);
+  played[0].directed = {true, false, false, false};
+  chosen = directed_segments(played, target, 4);
+  ASSERT_EQ(chosen.size(), 2u);
+  EXPECT_EQ(chosen[0].schedule, 1u);
+  EXPECT_EQ(chosen[1].schedule, 2u);
+  for (auto& p : played) p.directed = {true, true, true, true};
+  EXPECT_TRUE(directed_lead_ins(played, target, 4).empty());
+}
+
 }  // namespace
 }  // namespace phasecast::precompute

@@ -9,9 +9,12 @@
 // (simulated, not recorded), records the segment's entry as its first IRF
 // from the very state where the served playback went wrong, and then draws
 // on as any chain. Rounds stop when the guide figures meet the target
-// or the budget is spent. Guide schedules are drawn anew each round from
-// their own stream, never the sampler's, and never the held-out schedules
-// that measure the result (measure_fidelity with another seed).
+// or the budget is spent. The guide schedules are drawn once, from their own
+// stream (never the sampler's, never the held-out schedules that measure the
+// result: measure_fidelity with another seed), and simulated once: every
+// round plays its package against the same truths, so a round is judged on
+// the segments the previous one directed its chains at, and costs no
+// simulation beyond its chains.
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/pipeline/stages.h"
@@ -57,6 +60,10 @@ struct FidelityFigures {
 struct PlayedSchedule {
   std::vector<ScheduleItem> items;
   ScheduleFigures figures;
+  // Per segment (or empty): a directed chain of an earlier round started
+  // from it. The guide schedules stay, and a second chain from the same
+  // state would sample the same IRF again, so it is not chosen again.
+  std::vector<bool> directed;
 };
 FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
                                  int schedules, int items, std::vector<PlayedSchedule>* played = nullptr,
@@ -72,13 +79,19 @@ struct AdaptiveOptions {
   int directed_extra_irfs = 2;  // IRFs a directed chain draws after the segment's
 };
 
-// The lead-ins of the next round, each the schedule's items up to and through
-// a segment, at most `count`. While some entry has no IRF: one segment of
-// each such entry and nothing else. Otherwise the guide schedules' worst
-// moving segments: motion ratio out of [0.67, 1.5], by |log ratio|, then
-// NRMSE above the target; none for a segment that plays within the target;
+// The segments the next round's directed chains start from, at most
+// `count`. While some entry has no IRF: one segment of each such entry and
+// nothing else. Otherwise the guide schedules' worst moving segments: motion
+// ratio out of [0.67, 1.5], by |log ratio|, then NRMSE above the target;
+// none for a segment that plays within the target or was directed at before;
 // and no more of them than the guide figures fall short of the target by
 // (target_shortfall).
+struct GuideSegment {
+  size_t schedule = 0, segment = 0;
+};
+std::vector<GuideSegment> directed_segments(const std::vector<PlayedSchedule>& played,
+                                            const FidelityTarget& target, int count);
+// The same as lead-ins: each the schedule's items up to and through its segment.
 std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
                                                          const FidelityTarget& target, int count);
 
@@ -92,7 +105,7 @@ int target_shortfall(const std::vector<PlayedSchedule>& played, const FidelityTa
 struct AdaptiveRound {
   int irfs = 0;           // sampled in all, this round's included
   int directed = 0;       // directed chains this round added (0 for the first)
-  FidelityFigures guide;  // the package of all IRFs so far, on this round's guide schedules
+  FidelityFigures guide;  // the package of all IRFs so far, on the guide schedules
 };
 
 struct AdaptiveReport {
