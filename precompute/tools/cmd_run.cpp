@@ -110,6 +110,10 @@ void add_fidelity_options(CLI::App* cmd, Options& o) {
          "with --until-fidelity: random schedules, drawn and simulated once, every round is judged on")
       ->check(CLI::Range(1, 10000))
       ->capture_default_str();
+  cmd->add_option("--directed-extra-irfs", o.adaptive.directed_extra_irfs,
+                  "with --until-fidelity: random IRFs a directed chain draws after its segment's")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   cmd->add_option("--held-out-schedules", o.held_out_schedules,
                   "random schedules (their own seed) the finished package is measured on (default: 20 with "
                   "--until-fidelity, else 0)")

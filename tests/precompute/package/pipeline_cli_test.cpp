@@ -254,7 +254,7 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
   EXPECT_EQ(guide_seeds.size(), 1u) << r.out;
   EXPECT_NE(r.out.find("adaptive sampling: IRF budget spent after "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("fidelity (held-out, 4 random schedules of 4 entries"), std::string::npos) << r.out;
-  // Guide and held-out schedules are full simulations: minutes each on a large scene.
+  // Guide schedules (simulated in round 0, played each round) and held-out ones: minutes on a large scene.
   EXPECT_NE(r.err.find("round 1 guide schedules: 3/3 (100%)"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("held-out schedules: 4/4 (100%)"), std::string::npos) << r.err;
   const auto p = core::read_package(pkg);
@@ -277,6 +277,39 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
   EXPECT_NE(bad.err.find("--until-fidelity needs a budget: --budget-irfs N or --budget-minutes M"),
             std::string::npos)
       << bad.err;
+}
+
+// --directed-extra-irfs sets how many random IRFs a directed chain draws
+// after its segment's: with 0, a round of 2 chains adds 2 IRFs (3 each by default).
+TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
+  const auto dir = scratch_dir("cli_directed_extra");
+  const auto r = run_tool("phasecast-precompute", {"run",
+                                                   tiny_scene_path().string(),
+                                                   "-o",
+                                                   (dir / "a.h5").string(),
+                                                   "--chains",
+                                                   "2",
+                                                   "--irfs-per-chain",
+                                                   "3",
+                                                   "--seed",
+                                                   "4",
+                                                   "--max-rank",
+                                                   "20",
+                                                   "--no-appearance",
+                                                   "--no-check",
+                                                   "--allow-missing-entries",
+                                                   "--until-fidelity",
+                                                   "0.001",
+                                                   "--budget-irfs",
+                                                   "8",
+                                                   "--guide-schedules",
+                                                   "3",
+                                                   "--held-out-schedules",
+                                                   "0",
+                                                   "--directed-extra-irfs",
+                                                   "0"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("adaptive round 1: 8 IRFs (2 directed chains added)"), std::string::npos) << r.out;
 }
 
 // Adaptive sampling against random at one budget (docs/sampling.md, "At a
