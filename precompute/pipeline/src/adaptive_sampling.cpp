@@ -22,8 +22,8 @@
 namespace phasecast::precompute {
 namespace {
 
-// SplitMix64 of the run's seed and a purpose: each round's guide schedules
-// and directed chains get streams of their own.
+// SplitMix64 of the run's seed and a purpose: the guide schedules and each
+// round's directed chains get streams of their own.
 std::uint64_t stream(std::uint64_t seed, std::uint64_t purpose) {
   std::uint64_t x = seed ^ (purpose * 0x9e3779b97f4a7c15ULL);
   x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
@@ -137,8 +137,8 @@ FidelityFigures figures_of(const ValidationSummary& summary, std::uint64_t seed,
 
 // The guide schedules of every round: drawn once, so a round is judged on
 // the schedules whose segments the previous round's chains were directed at,
-// and simulated once while their truths fit kKeptTruthBytes (a large render
-// surface's are simulated again each round, to the same frames).
+// and simulated once while their truths fit kKeptTruthBytes on this rank (a
+// large render surface's are simulated again each round, to the same frames).
 class GuideSchedules {
  public:
   GuideSchedules(const Scene& scene, std::uint64_t seed, int schedules, int items)
@@ -149,7 +149,7 @@ class GuideSchedules {
       if (!drawn.empty()) schedules_.push_back(std::move(drawn));
     }
     truths_.resize(schedules_.size());
-    directed_.resize(schedules_.size());
+    for (const auto& items : schedules_) directed_.emplace_back(items.size(), false);
   }
 
   // Segments that had a directed chain: a second from the same state would sample the same IRF.
@@ -162,9 +162,9 @@ class GuideSchedules {
     options.intersections = false;
     ValidationSummary summary;
     for (size_t k = 0; k < schedules_.size(); ++k) {
-      PlayedSchedule p{schedules_[k], compare_playback(scene_, shared, truth(k), options), {}};
-      directed_[k].resize(p.items.size());
-      p.directed = directed_[k];
+      SimulatedSchedule unkept;
+      PlayedSchedule p{schedules_[k], compare_playback(scene_, shared, truth(k, unkept), options),
+                       directed_[k]};
       summary.add(p.figures);
       played.push_back(std::move(p));
       if (progress) progress(static_cast<int>(k + 1), static_cast<int>(schedules_.size()));
@@ -175,13 +175,15 @@ class GuideSchedules {
  private:
   static constexpr size_t kKeptTruthBytes = size_t{1} << 30;
 
-  const SimulatedSchedule& truth(size_t k) {
+  // Schedule k's truth: the kept one, or simulated now and kept if it fits,
+  // else left in `unkept`, which the caller drops after this round's playback.
+  const SimulatedSchedule& truth(size_t k, SimulatedSchedule& unkept) {
     if (truths_[k]) return *truths_[k];
-    scratch_ = simulate_truth(scene_, schedules_[k]);
-    const auto bytes = static_cast<size_t>(scratch_.frames.size()) * sizeof(double);
-    if (kept_bytes_ + bytes > kKeptTruthBytes) return scratch_;
+    unkept = simulate_truth(scene_, schedules_[k]);
+    const auto bytes = static_cast<size_t>(unkept.frames.size()) * sizeof(double);
+    if (kept_bytes_ + bytes > kKeptTruthBytes) return unkept;
     kept_bytes_ += bytes;
-    truths_[k] = std::move(scratch_);
+    truths_[k] = std::move(unkept);
     return *truths_[k];
   }
 
@@ -191,7 +193,6 @@ class GuideSchedules {
   std::vector<std::vector<ScheduleItem>> schedules_;
   std::vector<std::optional<SimulatedSchedule>> truths_;
   std::vector<std::vector<bool>> directed_;
-  SimulatedSchedule scratch_;
   size_t kept_bytes_ = 0;
 };
 

@@ -248,10 +248,14 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
   // Every round is judged on the same guide schedules (drawn and simulated once).
   const std::regex guide_seed{R"(adaptive round \d+: .*fidelity \(guide, .*, seed (\d+)\))"};
   std::set<std::string> guide_seeds;
+  int rounds = 0;
   for (auto it = std::sregex_iterator(r.out.begin(), r.out.end(), guide_seed); it != std::sregex_iterator();
-       ++it)
+       ++it, ++rounds)
     guide_seeds.insert((*it)[1].str());
+  EXPECT_GE(rounds, 2) << r.out;
   EXPECT_EQ(guide_seeds.size(), 1u) << r.out;
+  // Round 1: two directed chains of 3 IRFs each (the segment's and --directed-extra-irfs' 2).
+  EXPECT_NE(r.out.find("adaptive round 1: 12 IRFs (2 directed chains added)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("adaptive sampling: IRF budget spent after "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("fidelity (held-out, 4 random schedules of 4 entries"), std::string::npos) << r.out;
   // Guide schedules (simulated in round 0, played each round) and held-out ones: minutes on a large scene.
@@ -280,7 +284,8 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
 }
 
 // --directed-extra-irfs sets how many random IRFs a directed chain draws
-// after its segment's: with 0, a round of 2 chains adds 2 IRFs (3 each by default).
+// after its segment's: with 0, round 1's 2 chains add 2 IRFs where the
+// default adds 6 (UntilFidelitySamplesInRoundsWithinItsBudget).
 TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
   const auto dir = scratch_dir("cli_directed_extra");
   const auto r = run_tool("phasecast-precompute", {"run",
@@ -301,7 +306,7 @@ TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
                                                    "--until-fidelity",
                                                    "0.001",
                                                    "--budget-irfs",
-                                                   "8",
+                                                   "12",
                                                    "--guide-schedules",
                                                    "3",
                                                    "--held-out-schedules",
@@ -310,6 +315,43 @@ TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
                                                    "0"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("adaptive round 1: 8 IRFs (2 directed chains added)"), std::string::npos) << r.out;
+}
+
+// A guide segment gets one directed chain: with one guide schedule of four
+// entries, the rounds run out of segments to aim at long before the budget
+// (a segment chosen again would take a chain per round to the end of it).
+TEST(PipelineCli, UntilFidelityStopsWhenEveryBadGuideSegmentHadAChain) {
+  const auto dir = scratch_dir("cli_directed_once");
+  const auto r = run_tool("phasecast-precompute", {"run",
+                                                   tiny_scene_path().string(),
+                                                   "-o",
+                                                   (dir / "a.h5").string(),
+                                                   "--chains",
+                                                   "2",
+                                                   "--irfs-per-chain",
+                                                   "3",
+                                                   "--seed",
+                                                   "4",
+                                                   "--max-rank",
+                                                   "20",
+                                                   "--no-appearance",
+                                                   "--no-check",
+                                                   "--allow-missing-entries",
+                                                   "--until-fidelity",
+                                                   "0.001",
+                                                   "--budget-irfs",
+                                                   "40",
+                                                   "--guide-schedules",
+                                                   "1",
+                                                   "--held-out-schedules",
+                                                   "0",
+                                                   "--directed-extra-irfs",
+                                                   "0"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("adaptive sampling: no guide segment left that plays out of the target and has had no "
+                       "directed chain after "),
+            std::string::npos)
+      << r.out;
 }
 
 // Adaptive sampling against random at one budget (docs/sampling.md, "At a
