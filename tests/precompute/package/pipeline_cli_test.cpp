@@ -283,36 +283,43 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
       << bad.err;
 }
 
+// `run` of the tiny scene towards a target it never meets, with directed
+// chains of their segment's IRF only.
+testing::ToolResult run_with_single_irf_chains(const std::string& name, const std::string& budget,
+                                               const std::string& guide_schedules) {
+  const auto dir = scratch_dir(name);
+  return run_tool("phasecast-precompute", {"run",
+                                           tiny_scene_path().string(),
+                                           "-o",
+                                           (dir / "a.h5").string(),
+                                           "--chains",
+                                           "2",
+                                           "--irfs-per-chain",
+                                           "3",
+                                           "--seed",
+                                           "4",
+                                           "--max-rank",
+                                           "20",
+                                           "--no-appearance",
+                                           "--no-check",
+                                           "--allow-missing-entries",
+                                           "--until-fidelity",
+                                           "0.001",
+                                           "--budget-irfs",
+                                           budget,
+                                           "--guide-schedules",
+                                           guide_schedules,
+                                           "--held-out-schedules",
+                                           "0",
+                                           "--directed-extra-irfs",
+                                           "0"});
+}
+
 // --directed-extra-irfs sets how many random IRFs a directed chain draws
 // after its segment's: with 0, round 1's 2 chains add 2 IRFs where the
 // default adds 6 (UntilFidelitySamplesInRoundsWithinItsBudget).
 TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
-  const auto dir = scratch_dir("cli_directed_extra");
-  const auto r = run_tool("phasecast-precompute", {"run",
-                                                   tiny_scene_path().string(),
-                                                   "-o",
-                                                   (dir / "a.h5").string(),
-                                                   "--chains",
-                                                   "2",
-                                                   "--irfs-per-chain",
-                                                   "3",
-                                                   "--seed",
-                                                   "4",
-                                                   "--max-rank",
-                                                   "20",
-                                                   "--no-appearance",
-                                                   "--no-check",
-                                                   "--allow-missing-entries",
-                                                   "--until-fidelity",
-                                                   "0.001",
-                                                   "--budget-irfs",
-                                                   "12",
-                                                   "--guide-schedules",
-                                                   "3",
-                                                   "--held-out-schedules",
-                                                   "0",
-                                                   "--directed-extra-irfs",
-                                                   "0"});
+  const auto r = run_with_single_irf_chains("cli_directed_extra", "12", "3");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("adaptive round 1: 8 IRFs (2 directed chains added)"), std::string::npos) << r.out;
 }
@@ -321,32 +328,7 @@ TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
 // entries, the rounds run out of segments to aim at long before the budget
 // (a segment chosen again would take a chain per round to the end of it).
 TEST(PipelineCli, UntilFidelityStopsWhenEveryBadGuideSegmentHadAChain) {
-  const auto dir = scratch_dir("cli_directed_once");
-  const auto r = run_tool("phasecast-precompute", {"run",
-                                                   tiny_scene_path().string(),
-                                                   "-o",
-                                                   (dir / "a.h5").string(),
-                                                   "--chains",
-                                                   "2",
-                                                   "--irfs-per-chain",
-                                                   "3",
-                                                   "--seed",
-                                                   "4",
-                                                   "--max-rank",
-                                                   "20",
-                                                   "--no-appearance",
-                                                   "--no-check",
-                                                   "--allow-missing-entries",
-                                                   "--until-fidelity",
-                                                   "0.001",
-                                                   "--budget-irfs",
-                                                   "40",
-                                                   "--guide-schedules",
-                                                   "1",
-                                                   "--held-out-schedules",
-                                                   "0",
-                                                   "--directed-extra-irfs",
-                                                   "0"});
+  const auto r = run_with_single_irf_chains("cli_directed_once", "40", "1");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("adaptive sampling: no guide segment left that plays out of the target and has had no "
                        "directed chain after "),
