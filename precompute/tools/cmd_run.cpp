@@ -188,7 +188,7 @@ void add_run_command(CLI::App& app) {
       core::ProgressBar bar{"held-out schedules"};
       const auto f =
           measure_fidelity(scene, reduced.package, held_out_seed(*o), held_out, o->adaptive.schedule_items,
-                           nullptr, [&bar](int done, int total) { bar.update(done, total); });
+                           [&bar](int done, int total) { bar.update(done, total); });
       bar.finish();
       if (reduced.writer) {
         fmt::print("{}", fidelity_text(f, "held-out"));

@@ -31,8 +31,9 @@ std::uint64_t stream(std::uint64_t seed, std::uint64_t purpose) {
   return x ^ (x >> 31);
 }
 
-constexpr std::uint64_t kGuide = 0x6775696465ULL;     // "guide"
-constexpr std::uint64_t kDirected = 0x6469726563ULL;  // "direc"
+constexpr std::uint64_t kGuide = 0x6775696465ULL;         // "guide"
+constexpr std::uint64_t kDirected = 0x6469726563ULL;      // "direc"
+constexpr size_t kKeptGuideTruthBytes = size_t{1} << 30;  // per rank
 
 // How far a segment plays from the target, compared tier first: an entry
 // the package has no IRF of (the server refused it: nothing of it plays),
@@ -135,21 +136,22 @@ FidelityFigures figures_of(const ValidationSummary& summary, std::uint64_t seed,
   return f;
 }
 
-// The guide schedules of every round: drawn once, so a round is judged on
-// the schedules whose segments the previous round's chains were directed at,
-// and simulated once while their truths fit kKeptTruthBytes on this rank (a
-// large render surface's are simulated again each round, to the same frames).
-class GuideSchedules {
+// Random schedules drawn once and played against one package or several,
+// each simulated once while their truths fit `kept_truth_bytes` on this rank
+// (the rest are simulated again at each play, to the same frames). The guide
+// schedules of every round are one such set, so a round is judged on the
+// schedules whose segments the previous round's chains were directed at.
+class RandomSchedules {
  public:
-  GuideSchedules(const Scene& scene, std::uint64_t seed, int schedules, int items)
-      : scene_(scene), seed_(seed), items_(items) {
+  RandomSchedules(const Scene& scene, std::uint64_t seed, int schedules, int items, size_t kept_truth_bytes)
+      : scene_(scene), seed_(seed), items_(items), kept_truth_bytes_(kept_truth_bytes) {
     const auto rules = make_palette_rules(scene);
     for (int k = 0; k < schedules; ++k) {
       auto drawn = random_schedule(rules, scene.simulation.frame_dt, seed, k, items);
       if (!drawn.empty()) schedules_.push_back(std::move(drawn));
     }
     truths_.resize(schedules_.size());
-    for (const auto& items : schedules_) directed_.emplace_back(items.size(), false);
+    for (const auto& drawn : schedules_) directed_.emplace_back(drawn.size(), false);
   }
 
   // Segments that had a directed chain: a second from the same state would sample the same IRF.
@@ -157,6 +159,7 @@ class GuideSchedules {
 
   FidelityFigures play(const core::ScenePackage& package, std::vector<PlayedSchedule>& played,
                        const ProgressCallback& progress) {
+    check_package_of(scene_, package);
     const auto shared = std::make_shared<const core::ScenePackage>(package);
     ValidationOptions options;
     options.intersections = false;
@@ -173,15 +176,13 @@ class GuideSchedules {
   }
 
  private:
-  static constexpr size_t kKeptTruthBytes = size_t{1} << 30;
-
   // Schedule k's truth: the kept one, or simulated now and kept if it fits,
   // else left in `unkept`, which the caller drops after this round's playback.
   const SimulatedSchedule& truth(size_t k, SimulatedSchedule& unkept) {
     if (truths_[k]) return *truths_[k];
     unkept = simulate_truth(scene_, schedules_[k]);
     const auto bytes = static_cast<size_t>(unkept.frames.size()) * sizeof(double);
-    if (kept_bytes_ + bytes > kKeptTruthBytes) return unkept;
+    if (kept_bytes_ + bytes > kept_truth_bytes_) return unkept;
     kept_bytes_ += bytes;
     truths_[k] = std::move(unkept);
     return *truths_[k];
@@ -190,6 +191,7 @@ class GuideSchedules {
   const Scene& scene_;
   std::uint64_t seed_;
   int items_;
+  size_t kept_truth_bytes_;
   std::vector<std::vector<ScheduleItem>> schedules_;
   std::vector<std::optional<SimulatedSchedule>> truths_;
   std::vector<std::vector<bool>> directed_;
@@ -199,22 +201,9 @@ class GuideSchedules {
 }  // namespace
 
 FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
-                                 int schedules, int items, std::vector<PlayedSchedule>* played,
-                                 const ProgressCallback& progress) {
-  const auto rules = make_palette_rules(scene);
-  const auto shared = std::make_shared<const core::ScenePackage>(package);
-  ValidationSummary summary;
-  ValidationOptions options;
-  options.intersections = false;
-  for (int k = 0; k < schedules; ++k) {
-    PlayedSchedule p{random_schedule(rules, scene.simulation.frame_dt, seed, k, items), {}, {}};
-    if (p.items.empty()) continue;
-    p.figures = validate_schedule(scene, shared, p.items, options);
-    summary.add(p.figures);
-    if (played) played->push_back(std::move(p));
-    if (progress) progress(k + 1, schedules);
-  }
-  return figures_of(summary, seed, items);
+                                 int schedules, int items, const ProgressCallback& progress) {
+  std::vector<PlayedSchedule> played;
+  return RandomSchedules(scene, seed, schedules, items, 0).play(package, played, progress);
 }
 
 std::vector<GuideSegment> directed_segments(const std::vector<PlayedSchedule>& played,
@@ -318,7 +307,8 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
   report.writer = Ranks::world().rank() == 0;
   AppearanceChoices no_appearance;
   no_appearance.skip = true;
-  GuideSchedules guides(scene, stream(first.sampling.seed, kGuide), o.guide_schedules, o.schedule_items);
+  RandomSchedules guides(scene, stream(first.sampling.seed, kGuide), o.guide_schedules, o.schedule_items,
+                         kKeptGuideTruthBytes);
   for (int r = 0;; ++r) {
     report.sampled = run_sample_rounds(scene, rounds, orbits);
     const auto round_package = work / fmt::format("round-{}.h5", r);
@@ -350,7 +340,7 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
     auto next = next_round(first, o, played, guides.directed(), r, round.irfs, work);
     if (!next) {
       report.stopped =
-          directed_lead_ins(played, o.target, 1).empty()
+          directed_segments(played, o.target, 1).empty()
               ? "no guide segment left that plays out of the target and has had no directed chain"
               : "IRF budget spent";
       break;

@@ -250,7 +250,7 @@ SceneCheck check_scene(const Scene& scene, const core::ScenePackage* package, co
         std::none_of(c.irfs.begin(), c.irfs.end(), [](const EntryIrfs& e) { return e.irfs == 0; });
     if (o.fidelity_schedules > 0 && playable) {  // random schedules would play entries the server refuses
       c.fidelity = measure_fidelity(scene, *package, o.fidelity_seed, o.fidelity_schedules, o.fidelity_items,
-                                    nullptr, stage("fidelity estimate"));
+                                    stage("fidelity estimate"));
     }
   }
   return c;

@@ -53,10 +53,7 @@ struct FidelityFigures {
   }
 };
 
-// Plays `schedules` random schedules of `items` entries (random_schedule with
-// `seed`) both ways. With `played` non-null, every schedule's segments and
-// items are handed back for the directed chains; `progress` hears schedules
-// done / total (each is a full simulation: minutes on a large scene).
+// A guide schedule as a round's package played it.
 struct PlayedSchedule {
   std::vector<ScheduleItem> items;
   ScheduleFigures figures;
@@ -65,9 +62,12 @@ struct PlayedSchedule {
   // state would sample the same IRF again, so it is not chosen again.
   std::vector<bool> directed;
 };
+
+// Plays `schedules` random schedules of `items` entries (random_schedule with
+// `seed`) both ways; `progress` hears schedules done / total (each is a full
+// simulation: minutes on a large scene).
 FidelityFigures measure_fidelity(const Scene& scene, const core::ScenePackage& package, std::uint64_t seed,
-                                 int schedules, int items, std::vector<PlayedSchedule>* played = nullptr,
-                                 const ProgressCallback& progress = {});
+                                 int schedules, int items, const ProgressCallback& progress = {});
 
 struct AdaptiveOptions {
   FidelityTarget target;
