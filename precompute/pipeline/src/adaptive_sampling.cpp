@@ -80,6 +80,10 @@ int irfs_of(const SampleStageOptions& round) {
   return round.sampling.chains * round.sampling.irfs_per_chain;
 }
 
+bool unsampled(const std::vector<PlayedSchedule>& played, const GuideSegment& s) {
+  return played[s.schedule].figures.segments[s.segment].unsampled;
+}
+
 // The guide schedule's items up to and through the segment.
 std::vector<ScheduleItem> lead_in(const std::vector<PlayedSchedule>& played, const GuideSegment& s) {
   const auto& items = played[s.schedule].items;
@@ -93,8 +97,12 @@ std::optional<SampleStageOptions> next_round(const SampleStageOptions& first, co
                                              const std::vector<PlayedSchedule>& played,
                                              std::vector<std::vector<bool>>& directed, int round_index,
                                              int irfs_so_far, const std::filesystem::path& work) {
-  const int wanted = o.directed_chains > 0 ? o.directed_chains : first.sampling.chains;
-  auto segments = directed_segments(played, o.target, wanted);
+  auto segments = directed_segments(played, o.target, first.sampling.chains);
+  // Once every entry has IRFs, a round adds few chains: the guide schedules
+  // are kept, so the next round judges what each one mended before more go.
+  if (o.directed_chains > 0 && !segments.empty() && !unsampled(played, segments.front()) &&
+      static_cast<int>(segments.size()) > o.directed_chains)
+    segments.resize(static_cast<size_t>(o.directed_chains));
   // Every chain of a round samples as many IRFs: the segment's, then random
   // ones (the lead-in before it is simulated, not recorded). What does not
   // fit the budget goes: random IRFs first, then chains.
@@ -267,7 +275,9 @@ std::string adaptive_report_text(const AdaptiveReport& a) {
   for (size_t r = 0; r < a.rounds.size(); ++r) {
     const auto& round = a.rounds[r];
     out += fmt::format("adaptive round {}: {} IRFs{}; ", r, round.irfs,
-                       round.directed ? fmt::format(" ({} directed chains added)", round.directed) : "");
+                       round.directed ? fmt::format(" ({} directed chain{} added)", round.directed,
+                                                    round.directed == 1 ? "" : "s")
+                                      : "");
     out += fidelity_text(round.guide, "guide");
   }
   out += fmt::format("adaptive sampling: {} after {} rounds, {} IRFs\n", a.stopped, a.rounds.size(),

@@ -244,7 +244,7 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
             std::string::npos)
       << r.out;
   EXPECT_NE(r.out.find("adaptive round 1: "), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("directed chains added)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("directed chain"), std::string::npos) << r.out;
   // Every round is judged on the same guide schedules (drawn and simulated once).
   const std::regex guide_seed{R"(adaptive round \d+: .*fidelity \(guide, .*, seed (\d+)\))"};
   std::set<std::string> guide_seeds;
@@ -254,8 +254,9 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
     guide_seeds.insert((*it)[1].str());
   EXPECT_GE(rounds, 2) << r.out;
   EXPECT_EQ(guide_seeds.size(), 1u) << r.out;
-  // Round 1: two directed chains of 3 IRFs each (the segment's and --directed-extra-irfs' 2).
-  EXPECT_NE(r.out.find("adaptive round 1: 12 IRFs (2 directed chains added)"), std::string::npos) << r.out;
+  // Round 1: one directed chain (--directed-chains' default) of 3 IRFs (the
+  // segment's and --directed-extra-irfs' 2).
+  EXPECT_NE(r.out.find("adaptive round 1: 9 IRFs (1 directed chain added)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("adaptive sampling: IRF budget spent after "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("fidelity (held-out, 4 random schedules of 4 entries"), std::string::npos) << r.out;
   // Guide schedules (simulated in round 0, played each round) and held-out ones: minutes on a large scene.
@@ -286,40 +287,51 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
 // `run` of the tiny scene towards a target it never meets, with directed
 // chains of their segment's IRF only.
 testing::ToolResult run_with_single_irf_chains(const std::string& name, const std::string& budget,
-                                               const std::string& guide_schedules) {
+                                               const std::string& guide_schedules,
+                                               const std::vector<std::string>& more = {}) {
   const auto dir = scratch_dir(name);
-  return run_tool("phasecast-precompute", {"run",
-                                           tiny_scene_path().string(),
-                                           "-o",
-                                           (dir / "a.h5").string(),
-                                           "--chains",
-                                           "2",
-                                           "--irfs-per-chain",
-                                           "3",
-                                           "--seed",
-                                           "4",
-                                           "--max-rank",
-                                           "20",
-                                           "--no-appearance",
-                                           "--no-check",
-                                           "--allow-missing-entries",
-                                           "--until-fidelity",
-                                           "0.001",
-                                           "--budget-irfs",
-                                           budget,
-                                           "--guide-schedules",
-                                           guide_schedules,
-                                           "--held-out-schedules",
-                                           "0",
-                                           "--directed-extra-irfs",
-                                           "0"});
+  return run_tool("phasecast-precompute", args({"run",
+                                                tiny_scene_path().string(),
+                                                "-o",
+                                                (dir / "a.h5").string(),
+                                                "--chains",
+                                                "2",
+                                                "--irfs-per-chain",
+                                                "3",
+                                                "--seed",
+                                                "4",
+                                                "--max-rank",
+                                                "20",
+                                                "--no-appearance",
+                                                "--no-check",
+                                                "--allow-missing-entries",
+                                                "--until-fidelity",
+                                                "0.001",
+                                                "--budget-irfs",
+                                                budget,
+                                                "--guide-schedules",
+                                                guide_schedules,
+                                                "--held-out-schedules",
+                                                "0",
+                                                "--directed-extra-irfs",
+                                                "0"},
+                                               more));
 }
 
 // --directed-extra-irfs sets how many random IRFs a directed chain draws
-// after its segment's: with 0, round 1's 2 chains add 2 IRFs where the
-// default adds 6 (UntilFidelitySamplesInRoundsWithinItsBudget).
+// after its segment's: with 0, round 1's chain adds 1 IRF where the default
+// adds 3 (UntilFidelitySamplesInRoundsWithinItsBudget).
 TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
   const auto r = run_with_single_irf_chains("cli_directed_extra", "12", "3");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("adaptive round 1: 7 IRFs (1 directed chain added)"), std::string::npos) << r.out;
+}
+
+// --directed-chains sets the chains a round adds once every entry has IRFs:
+// 0 lets round 1 aim up to --chains (2) of them, where the default aims one
+// (UntilFidelityDirectedChainsDrawTheExtraIrfsAsked).
+TEST(PipelineCli, UntilFidelityDirectedChainsCapARound) {
+  const auto r = run_with_single_irf_chains("cli_directed_cap", "12", "3", {"--directed-chains", "0"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("adaptive round 1: 8 IRFs (2 directed chains added)"), std::string::npos) << r.out;
 }
@@ -377,7 +389,8 @@ TEST_P(AdaptiveAgainstRandom, NineIrfsOfTheTinyToyPlayMoreOfTheHeldOutMotionInRa
 INSTANTIATE_TEST_SUITE_P(Seeds, AdaptiveAgainstRandom, ::testing::Values(1, 2, 3));
 
 // Adaptive options whose first round is 4 IRFs and whose second adds up to 6
-// in directed chains, so --stop-after-irfs 5 stops inside the second round.
+// in two directed chains, so --stop-after-irfs 5 (per round) stops inside the
+// second round.
 std::vector<std::string> adaptive_rounds() {
   return {"--chains",
           "2",
@@ -396,6 +409,8 @@ std::vector<std::string> adaptive_rounds() {
           "0.001",
           "--budget-irfs",
           "10",
+          "--directed-chains",
+          "2",
           "--guide-schedules",
           "3",
           "--held-out-schedules",

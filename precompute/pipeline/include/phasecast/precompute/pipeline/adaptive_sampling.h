@@ -75,7 +75,7 @@ struct AdaptiveOptions {
   double budget_minutes = 0;    // wall time of the rounds (0: no limit but the IRFs)
   int guide_schedules = 10;     // random schedules, drawn once, every round is judged on
   int schedule_items = 4;       // entries per guide schedule
-  int directed_chains = 0;      // per round at most (0: the first round's chain count)
+  int directed_chains = 1;      // per round once every entry has IRFs (0: the first round's chain count)
   int directed_extra_irfs = 2;  // IRFs a directed chain draws after the segment's
 };
 
