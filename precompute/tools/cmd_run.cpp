@@ -110,9 +110,10 @@ void add_fidelity_options(CLI::App* cmd, Options& o) {
          "with --until-fidelity: random schedules, drawn and simulated once, every round is judged on")
       ->check(CLI::Range(1, 10000))
       ->capture_default_str();
-  cmd->add_option("--directed-chains", o.adaptive.directed_chains,
-                  "with --until-fidelity: directed chains a round adds at most once every palette entry has "
-                  "IRFs (0: --chains; a round that mends entries without IRFs adds up to --chains)")
+  cmd->add_option(
+         "--directed-chains", o.adaptive.directed_chains,
+         "with --until-fidelity: the most directed chains a round adds once every palette entry has "
+         "IRFs, up to --chains (0: --chains; a round that mends entries without IRFs adds up to --chains)")
       ->check(CLI::Range(0, 100000))
       ->capture_default_str();
   cmd->add_option("--directed-extra-irfs", o.adaptive.directed_extra_irfs,

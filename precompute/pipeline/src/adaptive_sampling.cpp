@@ -91,18 +91,14 @@ std::vector<ScheduleItem> lead_in(const std::vector<PlayedSchedule>& played, con
 }
 
 // The round after `round_index` judged `played`: its directed chains, at most
-// as many as the budget allows. Marks the segments they start from in
+// --chains (--directed-chains once every entry has IRFs) and as many as the
+// budget allows. Marks the segments they start from in
 // `directed`, which the guide schedules keep from round to round.
 std::optional<SampleStageOptions> next_round(const SampleStageOptions& first, const AdaptiveOptions& o,
                                              const std::vector<PlayedSchedule>& played,
                                              std::vector<std::vector<bool>>& directed, int round_index,
                                              int irfs_so_far, const std::filesystem::path& work) {
-  auto segments = directed_segments(played, o.target, first.sampling.chains);
-  // Once every entry has IRFs, a round adds few chains: the guide schedules
-  // are kept, so the next round judges what each one mended before more go.
-  if (o.directed_chains > 0 && !segments.empty() && !unsampled(played, segments.front()) &&
-      static_cast<int>(segments.size()) > o.directed_chains)
-    segments.resize(static_cast<size_t>(o.directed_chains));
+  auto segments = round_segments(played, o.target, first.sampling.chains, o.directed_chains);
   // Every chain of a round samples as many IRFs: the segment's, then random
   // ones (the lead-in before it is simulated, not recorded). What does not
   // fit the budget goes: random IRFs first, then chains.
@@ -240,6 +236,18 @@ std::vector<GuideSegment> directed_segments(const std::vector<PlayedSchedule>& p
   return out;
 }
 
+std::vector<GuideSegment> round_segments(const std::vector<PlayedSchedule>& played,
+                                         const FidelityTarget& target, int chains, int directed_chains) {
+  auto segments = directed_segments(played, target, chains);
+  // Once every entry has IRFs, a round adds at most directed_chains: the guide
+  // schedules are kept, so the next round judges what each one mended before
+  // more go. A round that covers entries without IRFs is not capped.
+  if (directed_chains > 0 && !segments.empty() && !unsampled(played, segments.front()) &&
+      static_cast<int>(segments.size()) > directed_chains)
+    segments.resize(static_cast<size_t>(directed_chains));
+  return segments;
+}
+
 std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
                                                          const FidelityTarget& target, int count) {
   std::vector<std::vector<ScheduleItem>> out;
@@ -302,6 +310,12 @@ void check_adaptive_options(const AdaptiveOptions& o, const SampleStageOptions& 
   if (o.guide_schedules < 1 || o.schedule_items < 1 || o.directed_chains < 0 || o.directed_extra_irfs < 0)
     throw std::invalid_argument(
         "adaptive sampling: expected guide schedules and items >= 1, directed chains and extra IRFs >= 0");
+  // A round aims at most --chains segments (directed_segments' count).
+  if (o.directed_chains > first.sampling.chains)
+    throw std::invalid_argument(
+        fmt::format("--directed-chains {}: expected at most --chains ({}), the most "
+                    "chains a round adds",
+                    o.directed_chains, first.sampling.chains));
 }
 
 AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOptions& first,

@@ -12,6 +12,8 @@
 #include <chrono>
 #include <exception>
 #include <mutex>
+#include <optional>
+#include <string>
 #include <thread>
 
 namespace phasecast::precompute {
@@ -45,8 +47,21 @@ std::filesystem::path chain_state(const std::filesystem::path& dir, int chain) {
 struct Checkpoint {
   int irfs = 0;
   int previous = -1;
+  std::string lead_in;  // lead_in_key's: a checkpoint of another lead-in is another chain
   SimState state;
 };
+
+// The chain's lead-in as text ("entry seconds; ..."; empty from rest). An
+// adaptive round's chain k depends on the segment it is directed at, which
+// the options before the round decide, not the seed alone.
+std::string lead_in_key(const SamplingOptions& o, int chain) {
+  std::string key;
+  const auto k = static_cast<size_t>(chain);
+  if (k >= o.lead_ins.size()) return key;
+  for (const ScheduleItem& item : o.lead_ins[k])
+    key += fmt::format("{}{} {:.17g}", key.empty() ? "" : "; ", item.entry, item.duration);
+  return key;
+}
 
 void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c, const SamplingOptions& o,
                       int chain) {
@@ -56,6 +71,7 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c, co
       f.write_attribute("chain", std::int32_t{chain});
       f.write_attribute("irfs", std::int32_t{c.irfs});
       f.write_attribute("previous", std::int32_t{c.previous});
+      f.write_attribute("lead_in", lead_in_key(o, chain));
       f.write_attribute("time", c.state.time);
       f.write("/x", c.state.x);
       f.write("/v", c.state.v);
@@ -85,6 +101,7 @@ Checkpoint read_checkpoint(const std::filesystem::path& path, const SamplingOpti
     Checkpoint c;
     c.irfs = static_cast<int>(f.read_attribute_number("irfs"));
     c.previous = static_cast<int>(f.read_attribute_number("previous"));
+    if (f.has_attribute("lead_in")) c.lead_in = f.read_attribute_string("lead_in");
     c.state.time = f.read_attribute_number("time");
     c.state.x = r.column<double>("/x", n);
     c.state.v = r.column<double>("/v", n);
@@ -109,19 +126,31 @@ struct Shared {
 // The chain's store, ready for its next IRF: continued after the checkpoint
 // when resuming (`c` and `sim` then hold the checkpointed state), else new.
 // A store that cannot be continued (a crash tore the file) is sampled again:
-// a chain is a pure function of the seed, so nothing changes but the time.
+// a chain is a pure function of the seed and its lead-in, so nothing changes
+// but the time.
 OrbitStoreAppender open_chain(const Scene& scene, const SamplingOptions& o, int chain, Checkpoint& c,
                               Simulator& sim, Shared& sh) {
   const auto store_path = chain_store(o.work_dir, chain), state_path = chain_state(o.work_dir, chain);
   const bool checkpointed = std::filesystem::exists(store_path) && std::filesystem::exists(state_path);
-  if (o.resume && checkpointed && !sim.restores_any_state()) {
+  const auto saved_if_same_chain = [&]() -> std::optional<Checkpoint> {
+    if (!o.resume || !checkpointed) return std::nullopt;
+    Checkpoint saved = read_checkpoint(state_path, o, chain, 3 * static_cast<Eigen::Index>(sim.vertices()));
+    if (saved.lead_in == lead_in_key(o, chain)) return saved;
+    std::lock_guard lock(sh.mutex);
+    if (o.notice)
+      o.notice(
+          fmt::format("chain {}: its checkpoint was led in by another guide segment (options changed "
+                      "since the interrupted run); sampling the chain again",
+                      chain));
+    return std::nullopt;
+  };
+  const std::optional<Checkpoint> saved = saved_if_same_chain();
+  if (saved && !sim.restores_any_state()) {
     // A finished chain is kept; an unfinished one cannot be continued by its simulator.
-    const Checkpoint saved =
-        read_checkpoint(state_path, o, chain, 3 * static_cast<Eigen::Index>(sim.vertices()));
-    if (saved.irfs == o.irfs_per_chain) {
+    if (saved->irfs == o.irfs_per_chain) {
       try {
-        OrbitStoreAppender store = OrbitStoreAppender::reopen(store_path, saved.irfs);
-        c = saved;
+        OrbitStoreAppender store = OrbitStoreAppender::reopen(store_path, saved->irfs);
+        c = *saved;
         return store;
       } catch (const OrbitStoreError&) {  // a torn store: the chain is sampled again below
       }
@@ -130,16 +159,14 @@ OrbitStoreAppender open_chain(const Scene& scene, const SamplingOptions& o, int 
     if (o.notice)
       o.notice(fmt::format("chain {}: its simulator cannot continue a checkpoint; sampling the chain again",
                            chain));
-  } else if (o.resume && checkpointed) {
-    const Checkpoint saved =
-        read_checkpoint(state_path, o, chain, 3 * static_cast<Eigen::Index>(sim.vertices()));
-    if (saved.irfs > o.irfs_per_chain) {
+  } else if (saved) {
+    if (saved->irfs > o.irfs_per_chain) {
       throw SamplingError(fmt::format("{}: checkpoint holds {} IRFs, more than --irfs-per-chain {}",
-                                      state_path.string(), saved.irfs, o.irfs_per_chain));
+                                      state_path.string(), saved->irfs, o.irfs_per_chain));
     }
     try {
-      OrbitStoreAppender store = OrbitStoreAppender::reopen(store_path, saved.irfs);
-      c = saved;
+      OrbitStoreAppender store = OrbitStoreAppender::reopen(store_path, saved->irfs);
+      c = *saved;
       sim.reset(c.state);
       return store;
     } catch (const OrbitStoreError& e) {

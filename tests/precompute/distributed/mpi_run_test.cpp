@@ -109,13 +109,14 @@ TEST(MpiRun, AnyNumberOfRanksWritesTheSinglePackage) {
 }
 
 // --until-fidelity under mpirun: every rank reduces and validates alike, the
-// directed chains of each round spread over the ranks, and the package is the
-// single process's, bit for bit.
+// directed chains of each round (up to --chains of them with
+// --directed-chains 0) spread over the ranks, and the package is the single
+// process's, bit for bit.
 TEST(MpiRun, AdaptiveSamplingWritesTheSinglePackage) {
   const auto dir = scratch_dir("mpi_adaptive");
   const std::vector<std::string> adaptive = {
-      "--no-appearance",   "--no-check", "--until-fidelity",     "0.001", "--budget-irfs", "10",
-      "--guide-schedules", "3",          "--held-out-schedules", "2"};
+      "--no-appearance",   "--no-check", "--until-fidelity",     "0.001", "--budget-irfs",     "10",
+      "--guide-schedules", "3",          "--held-out-schedules", "2",     "--directed-chains", "0"};
   const auto single = run_command(precompute_run(dir / "np1.h5", adaptive));
   ASSERT_EQ(single.exit_code, 0) << single.err;
   ASSERT_NE(single.err.find("adaptive round 1: "), std::string::npos) << "one round only: " << single.err;

@@ -244,7 +244,6 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
             std::string::npos)
       << r.out;
   EXPECT_NE(r.out.find("adaptive round 1: "), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("directed chain"), std::string::npos) << r.out;
   // Every round is judged on the same guide schedules (drawn and simulated once).
   const std::regex guide_seed{R"(adaptive round \d+: .*fidelity \(guide, .*, seed (\d+)\))"};
   std::set<std::string> guide_seeds;
@@ -327,13 +326,18 @@ TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
   EXPECT_NE(r.out.find("adaptive round 1: 7 IRFs (1 directed chain added)"), std::string::npos) << r.out;
 }
 
-// --directed-chains sets the chains a round adds once every entry has IRFs:
+// --directed-chains caps the chains a round adds once every entry has IRFs:
 // 0 lets round 1 aim up to --chains (2) of them, where the default aims one
-// (UntilFidelityDirectedChainsDrawTheExtraIrfsAsked).
-TEST(PipelineCli, UntilFidelityDirectedChainsCapARound) {
+// (UntilFidelityDirectedChainsDrawTheExtraIrfsAsked); more than --chains is
+// refused before sampling.
+TEST(PipelineCli, UntilFidelityDirectedChainsZeroAimsUpToChains) {
   const auto r = run_with_single_irf_chains("cli_directed_cap", "12", "3", {"--directed-chains", "0"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("adaptive round 1: 8 IRFs (2 directed chains added)"), std::string::npos) << r.out;
+  const auto more = run_with_single_irf_chains("cli_directed_more", "12", "3", {"--directed-chains", "3"});
+  EXPECT_EQ(more.exit_code, 1);
+  EXPECT_NE(more.err.find("--directed-chains 3: expected at most --chains (2)"), std::string::npos)
+      << more.err;
 }
 
 // A guide segment gets one directed chain: with one guide schedule of four

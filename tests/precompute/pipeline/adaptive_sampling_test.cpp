@@ -65,6 +65,8 @@ TEST(AdaptiveSampling, WhileEntriesHaveNoIrfARoundSamplesOneChainOfEachAndNothin
   EXPECT_EQ(lead_ins[1].back().entry, 1);  // before entry 3's second segment
   EXPECT_EQ(lead_ins[1].size(), 2u);
   EXPECT_EQ(directed_lead_ins(played, target, 1).size(), 1u);
+  // --directed-chains caps the rounds after coverage only: both entries get one.
+  EXPECT_EQ(round_segments(played, target, 4, 1).size(), 2u);
 }
 
 // Ten guide schedules of four moving segments each, playing true but for
@@ -92,6 +94,9 @@ TEST(AdaptiveSampling, OnceEveryEntryHasIrfsARoundSamplesNoMoreChainsThanTheTarg
   const auto tail = ten_schedules({{worse, 0.5}, {worse, 0.5}, {worse, 0.5}});
   EXPECT_EQ(target_shortfall(tail, target), 2);
   EXPECT_EQ(directed_lead_ins(tail, target, 4).size(), 2u);
+  // --directed-chains 1 (the default) aims one of them a round; 0 both.
+  EXPECT_EQ(round_segments(tail, target, 4, 1).size(), 1u);
+  EXPECT_EQ(round_segments(tail, target, 4, 0).size(), 2u);
   EXPECT_EQ(target_shortfall(ten_schedules({{above, 0.2}}), target), 0);
 }
 
@@ -114,6 +119,25 @@ TEST(AdaptiveSampling, ASegmentThatHadADirectedChainIsNotChosenAgain) {
   EXPECT_EQ(chosen[1].schedule, 2u);
   for (auto& p : played) p.directed = {true, true, true, true};
   EXPECT_TRUE(directed_lead_ins(played, target, 4).empty());
+}
+
+TEST(AdaptiveSampling, MoreDirectedChainsThanChainsAreRejected) {
+  SampleStageOptions first;
+  first.sampling.chains = 4;
+  first.sampling.irfs_per_chain = 2;
+  AdaptiveOptions o;
+  o.budget_irfs = 16;
+  o.directed_chains = 4;
+  EXPECT_NO_THROW(check_adaptive_options(o, first));
+  o.directed_chains = 5;
+  try {
+    check_adaptive_options(o, first);
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("--directed-chains 5: expected at most --chains (4)"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -85,6 +85,32 @@ TEST_F(Sampler, ADirectedChainStartsWhereItsScheduleStood) {
   expect_identical(sample_irfs(scene, rules, stopped), s);
 }
 
+// An adaptive round's chain k is aimed at the segment the options before the
+// round pick: resumed with another lead-in (say another --directed-chains),
+// its checkpoint is another chain's and is sampled again, never continued.
+TEST_F(Sampler, ACheckpointOfAnotherLeadInIsSampledAgain) {
+  SamplingOptions o = small_options(scratch_dir("sampler_directed_other_lead_in"));
+  o.chains = 1;
+  o.irfs_per_chain = 3;
+  o.jobs = 1;
+  o.lead_ins = {parse_schedule("open 0.4; stop 0.3; close 0.2", scene)};
+  o.stop_after_irfs = 2;
+  EXPECT_THROW(sample_irfs(scene, rules, o), SamplingError);
+  std::vector<std::string> notices;
+  o.notice = [&notices](const std::string& line) { notices.push_back(line); };
+  o.stop_after_irfs = 0;
+  o.resume = true;
+  o.lead_ins = {parse_schedule("open 0.6; stop 0.2", scene)};
+  const OrbitStore resumed = sample_irfs(scene, rules, o);
+  ASSERT_EQ(notices.size(), 1u);
+  EXPECT_NE(notices[0].find("chain 0: its checkpoint was led in by another guide segment"), std::string::npos)
+      << notices[0];
+  SamplingOptions fresh = o;
+  fresh.work_dir = scratch_dir("sampler_directed_other_lead_in_fresh");
+  fresh.resume = false;
+  expect_identical(resumed, sample_irfs(scene, rules, fresh));
+}
+
 TEST_F(Sampler, RecordedChainsObeyThePaletteRules) {
   const auto o = small_options(scratch_dir("sampler_rules"));
   const OrbitStore s = sample_irfs(scene, rules, o);

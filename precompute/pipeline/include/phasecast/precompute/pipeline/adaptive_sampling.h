@@ -75,7 +75,7 @@ struct AdaptiveOptions {
   double budget_minutes = 0;    // wall time of the rounds (0: no limit but the IRFs)
   int guide_schedules = 10;     // random schedules, drawn once, every round is judged on
   int schedule_items = 4;       // entries per guide schedule
-  int directed_chains = 1;      // per round once every entry has IRFs (0: the first round's chain count)
+  int directed_chains = 1;      // per round once every entry has IRFs, <= first's chains (0: as many)
   int directed_extra_irfs = 2;  // IRFs a directed chain draws after the segment's
 };
 
@@ -91,6 +91,10 @@ struct GuideSegment {
 };
 std::vector<GuideSegment> directed_segments(const std::vector<PlayedSchedule>& played,
                                             const FidelityTarget& target, int count);
+// A round's segments: directed_segments' up to `chains`, and once every entry
+// has IRFs at most `directed_chains` of them (0: no further cap).
+std::vector<GuideSegment> round_segments(const std::vector<PlayedSchedule>& played,
+                                         const FidelityTarget& target, int chains, int directed_chains);
 // The same as lead-ins: each the schedule's items up to and through its segment.
 std::vector<std::vector<ScheduleItem>> directed_lead_ins(const std::vector<PlayedSchedule>& played,
                                                          const FidelityTarget& target, int count);
