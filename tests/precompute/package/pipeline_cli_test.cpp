@@ -392,10 +392,10 @@ TEST_P(AdaptiveAgainstRandom, NineIrfsOfTheTinyToyPlayMoreOfTheHeldOutMotionInRa
 
 INSTANTIATE_TEST_SUITE_P(Seeds, AdaptiveAgainstRandom, ::testing::Values(1, 2, 3));
 
-// Adaptive options whose first round is 4 IRFs and whose second adds up to 6
-// in two directed chains, so --stop-after-irfs 5 (per round) stops inside the
-// second round.
-std::vector<std::string> adaptive_rounds() {
+// Adaptive options whose first round is 4 IRFs and whose second adds 6 more
+// (two directed chains of 3 IRFs, or one of 6), so --stop-after-irfs 5 (per
+// round) stops inside the second round's last chain.
+std::vector<std::string> adaptive_rounds(const std::string& directed_chains, const std::string& extra_irfs) {
   return {"--chains",
           "2",
           "--irfs-per-chain",
@@ -412,9 +412,11 @@ std::vector<std::string> adaptive_rounds() {
           "--until-fidelity",
           "0.001",
           "--budget-irfs",
-          "10",
+          "11",
           "--directed-chains",
-          "2",
+          directed_chains,
+          "--directed-extra-irfs",
+          extra_irfs,
           "--guide-schedules",
           "3",
           "--held-out-schedules",
@@ -422,14 +424,18 @@ std::vector<std::string> adaptive_rounds() {
 }
 
 // A run stopped inside a directed round resumes from that round's
-// checkpoints to the uninterrupted run's package bytes.
-TEST(PipelineCli, UntilFidelityResumesInALaterRoundToTheSameBytes) {
-  const auto dir = scratch_dir("cli_until_fidelity_resume");
+// checkpoints to the uninterrupted run's package bytes; returns the resumed
+// run's stderr.
+std::string expect_resume_in_a_later_round(const std::string& name, const std::vector<std::string>& options,
+                                           const std::string& round_1) {
+  const auto dir = scratch_dir(name);
   const auto straight = (dir / "straight.h5").string(), resumed = (dir / "resumed.h5").string();
-  const auto r = run_tool("phasecast-precompute",
-                          args({"run", tiny_scene_path().string(), "-o", straight}, adaptive_rounds()));
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  auto stopping = adaptive_rounds();
+  const auto r =
+      run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", straight}, options));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("adaptive round 1: 10 IRFs (" + round_1 + " added)"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("adaptive round 2: 11 IRFs"), std::string::npos) << r.err;
+  auto stopping = options;
   stopping.insert(stopping.end(), {"--stop-after-irfs", "5"});
   const auto stopped =
       run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", resumed}, stopping));
@@ -437,12 +443,29 @@ TEST(PipelineCli, UntilFidelityResumesInALaterRoundToTheSameBytes) {
   EXPECT_NE(stopped.err.find("adaptive round 0: 4 IRFs, guide"), std::string::npos) << stopped.err;
   EXPECT_NE(stopped.err.find("sampling stopped after 5 new IRFs"), std::string::npos) << stopped.err;
   EXPECT_FALSE(std::filesystem::exists(resumed));
-  auto resuming = adaptive_rounds();
+  auto resuming = options;
   resuming.push_back("--resume");
   const auto again =
       run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", resumed}, resuming));
-  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(again.exit_code, 0) << again.err;
   EXPECT_TRUE(testing::read_file(straight) == testing::read_file(resumed)) << "the package bytes differ";
+  return again.err;
+}
+
+TEST(PipelineCli, UntilFidelityResumesInALaterRoundToTheSameBytes) {
+  expect_resume_in_a_later_round("cli_until_fidelity_resume", adaptive_rounds("2", "2"), "2 directed chains");
+}
+
+// The default --directed-chains 1: round 1 is one chain of 6 IRFs, stopped
+// after its fifth; the resumed run continues it with its sixth, not again.
+TEST(PipelineCli, UntilFidelityResumesInsideOneDirectedChainToTheSameBytes) {
+  const auto err = expect_resume_in_a_later_round("cli_until_fidelity_resume_one_chain",
+                                                  adaptive_rounds("1", "5"), "1 directed chain");
+  const auto round_1 = err.find("1 chains x 6 IRFs (directed)");
+  ASSERT_NE(round_1, std::string::npos) << err;
+  const auto chain = err.find("chain 0:", round_1);
+  ASSERT_NE(chain, std::string::npos) << err;
+  EXPECT_EQ(err.substr(chain, 16), "chain 0: 1 IRFs,") << err;
 }
 
 TEST(PipelineCli, KilledRunResumesToTheSamePackageBytes) {
