@@ -8,8 +8,10 @@ three petioles and the stem's top two more, and every petiole ends in a leaf:
 11 leaves of 6 x 12 quads (792 shell quads, as two triangles each). Each
 leaf's midrib runs on along its petiole's last segment, where the two share
 vertices (`weld_to`), so a leaf is held along a line, not at a point. Leaves
-of neighbouring branches overlap in plan, 2-4 cm apart, so a pushed pot
-makes them collide (self-collision, thickness 3 mm). The leaves are drawn
+of neighbouring branches overlap in plan, 2-4 cm apart (self-collision,
+thickness 3 mm); braced so that each joint has one rest (farthest_off_plane),
+they sway with their branches and do not come within 6 mm of each other on
+the scene's pushes (docs/scenes.md). The leaves are drawn
 through one Loop subdivision (`render = { subdivide = 1 }`): 6 336 triangles
 on the screen from 1 584 simulated ones, as the paper's shells were drawn
 finer than they were simulated. Stem, branches and petioles are drawn as
@@ -50,6 +52,14 @@ weld_radius = 1e-4"""
 
 def add(a, b, s=1.0):
     return [a[i] + s * b[i] for i in range(3)]
+
+
+def sub(a, b):
+    return [a[i] - b[i] for i in range(3)]
+
+
+def dot(a, b):
+    return sum(a[i] * b[i] for i in range(3))
 
 
 def unit(v):
@@ -123,9 +133,24 @@ pin = {{ min = [-0.03, 0.11, -0.03], max = [0.03, {stem[1][1] + 0.005:.4f}, 0.03
     return body + "\n" + "\n".join(braces), frame
 
 
-def joint(child, child_ea, anchors, why):
+def farthest_off_plane(a, b, c, candidates):
+    """The candidate farthest from the plane through a, b and c. Springs from
+    one point to anchors that all lie in one plane with the joint hold it
+    twice over: its mirror image through that plane has the same spring
+    lengths (a vertical plane keeps its height too), so a push could flip a
+    petiole to its sibling's side, or a leaf over, and leave it there."""
+    n = unit(cross(sub(b, a), sub(c, a)))
+    return max(candidates, key=lambda p: abs(dot(sub(p, a), n)))
+
+
+def joint(child, child_ea, anchors, extra, why):
     """Braces the child's second vertex to anchors off its axis, so that the
-    weld at its first vertex holds its direction (and the turn about it)."""
+    weld at its first vertex holds its direction (and the turn about it); the
+    anchors are coplanar with the weld, so one of `extra` off their plane joins
+    them."""
+    widest = max(((p, q) for p in anchors for q in anchors),
+                 key=lambda pq: sum(c * c for c in cross(sub(pq[0], child[0]), sub(pq[1], child[0]))))
+    anchors = anchors + [farthest_off_plane(child[0], *widest, extra)]
     return brace(child[1], anchors, JOINT_BRACE * child_ea, why)
 
 
@@ -145,16 +170,20 @@ grid = {{ origin = {fmt(origin)}, u = {fmt(u)}, v = {fmt(along)}, cells = [{LEAF
 """, [origin, add(origin, u)]
 
 
-def petiole_and_leaf(index, parent, start, direction, anchors):
+def petiole_and_leaf(index, parent, start, direction, anchors, extra):
     """A petiole from `start` on its parent and its leaf; `anchors` are points
     off the petiole's axis on the parent or the stem, which its joint and the
-    leaf's blade are braced to."""
+    leaf's blade are braced to, and `extra` stem frame points, one of which
+    joins each where the others lie in one plane with its axis."""
     body, petiole = rod(f"petiole{index}", parent, start, direction, PETIOLE_SEGMENTS, PETIOLE_STEP, PETIOLE_RADIUS,
                         PETIOLE_YOUNG)
     blade, corners = leaf(f"leaf{index}", f"petiole{index}", petiole[-2], direction)
     ea = PETIOLE_YOUNG * math.pi * PETIOLE_RADIUS ** 2
-    parts = [body, joint(petiole, ea, anchors, f"petiole{index}'s joint"), blade]
-    parts += [brace(c, [petiole[-3], anchors[0]], LEAF_BRACE, f"leaf{index} against rolling") for c in corners]
+    parts = [body, joint(petiole, ea, anchors, extra, f"petiole{index}'s joint"), blade]
+    # The blade rolls about its midrib (the petiole's last segments): a second
+    # anchor off the plane of that axis and the first keeps the roll's mirror out.
+    rolls = [anchors[0], farthest_off_plane(petiole[-3], petiole[-2], anchors[0], anchors[1:] + extra)]
+    parts += [brace(c, [petiole[-3]] + rolls, LEAF_BRACE, f"leaf{index} against rolling") for c in corners]
     return "\n".join(parts)
 
 
@@ -181,18 +210,19 @@ pin = {{ min = [-0.01, 0.11, -0.01], max = [0.01, {STEM_BASE + 1.5 * step:.4f}, 
         body, branch = rod(f"branch{b}", "stem", stem[k], direction, BRANCH_SEGMENTS, BRANCH_STEP, BRANCH_RADIUS,
                            BRANCH_YOUNG)
         parts.append(body)
+        near = frame[k - 1:k + 2]
         parts.append(joint(branch, BRANCH_YOUNG * math.pi * BRANCH_RADIUS ** 2, [stem[k - 1], stem[k + 1], frame[k]],
-                           f"branch{b}'s joint"))
+                           near, f"branch{b}'s joint"))
         # Petioles from the branch's 3rd and 5th vertices: to either side, and on along the tip.
         for at, turn, lift in ((3, -55.0, 0.2), (3, 55.0, 0.2), (5, 0.0, 0.1)):
             anchors = [branch[at - 1], stem[k + 1]] + ([branch[at + 1]] if at + 1 < len(branch) else [])
             parts.append(petiole_and_leaf(leaves, f"branch{b}", branch[at], heading(azimuth + turn,
                                                                                       rise * 0.5 + lift),
-                                          anchors))
+                                          anchors, near))
             leaves += 1
     for azimuth in (60.0, 190.0):
         anchors = [stem[-2], stem[-3], frame[-1], frame[-2]]
-        parts.append(petiole_and_leaf(leaves, "stem", stem[-1], heading(azimuth, 0.9), anchors))
+        parts.append(petiole_and_leaf(leaves, "stem", stem[-1], heading(azimuth, 0.9), anchors, frame[-3:]))
         leaves += 1
     return "\n".join(parts), leaves
 
@@ -201,8 +231,8 @@ HEADER = """# Generated by scenes/paper/make_plant.py: edit that script, not thi
 # The paper's plant at its size (Table 1: 788 quad shells, 3 750 / 6 304
 # drawn; Figs. 10-11): a rod stem in a pot with three branches, {leaves}
 # leaves of 6 x 12 quads on petioles ({quads} shell quads), leaves of
-# neighbouring branches overlapping in plan so that a pushed pot makes them
-# collide. Leaves are drawn through one Loop subdivision, stem, branches and
+# neighbouring branches overlapping in plan (they sway with their branches
+# and do not meet on its pushes: docs/scenes.md). Leaves are drawn through one Loop subdivision, stem, branches and
 # petioles as tubes of their radius. The pot is pushed
 # side to side as scenes/plant_pot.toml (the fast default), same palette.
 name = "paper_plant_pot"
