@@ -8,7 +8,7 @@ three petioles and the stem's top two more, and every petiole ends in a leaf:
 11 leaves of 6 x 12 quads (792 shell quads, as two triangles each). Each
 leaf's midrib runs on along its petiole's last segment, where the two share
 vertices (`weld_to`), so a leaf is held along a line, not at a point. Leaves
-of neighbouring branches overlap in plan, 2-4 cm apart (self-collision,
+of neighbouring branches overlap in plan, at least 1.6 cm apart at rest (self-collision,
 thickness 3 mm); braced so that no joint has a mirror rest (farthest_off_plane),
 they sway with their branches and do not come within 6 mm of each other on
 the scene's pushes (docs/scenes.md). The leaves are drawn
