@@ -158,6 +158,25 @@ std::string listed(const std::vector<std::string>& names) {
   return "[" + out + "]";
 }
 
+// The support's velocity at every kept node (the IRF cache's key beside eq. 9),
+// taken over the whole store first: a kept IRF's start moved at the velocity
+// of the IRF it continues, kept or not.
+std::vector<SupportVelocity> kept_support_velocities(const Scene& scene, const IrfList& irfs,
+                                                     const std::vector<int>& kept) {
+  std::vector<SupportVelocity> held;
+  for (const auto& e : scene.palette) {
+    const bool jolt = scene.support.pulse_tau > 0;  // the support returns to rest
+    held.push_back(jolt ? SupportVelocity{} : SupportVelocity{e.alpha_forcing.x(), e.alpha_forcing.y(), e.alpha_forcing.z()});
+  }
+  const std::vector<SupportVelocity> all = support_velocities(irfs.start, irfs.length, irfs.palette, irfs.continues, held);
+  std::vector<SupportVelocity> out;
+  for (int i : kept) {
+    const auto first = all.begin() + irfs.start[static_cast<size_t>(i)];
+    out.insert(out.end(), first, first + irfs.length[static_cast<size_t>(i)]);
+  }
+  return out;
+}
+
 }  // namespace
 
 void check_orbit_store_matches(const Scene& scene, const OrbitIndex& o) {
@@ -347,8 +366,8 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
     row += len;
   }
   const double beta = o.beta > 0 ? o.beta : default_beta(p.q_u, p.qdot_u);
-  p.nearest_irf =
-      nearest_irf_cache(p.q_u, p.qdot_u, beta, p.irf_start, p.irf_length, p.irf_palette, rules.size());
+  p.nearest_irf = nearest_irf_cache(p.q_u, p.qdot_u, beta, p.irf_start, p.irf_length, p.irf_palette, rules.size(),
+                                    kept_support_velocities(scene, orbits.irfs, out.filter.kept));
   pkg.mesh = scene_mesh(scene);
   pkg.reduction = embedded_reduction(pkg.mesh, scene_point_embedding(scene), basis);
   // Palette.

@@ -97,7 +97,16 @@ TEST(IrfCache, MatchesBruteForceEq9) {
 // of the nearest, the longest IRF, then the nearest, then the lowest index.
 int brute_force_choice(const MatrixXfR& q, const MatrixXfR& v, double beta,
                        const std::vector<std::int32_t>& start, const std::vector<std::int32_t>& length,
-                       const std::vector<std::int32_t>& palette, int node, int d) {
+                       const std::vector<std::int32_t>& palette, int node, int d,
+                       const std::vector<SupportVelocity>& support = {}) {
+  // Only starts that moved the support as node does, unless none of entry d did.
+  std::vector<char> candidate(start.size(), 0);
+  bool any_at_velocity = false;
+  for (size_t i = 0; i < start.size(); ++i) {
+    candidate[i] = palette[i] == d && (support.empty() || support[start[i]] == support[node]);
+    any_at_velocity = any_at_velocity || candidate[i];
+  }
+  for (size_t i = 0; i < start.size() && !any_at_velocity; ++i) candidate[i] = palette[i] == d;
   double radius = 0;
   for (Eigen::Index i = 0; i < q.rows(); ++i)
     radius = std::max(radius, std::sqrt(q.row(i).cast<double>().squaredNorm() +
@@ -108,10 +117,10 @@ int brute_force_choice(const MatrixXfR& q, const MatrixXfR& v, double beta,
   };
   double nearest = INFINITY;
   for (size_t i = 0; i < start.size(); ++i)
-    if (palette[i] == d) nearest = std::min(nearest, distance(i));
+    if (candidate[i]) nearest = std::min(nearest, distance(i));
   int best = -1;
   for (size_t i = 0; i < start.size(); ++i) {
-    if (palette[i] != d || distance(i) > nearest + kSameStartFraction * radius) continue;
+    if (!candidate[i] || distance(i) > nearest + kSameStartFraction * radius) continue;
     const auto b = static_cast<size_t>(best);
     if (best < 0 || length[i] > length[b] || (length[i] == length[b] && distance(i) < distance(b)))
       best = static_cast<int>(i);
@@ -172,6 +181,68 @@ TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
     float_misses += pick != cache(j, 0);
   }
   EXPECT_GT(float_misses, N / 10);
+}
+
+// The support's velocity at each node: its IRF's entry's, and at its first node
+// the velocity of the IRF it continues (0 from rest).
+TEST(SupportVelocities, FirstNodesKeepTheVelocityTheImpulseFinds) {
+  const std::vector<SupportVelocity> held = {{-0.5, 0, 0}, {0.5, 0, 0}, {0, 0, 0}};  // left, right, stop
+  const auto v = support_velocities({0, 3, 5, 7}, {3, 2, 2, 2}, {0, 2, 1, 2}, {0, 1, 0, 1}, held);
+  const std::vector<SupportVelocity> want = {{0, 0, 0},  {-0.5, 0, 0}, {-0.5, 0, 0}, {-0.5, 0, 0}, {0, 0, 0},
+                                             {0, 0, 0},  {0.5, 0, 0},  {0.5, 0, 0},  {0, 0, 0}};
+  EXPECT_EQ(v, want);
+  EXPECT_THROW(support_velocities({0}, {2}, {3}, {0}, held), std::invalid_argument);  // entry without a velocity
+  EXPECT_THROW(support_velocities({0, 3}, {2, 2}, {0, 0}, {0, 0}, held), std::invalid_argument);  // a gap
+}
+
+// A stop after a push left is the opposite kick of a stop after a push right:
+// from a node of a push left, the stop that started after one plays, though a
+// stop that started after a push right lies nearer under eq. 9.
+TEST(IrfCache, AnImpulsePlaysAnIrfThatStartedAtTheSameSupportVelocity) {
+  // IRFs: left (nodes 0-2), stop after it (3-5), right (6-8), stop after it (9-11).
+  MatrixXfR q(12, 1), v = MatrixXfR::Zero(12, 1);
+  q << 0, 1, 2, 2.6f, 1.5f, 0, 0, -1, -2, 2.1f, 1, 0;
+  const std::vector<std::int32_t> start = {0, 3, 6, 9}, length = {3, 3, 3, 3}, palette = {0, 2, 1, 2};
+  const std::vector<SupportVelocity> held = {{-0.5, 0, 0}, {0.5, 0, 0}, {0, 0, 0}};
+  const auto support = support_velocities(start, length, palette, {0, 1, 0, 1}, held);
+  const MatrixXiR cache = nearest_irf_cache(q, v, 1.0, start, length, palette, 3, support);
+  EXPECT_EQ(cache(2, 2), 1);  // at q = 2 moving left: the stop from 2.6 after a left, not the one from 2.1
+  EXPECT_EQ(cache(8, 2), 3);  // moving right: the only stop after a right
+  EXPECT_EQ(nearest_irf_cache(q, v, 1.0, start, length, palette, 3)(2, 2), 3);  // eq. 9 alone: the nearer start
+  // No stop started still: from a still node, the nearest of all.
+  EXPECT_EQ(cache(5, 2), 3);
+  EXPECT_EQ(cache(5, 0), 0);  // a push from a still node: the one push left, which started still
+  EXPECT_THROW(nearest_irf_cache(q, v, 1.0, start, length, palette, 3, {{0, 0, 0}}), std::invalid_argument);
+}
+
+// The same against the brute force: random states, three entries, chains of
+// random entries.
+TEST(IrfCache, MatchesBruteForceWithSupportVelocities) {
+  std::mt19937 rng(5);
+  std::normal_distribution<float> n;
+  const int r = 4, D = 3, n_irf = 90, len = 20, N = n_irf * len;
+  MatrixXfR q(N, r), v(N, r);
+  for (int i = 0; i < q.size(); ++i) q.data()[i] = n(rng), v.data()[i] = n(rng);
+  std::vector<std::int32_t> start, length(n_irf, len), palette;
+  std::vector<std::uint8_t> continues;
+  for (int i = 0; i < n_irf; ++i) {
+    start.push_back(i * len);
+    palette.push_back(static_cast<std::int32_t>(rng() % D));
+    continues.push_back(i > 0 && rng() % 4 != 0);
+  }
+  const std::vector<SupportVelocity> held = {{-0.5, 0, 0}, {0.5, 0, 0}, {0, 0, 0}};
+  const auto support = support_velocities(start, length, palette, continues, held);
+  const MatrixXiR cache = nearest_irf_cache(q, v, 0.7, start, length, palette, D, support);
+  int moved = 0;
+  const MatrixXiR plain = nearest_irf_cache(q, v, 0.7, start, length, palette, D);
+  for (int j = 0; j < N; j += 3) {
+    for (int d = 0; d < D; ++d) {
+      ASSERT_EQ(cache(j, d), brute_force_choice(q, v, 0.7, start, length, palette, j, d, support))
+          << "node " << j << " entry " << d;
+      moved += cache(j, d) != plain(j, d);
+    }
+  }
+  EXPECT_GT(moved, N / 10);  // not vacuous: the velocity changes many choices
 }
 
 // Starts within 1 % of the portrait's radius of the nearest are one state:
