@@ -164,10 +164,9 @@ std::string listed(const std::vector<std::string>& names) {
 std::vector<SupportVelocity> kept_support_velocities(const Scene& scene, const IrfList& irfs,
                                                      const std::vector<int>& kept) {
   std::vector<SupportVelocity> held;
-  for (const auto& e : scene.palette) {
-    const bool jolt = scene.support.pulse_tau > 0;  // the support returns to rest
-    held.push_back(jolt ? SupportVelocity{} : SupportVelocity{e.alpha_forcing.x(), e.alpha_forcing.y(), e.alpha_forcing.z()});
-  }
+  // The forcing is the velocity an entry holds (a jolt's pulse comes on top and returns to rest).
+  for (const auto& e : scene.palette)
+    held.push_back(SupportVelocity{e.alpha_forcing.x(), e.alpha_forcing.y(), e.alpha_forcing.z()});
   const std::vector<SupportVelocity> all = support_velocities(irfs.start, irfs.length, irfs.palette, irfs.continues, held);
   std::vector<SupportVelocity> out;
   for (int i : kept) {

@@ -49,8 +49,9 @@ MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, doubl
 // The support's velocity (m/s, or rad/s about the axis) in the state of each
 // node of an orbit store's IRFs: inside an IRF its entry's held velocity, and
 // at its first node, the state its impulse finds, the held velocity of the IRF
-// it continues (0 from the settled rest). `held[d]` is entry d's forcing
-// (alpha_forcing), 0 for a jolt that returns the support to rest.
+// it continues (0 when it continues no stored IRF: from the settled rest, or
+// after a directed chain's lead-in, which the store does not hold). `held[d]`
+// is entry d's forcing (alpha_forcing; a jolt's pulse returns to rest).
 std::vector<SupportVelocity> support_velocities(const std::vector<std::int32_t>& irf_start,
                                   const std::vector<std::int32_t>& irf_length,
                                   const std::vector<std::int32_t>& irf_palette,
