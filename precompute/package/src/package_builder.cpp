@@ -167,7 +167,8 @@ std::vector<SupportVelocity> kept_support_velocities(const Scene& scene, const I
   // The forcing is the velocity an entry holds (a jolt's pulse comes on top and returns to rest).
   for (const auto& e : scene.palette)
     held.push_back(SupportVelocity{e.alpha_forcing.x(), e.alpha_forcing.y(), e.alpha_forcing.z()});
-  const std::vector<SupportVelocity> all = support_velocities(irfs.start, irfs.length, irfs.palette, irfs.continues, held);
+  const std::vector<SupportVelocity> all =
+      support_velocities(irfs.start, irfs.length, irfs.palette, irfs.continues, held);
   std::vector<SupportVelocity> out;
   for (int i : kept) {
     const auto first = all.begin() + irfs.start[static_cast<size_t>(i)];
@@ -365,8 +366,9 @@ PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const 
     row += len;
   }
   const double beta = o.beta > 0 ? o.beta : default_beta(p.q_u, p.qdot_u);
-  p.nearest_irf = nearest_irf_cache(p.q_u, p.qdot_u, beta, p.irf_start, p.irf_length, p.irf_palette, rules.size(),
-                                    kept_support_velocities(scene, orbits.irfs, out.filter.kept));
+  p.nearest_irf =
+      nearest_irf_cache(p.q_u, p.qdot_u, beta, p.irf_start, p.irf_length, p.irf_palette, rules.size(),
+                        kept_support_velocities(scene, orbits.irfs, out.filter.kept));
   pkg.mesh = scene_mesh(scene);
   pkg.reduction = embedded_reduction(pkg.mesh, scene_point_embedding(scene), basis);
   // Palette.

@@ -49,8 +49,10 @@ bool same_velocity(const SupportVelocity& a, const SupportVelocity& b) {
 
 // Which IRFs of `irfs` may play from a node whose support moves at `v`: those
 // whose start moved at it, or all of them when none did.
-std::vector<char> candidates_at(const std::vector<std::int32_t>& irfs, const std::vector<std::int32_t>& irf_start,
-                                const std::vector<SupportVelocity>& support_velocity, const SupportVelocity& v) {
+std::vector<char> candidates_at(const std::vector<std::int32_t>& irfs,
+                                const std::vector<std::int32_t>& irf_start,
+                                const std::vector<SupportVelocity>& support_velocity,
+                                const SupportVelocity& v) {
   std::vector<char> ok(irfs.size(), 1);
   if (support_velocity.empty()) return ok;
   bool any = false;
@@ -71,16 +73,21 @@ std::vector<SupportVelocity> support_velocities(const std::vector<std::int32_t>&
                                                 const std::vector<SupportVelocity>& held) {
   const size_t n = irf_start.size();
   if (irf_length.size() != n || irf_palette.size() != n || continues.size() != n)
-    throw std::invalid_argument("support_velocities: expected one length, palette entry and continues flag per IRF");
-  std::vector<SupportVelocity> v(n ? static_cast<size_t>(irf_start.back() + irf_length.back()) : 0, SupportVelocity{});
+    throw std::invalid_argument(
+        "support_velocities: expected one length, palette entry and continues flag per IRF");
+  std::vector<SupportVelocity> v(n ? static_cast<size_t>(irf_start.back() + irf_length.back()) : 0,
+                                 SupportVelocity{});
   size_t next = 0;
   for (size_t i = 0; i < n; ++i) {
     const auto entry = static_cast<size_t>(irf_palette[i]);
-    if (entry >= held.size()) throw std::invalid_argument("support_velocities: expected a held velocity per entry");
+    if (entry >= held.size())
+      throw std::invalid_argument("support_velocities: expected a held velocity per entry");
     const auto first = static_cast<size_t>(irf_start[i]), end = first + static_cast<size_t>(irf_length[i]);
-    if (first != next || end > v.size()) throw std::invalid_argument("support_velocities: expected consecutive IRFs");
+    if (first != next || end > v.size())
+      throw std::invalid_argument("support_velocities: expected consecutive IRFs");
     next = end;
-    std::fill(v.begin() + static_cast<std::ptrdiff_t>(first), v.begin() + static_cast<std::ptrdiff_t>(end), held[entry]);
+    std::fill(v.begin() + static_cast<std::ptrdiff_t>(first), v.begin() + static_cast<std::ptrdiff_t>(end),
+              held[entry]);
     v[first] = (i > 0 && continues[i]) ? held[static_cast<size_t>(irf_palette[i - 1])] : SupportVelocity{};
   }
   return v;
@@ -119,11 +126,13 @@ MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, doubl
       score.rowwise() += s_norm.transpose();
       for (Eigen::Index j = 0; j < count; ++j) {
         const Eigen::Index node = first + j;
-        const SupportVelocity v = support_velocity.empty() ? SupportVelocity{} : support_velocity[static_cast<size_t>(node)];
+        const SupportVelocity v =
+            support_velocity.empty() ? SupportVelocity{} : support_velocity[static_cast<size_t>(node)];
         auto known = std::find_if(by_velocity.begin(), by_velocity.end(),
                                   [&](const auto& known_v) { return same_velocity(known_v.first, v); });
         if (known == by_velocity.end())
-          known = by_velocity.insert(by_velocity.end(), {v, candidates_at(irfs, irf_start, support_velocity, v)});
+          known =
+              by_velocity.insert(by_velocity.end(), {v, candidates_at(irfs, irf_start, support_velocity, v)});
         const std::vector<char>& ok = known->second;
         double least = std::numeric_limits<double>::infinity();
         for (Eigen::Index k = 0; k < score.cols(); ++k)

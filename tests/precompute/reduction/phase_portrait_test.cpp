@@ -188,10 +188,11 @@ TEST(IrfCache, NearDuplicateStartsAtRestAreToldApartExactly) {
 TEST(SupportVelocities, FirstNodesKeepTheVelocityTheImpulseFinds) {
   const std::vector<SupportVelocity> held = {{-0.5, 0, 0}, {0.5, 0, 0}, {0, 0, 0}};  // left, right, stop
   const auto v = support_velocities({0, 3, 5, 7}, {3, 2, 2, 2}, {0, 2, 1, 2}, {0, 1, 0, 1}, held);
-  const std::vector<SupportVelocity> want = {{0, 0, 0},  {-0.5, 0, 0}, {-0.5, 0, 0}, {-0.5, 0, 0}, {0, 0, 0},
-                                             {0, 0, 0},  {0.5, 0, 0},  {0.5, 0, 0},  {0, 0, 0}};
+  const std::vector<SupportVelocity> want = {{0, 0, 0}, {-0.5, 0, 0}, {-0.5, 0, 0}, {-0.5, 0, 0}, {0, 0, 0},
+                                             {0, 0, 0}, {0.5, 0, 0},  {0.5, 0, 0},  {0, 0, 0}};
   EXPECT_EQ(v, want);
-  EXPECT_THROW(support_velocities({0}, {2}, {3}, {0}, held), std::invalid_argument);  // entry without a velocity
+  EXPECT_THROW(support_velocities({0}, {2}, {3}, {0}, held),
+               std::invalid_argument);  // entry without a velocity
   EXPECT_THROW(support_velocities({0, 3}, {2, 2}, {0, 0}, {0, 0}, held), std::invalid_argument);  // a gap
 }
 
@@ -208,7 +209,8 @@ TEST(IrfCache, AnImpulsePlaysAnIrfThatStartedAtTheSameSupportVelocity) {
   const MatrixXiR cache = nearest_irf_cache(q, v, 1.0, start, length, palette, 3, support);
   EXPECT_EQ(cache(2, 2), 1);  // at q = 2 moving left: the stop from 2.6 after a left, not the one from 2.1
   EXPECT_EQ(cache(8, 2), 3);  // moving right: the only stop after a right
-  EXPECT_EQ(nearest_irf_cache(q, v, 1.0, start, length, palette, 3)(2, 2), 3);  // eq. 9 alone: the nearer start
+  EXPECT_EQ(nearest_irf_cache(q, v, 1.0, start, length, palette, 3)(2, 2),
+            3);  // eq. 9 alone: the nearer start
   // No stop started still: from a still node, the nearest of all.
   EXPECT_EQ(cache(5, 2), 3);
   EXPECT_EQ(cache(5, 0), 0);  // a push from a still node: the one push left, which started still

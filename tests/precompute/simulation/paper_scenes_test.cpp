@@ -193,14 +193,16 @@ TEST(PaperScenes, DefaultPlantComesBackToItsRestAfterAPushEitherWay) {
     const auto farthest_at = [&](int f) {
       const Eigen::VectorXf d = o.positions.row(f) - o.positions.row(0);
       double most = 0;
-      for (Eigen::Index v = 0; v < s.model.vertices(); ++v) most = std::max(most, double(d.segment<3>(3 * v).norm()));
+      for (Eigen::Index v = 0; v < s.model.vertices(); ++v)
+        most = std::max(most, double(d.segment<3>(3 * v).norm()));
       return most;
     };
     double swung = 0;
     for (int f = 0; f < o.frames(); ++f) swung = std::max(swung, farthest_at(f));
     const double farthest = farthest_at(o.frames() - 1);
     EXPECT_GT(swung, 0.02) << schedule << ": the push moved the plant";
-    EXPECT_LT(farthest, 0.003) << schedule << ": a vertex came to rest " << farthest << " m from where it was";
+    EXPECT_LT(farthest, 0.003) << schedule << ": a vertex came to rest " << farthest
+                               << " m from where it was";
   }
 }
 

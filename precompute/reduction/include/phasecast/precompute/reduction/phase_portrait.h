@@ -53,9 +53,9 @@ MatrixXiR nearest_irf_cache(const MatrixXfR& q_u, const MatrixXfR& qdot_u, doubl
 // after a directed chain's lead-in, which the store does not hold). `held[d]`
 // is entry d's forcing (alpha_forcing; a jolt's pulse returns to rest).
 std::vector<SupportVelocity> support_velocities(const std::vector<std::int32_t>& irf_start,
-                                  const std::vector<std::int32_t>& irf_length,
-                                  const std::vector<std::int32_t>& irf_palette,
-                                  const std::vector<std::uint8_t>& continues,
+                                                const std::vector<std::int32_t>& irf_length,
+                                                const std::vector<std::int32_t>& irf_palette,
+                                                const std::vector<std::uint8_t>& continues,
                                                 const std::vector<SupportVelocity>& held);
 
 }  // namespace phasecast::precompute
