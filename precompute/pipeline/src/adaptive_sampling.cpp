@@ -99,11 +99,15 @@ std::optional<SampleStageOptions> next_round(const SampleStageOptions& first, co
                                              std::vector<std::vector<bool>>& directed, int round_index,
                                              int irfs_so_far, const std::filesystem::path& work) {
   auto segments = round_segments(played, o.target, first.sampling.chains, o.directed_chains);
-  // Every chain of a round samples as many IRFs: the segment's, then random
-  // ones (the lead-in before it is simulated, not recorded). What does not
-  // fit the budget goes: random IRFs first, then chains.
+  // Every chain of a round samples as many IRFs: the item before the segment
+  // and the segment's (kRecordedLeadIns; the lead-in before them is simulated,
+  // not recorded), then random ones; a schedule's first segment draws one more
+  // random IRF instead. What does not fit the budget goes: random IRFs first,
+  // then chains.
   int extra = o.directed_extra_irfs;
-  const auto cost = [&](size_t n) { return static_cast<int>(n) * (1 + extra); };
+  const auto cost = [&](size_t n) {
+    return static_cast<int>(n) * (static_cast<int>(kRecordedLeadIns) + extra);
+  };
   const auto over = [&] { return o.budget_irfs > 0 && irfs_so_far + cost(segments.size()) > o.budget_irfs; };
   while (!segments.empty() && over()) {
     if (extra > 0) {

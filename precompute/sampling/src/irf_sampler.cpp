@@ -197,16 +197,26 @@ int lead_in_frames(const PaletteRules& rules, const ScheduleItem& item, double f
                   std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(item.entry, at)));
 }
 
-// Walks chain `chain`'s lead-in but its last item (simulated, not recorded),
-// calling visit(item, frames) for each; returns where the chain's first IRF
-// starts (at rest when it has no lead-in).
+// The index of chain `chain`'s first recorded lead-in item: the item before
+// the segment (its last item) is recorded too, so the segment's IRF continues
+// a stored one and its start keeps the velocity the impulse finds (eq. 8, and
+// the support velocity of the IRF cache); the items before it are simulated only.
+size_t first_recorded_lead_in(const SamplingOptions& o, int chain) {
+  const auto k = static_cast<size_t>(chain);
+  if (k >= o.lead_ins.size()) return 0;
+  return o.lead_ins[k].size() > kRecordedLeadIns ? o.lead_ins[k].size() - kRecordedLeadIns : 0;
+}
+
+// Walks chain `chain`'s lead-in up to its recorded items (simulated, not
+// recorded), calling visit(item, frames) for each; returns where the chain's
+// first IRF starts (at rest when it has no lead-in).
 template <class Visit>
 ChainPosition walk_lead_in(const PaletteRules& rules, const SamplingOptions& o, double frame_dt, int chain,
                            Visit visit) {
   ChainPosition p;
   const auto k = static_cast<size_t>(chain);
   if (k >= o.lead_ins.size()) return p;
-  for (size_t i = 0; i + 1 < o.lead_ins[k].size(); ++i) {
+  for (size_t i = 0; i < first_recorded_lead_in(o, chain); ++i) {
     const ScheduleItem& item = o.lead_ins[k][i];
     const int frames = lead_in_frames(rules, item, frame_dt, p.at);
     visit(item, frames);
@@ -235,8 +245,8 @@ ChainPosition replay_chain(const PaletteRules& rules, const SamplingOptions& o, 
   return p;
 }
 
-// A directed chain's lead-in but its last item, simulated from rest and not
-// recorded: the chain's first IRF starts where the schedule it comes from
+// A directed chain's lead-in up to its recorded items, simulated from rest and
+// not recorded: the chain's first IRF starts where the schedule it comes from
 // stood (the checkpoints then hold the state past it).
 void play_lead_in(Simulator& sim, const Scene& scene, const PaletteRules& rules, const SamplingOptions& o,
                   int chain, IrfFrames& scratch) {
@@ -345,11 +355,12 @@ IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int i
 IrfDraw next_irf(const PaletteRules& rules, const SamplingOptions& o, double frame_dt, int chain, int irf,
                  const std::vector<int>& history, double at) {
   const auto k = static_cast<size_t>(chain);
-  if (k >= o.lead_ins.size() || o.lead_ins[k].empty() || irf > 0)
+  const size_t item = first_recorded_lead_in(o, chain) + static_cast<size_t>(irf);
+  if (k >= o.lead_ins.size() || item >= o.lead_ins[k].size())
     return draw_irf(rules, o.seed, chain, irf, history, at);
   IrfDraw d;
-  d.entry = o.lead_ins[k].back().entry;
-  d.frames = lead_in_frames(rules, o.lead_ins[k].back(), frame_dt, at);
+  d.entry = o.lead_ins[k][item].entry;
+  d.frames = lead_in_frames(rules, o.lead_ins[k][item], frame_dt, at);
   return d;
 }
 

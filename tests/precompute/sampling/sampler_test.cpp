@@ -55,10 +55,11 @@ double door_angle(const OrbitStore& s, int f) {
   return std::acos(std::clamp((trace - 1) / 2, -1.0, 1.0));
 }
 
-// A directed chain's first IRF is the lead-in's last item, recorded from the
-// state the items before it (simulated, not recorded) left: bit for bit the
-// frames the schedule's own simulation shows in that segment. A resumed
-// directed chain is the same.
+// A directed chain's first two IRFs are the lead-in's last two items, the
+// segment's continuing the one before it, recorded from the state the items
+// before them (simulated, not recorded) left: bit for bit the frames the
+// schedule's own simulation shows in those segments. Only the first recorded
+// start counts as still. A resumed directed chain is the same.
 TEST_F(Sampler, ADirectedChainStartsWhereItsScheduleStood) {
   const std::vector<ScheduleItem> lead_in = parse_schedule("open 0.4; stop 0.3; close 0.2", scene);
   SamplingOptions o = small_options(scratch_dir("sampler_directed"));
@@ -67,13 +68,22 @@ TEST_F(Sampler, ADirectedChainStartsWhereItsScheduleStood) {
   o.lead_ins = {lead_in};  // chain 1 has none: it starts at rest
   const OrbitStore s = sample_irfs(scene, rules, o);
   const OrbitStore truth = simulate_schedule(scene, lead_in);
-  ASSERT_EQ(s.irf_palette[0], lead_in[2].entry);
-  const int frames = schedule_frames(lead_in[2].duration, scene.simulation.frame_dt);
-  ASSERT_EQ(s.irf_length[0], frames);
-  ASSERT_EQ(truth.irf_length[2], frames);
-  EXPECT_TRUE(s.positions.topRows(frames) == truth.positions.middleRows(truth.irf_start[2], frames));
-  EXPECT_TRUE(s.support.topRows(frames) == truth.support.middleRows(truth.irf_start[2], frames));
-  EXPECT_EQ(s.irf_palette.size(), 6u);  // 3 IRFs a chain, the lead-in's last one counted
+  int recorded = 0;
+  for (int item = 1; item <= 2; ++item) {
+    const auto k = static_cast<size_t>(item - 1);
+    const auto i = static_cast<size_t>(item);
+    ASSERT_EQ(s.irf_palette[k], lead_in[i].entry) << "IRF " << k;
+    const int frames = schedule_frames(lead_in[i].duration, scene.simulation.frame_dt);
+    ASSERT_EQ(s.irf_length[k], frames);
+    ASSERT_EQ(truth.irf_length[i], frames);
+    EXPECT_TRUE(s.positions.middleRows(recorded, frames) ==
+                truth.positions.middleRows(truth.irf_start[i], frames));
+    EXPECT_TRUE(s.support.middleRows(recorded, frames) ==
+                truth.support.middleRows(truth.irf_start[i], frames));
+    recorded += frames;
+  }
+  EXPECT_EQ(s.irf_continues[1], 1) << "the segment's IRF continues the one before it";
+  EXPECT_EQ(s.irf_palette.size(), 6u);  // 3 IRFs a chain, the lead-in's two recorded ones counted
   // Stopped after its first IRF and resumed: the same orbits.
   SamplingOptions stopped = o;
   stopped.work_dir = scratch_dir("sampler_directed_resumed");

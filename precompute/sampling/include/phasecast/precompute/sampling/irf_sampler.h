@@ -62,11 +62,17 @@ struct SamplingOptions {
   std::function<void(const ChainSampled&)> chain_sampled;  // called from the chain's thread
   // Directed chains (adaptive sampling, docs/sampling.md): chain k plays
   // lead_ins[k] from rest, simulating but not recording its items but the
-  // last, which is the chain's first IRF; it then draws the rest of its IRFs
-  // as any chain does. Empty, or shorter than `chains`: the chains past it
-  // start at rest.
+  // last kRecordedLeadIns, which are the chain's first IRFs; it then draws the
+  // rest of its IRFs as any chain does. Empty, or shorter than `chains`: the
+  // chains past it start at rest.
   std::vector<std::vector<ScheduleItem>> lead_ins;
 };
+
+// A directed chain records its lead-in's last two items: the segment and the
+// one before it, so the segment's IRF continues a stored IRF and its start has
+// the velocity the impulse finds (a moving start would otherwise be stored
+// still, as every start that continues nothing is).
+inline constexpr size_t kRecordedLeadIns = 2;
 
 // The chain-th chain's decision for its `irf`-th IRF given its history (the
 // entries since it last left rest, oldest first) and the support coordinate
@@ -81,8 +87,8 @@ struct IrfDraw {
 IrfDraw draw_irf(const PaletteRules& rules, std::uint64_t seed, int chain, int irf,
                  const std::vector<int>& history, double at = 0);
 
-// The chain's `irf`-th IRF: its lead-in's last item first (T clipped to the
-// support's range like a drawn one), then draw_irf.
+// The chain's `irf`-th IRF: its lead-in's last kRecordedLeadIns items first
+// (T clipped to the support's range like a drawn one), then draw_irf.
 IrfDraw next_irf(const PaletteRules& rules, const SamplingOptions& options, double frame_dt, int chain,
                  int irf, const std::vector<int>& history, double at);
 
