@@ -117,7 +117,8 @@ void add_fidelity_options(CLI::App* cmd, Options& o) {
       ->check(CLI::Range(0, 100000))
       ->capture_default_str();
   cmd->add_option("--directed-extra-irfs", o.adaptive.directed_extra_irfs,
-                  "with --until-fidelity: random IRFs a directed chain draws after its segment's")
+                  "with --until-fidelity: random IRFs a directed chain draws after its segment's and the one "
+                  "before it")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   cmd->add_option("--held-out-schedules", o.held_out_schedules,

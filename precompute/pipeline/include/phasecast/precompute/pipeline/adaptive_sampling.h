@@ -73,10 +73,10 @@ struct AdaptiveOptions {
   FidelityTarget target;
   int budget_irfs = 0;          // all IRFs sampled, the first round's included (0: no limit but the time)
   double budget_minutes = 0;    // wall time of the rounds (0: no limit but the IRFs)
-  int guide_schedules = 10;     // random schedules, drawn once, every round is judged on
+  int guide_schedules = 20;     // random schedules, drawn once, every round is judged on (docs/sampling.md)
   int schedule_items = 4;       // entries per guide schedule
   int directed_chains = 1;      // per round once every entry has IRFs, <= first's chains (0: as many)
-  int directed_extra_irfs = 2;  // IRFs a directed chain draws after the segment's
+  int directed_extra_irfs = 2;  // IRFs a directed chain draws after its kRecordedLeadIns
 };
 
 // The segments the next round's directed chains start from, at most
