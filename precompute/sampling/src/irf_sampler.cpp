@@ -8,6 +8,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <exception>
@@ -51,15 +52,17 @@ struct Checkpoint {
   SimState state;
 };
 
-// The chain's lead-in as text ("entry seconds; ..."; empty from rest). An
-// adaptive round's chain k depends on the segment it is directed at, which
-// the options before the round decide, not the seed alone.
+// The chain's lead-in as text ("recorded 2: entry seconds; ..."; empty from
+// rest). An adaptive round's chain k depends on the segment it is directed
+// at, which the options before the round decide, not the seed alone, and on
+// how many of its items are recorded (a checkpoint of one recorded item is
+// another chain's).
 std::string lead_in_key(const SamplingOptions& o, int chain) {
-  std::string key;
   const auto k = static_cast<size_t>(chain);
-  if (k >= o.lead_ins.size()) return key;
+  if (k >= o.lead_ins.size() || o.lead_ins[k].empty()) return {};
+  std::string key = fmt::format("recorded {}: ", kRecordedLeadIns);
   for (const ScheduleItem& item : o.lead_ins[k])
-    key += fmt::format("{}{} {:.17g}", key.empty() ? "" : "; ", item.entry, item.duration);
+    key += fmt::format("{}{} {:.17g}", &item == o.lead_ins[k].data() ? "" : "; ", item.entry, item.duration);
   return key;
 }
 
@@ -370,6 +373,13 @@ void check_sampling_options(const SamplingOptions& o) {
                                     o.chains, o.irfs_per_chain, o.jobs));
   if (o.ranks < 1 || o.rank < 0 || o.rank >= o.ranks)
     throw SamplingError(fmt::format("sampling: rank {} of {} (expected 0 <= rank < ranks)", o.rank, o.ranks));
+  for (size_t k = 0; k < o.lead_ins.size() && k < static_cast<size_t>(o.chains); ++k) {
+    const size_t recorded = std::min(kRecordedLeadIns, o.lead_ins[k].size());
+    if (static_cast<size_t>(o.irfs_per_chain) < recorded)  // the segment's IRF would never be recorded
+      throw SamplingError(
+          fmt::format("sampling: chain {}'s lead-in records {} IRFs, expected IRFs per chain >= {}, got {}",
+                      k, recorded, recorded, o.irfs_per_chain));
+  }
 }
 
 namespace {

@@ -253,9 +253,9 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
     guide_seeds.insert((*it)[1].str());
   EXPECT_GE(rounds, 2) << r.out;
   EXPECT_EQ(guide_seeds.size(), 1u) << r.out;
-  // Round 1: one directed chain (--directed-chains' default) of 3 IRFs (the
-  // segment's and --directed-extra-irfs' 2).
-  EXPECT_NE(r.out.find("adaptive round 1: 9 IRFs (1 directed chain added)"), std::string::npos) << r.out;
+  // Round 1: one directed chain (--directed-chains' default) of 4 IRFs (the
+  // item before the segment, the segment's and --directed-extra-irfs' 2).
+  EXPECT_NE(r.out.find("adaptive round 1: 10 IRFs (1 directed chain added)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("adaptive sampling: IRF budget spent after "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("fidelity (held-out, 4 random schedules of 4 entries"), std::string::npos) << r.out;
   // Guide schedules (simulated in round 0, played each round) and held-out ones: minutes on a large scene.
@@ -284,7 +284,7 @@ TEST(PipelineCli, UntilFidelitySamplesInRoundsWithinItsBudget) {
 }
 
 // `run` of the tiny scene towards a target it never meets, with directed
-// chains of their segment's IRF only.
+// chains of their recorded lead-in only (the segment's IRF and the one before).
 testing::ToolResult run_with_single_irf_chains(const std::string& name, const std::string& budget,
                                                const std::string& guide_schedules,
                                                const std::vector<std::string>& more = {}) {
@@ -318,12 +318,12 @@ testing::ToolResult run_with_single_irf_chains(const std::string& name, const st
 }
 
 // --directed-extra-irfs sets how many random IRFs a directed chain draws
-// after its segment's: with 0, round 1's chain adds 1 IRF where the default
-// adds 3 (UntilFidelitySamplesInRoundsWithinItsBudget).
+// after its segment's: with 0, round 1's chain adds 2 IRFs where the default
+// adds 4 (UntilFidelitySamplesInRoundsWithinItsBudget).
 TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
   const auto r = run_with_single_irf_chains("cli_directed_extra", "12", "3");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("adaptive round 1: 7 IRFs (1 directed chain added)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("adaptive round 1: 8 IRFs (1 directed chain added)"), std::string::npos) << r.out;
 }
 
 // --directed-chains caps the chains a round adds once every entry has IRFs:
@@ -333,7 +333,7 @@ TEST(PipelineCli, UntilFidelityDirectedChainsDrawTheExtraIrfsAsked) {
 TEST(PipelineCli, UntilFidelityDirectedChainsZeroAimsUpToChains) {
   const auto r = run_with_single_irf_chains("cli_directed_cap", "12", "3", {"--directed-chains", "0"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("adaptive round 1: 8 IRFs (2 directed chains added)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("adaptive round 1: 10 IRFs (2 directed chains added)"), std::string::npos) << r.out;
   const auto more = run_with_single_irf_chains("cli_directed_more", "12", "3", {"--directed-chains", "3"});
   EXPECT_EQ(more.exit_code, 1);
   EXPECT_NE(more.err.find("--directed-chains 3: expected at most --chains (2)"), std::string::npos)
@@ -392,9 +392,10 @@ TEST_P(AdaptiveAgainstRandom, NineIrfsOfTheTinyToyPlayMoreOfTheHeldOutMotionInRa
 
 INSTANTIATE_TEST_SUITE_P(Seeds, AdaptiveAgainstRandom, ::testing::Values(1, 2, 3));
 
-// Adaptive options whose first round is 4 IRFs and whose second adds 6 more
-// (two directed chains of 3 IRFs, or one of 6), so --stop-after-irfs 5 (per
-// round) stops inside the second round's last chain.
+// Adaptive options whose first round is 4 IRFs and whose second adds 8 or 7
+// more (two directed chains of 4 IRFs, or one of 7), so --stop-after-irfs 5
+// (per round) stops inside the second round's last chain; a third round fills
+// the budget of 14.
 std::vector<std::string> adaptive_rounds(const std::string& directed_chains, const std::string& extra_irfs) {
   return {"--chains",
           "2",
@@ -412,7 +413,7 @@ std::vector<std::string> adaptive_rounds(const std::string& directed_chains, con
           "--until-fidelity",
           "0.001",
           "--budget-irfs",
-          "11",
+          "14",
           "--directed-chains",
           directed_chains,
           "--directed-extra-irfs",
@@ -433,8 +434,8 @@ std::string expect_resume_in_a_later_round(const std::string& name, const std::v
   const auto r =
       run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", straight}, options));
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("adaptive round 1: 10 IRFs (" + round_1 + " added)"), std::string::npos) << r.out;
-  EXPECT_NE(r.err.find("adaptive round 2: 11 IRFs"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("adaptive round 1: " + round_1 + " added)"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("adaptive round 2: 14 IRFs"), std::string::npos) << r.err;
   auto stopping = options;
   stopping.insert(stopping.end(), {"--stop-after-irfs", "5"});
   const auto stopped =
@@ -453,19 +454,21 @@ std::string expect_resume_in_a_later_round(const std::string& name, const std::v
 }
 
 TEST(PipelineCli, UntilFidelityResumesInALaterRoundToTheSameBytes) {
-  expect_resume_in_a_later_round("cli_until_fidelity_resume", adaptive_rounds("2", "2"), "2 directed chains");
+  expect_resume_in_a_later_round("cli_until_fidelity_resume", adaptive_rounds("2", "2"),
+                                 "12 IRFs (2 directed chains");
 }
 
-// The default --directed-chains 1: round 1 is one chain of 6 IRFs, stopped
-// after its fifth; the resumed run continues it with its sixth, not again.
+// The default --directed-chains 1: round 1 is one chain of 7 IRFs, stopped
+// after its fifth; the resumed run continues it with its sixth and seventh,
+// not again.
 TEST(PipelineCli, UntilFidelityResumesInsideOneDirectedChainToTheSameBytes) {
   const auto err = expect_resume_in_a_later_round("cli_until_fidelity_resume_one_chain",
-                                                  adaptive_rounds("1", "5"), "1 directed chain");
-  const auto round_1 = err.find("1 chains x 6 IRFs (directed)");
+                                                  adaptive_rounds("1", "5"), "11 IRFs (1 directed chain");
+  const auto round_1 = err.find("1 chains x 7 IRFs (directed)");
   ASSERT_NE(round_1, std::string::npos) << err;
   const auto chain = err.find("chain 0:", round_1);
   ASSERT_NE(chain, std::string::npos) << err;
-  EXPECT_EQ(err.substr(chain, 16), "chain 0: 1 IRFs,") << err;
+  EXPECT_EQ(err.substr(chain, 16), "chain 0: 2 IRFs,") << err;
 }
 
 TEST(PipelineCli, KilledRunResumesToTheSamePackageBytes) {

@@ -82,6 +82,7 @@ TEST_F(Sampler, ADirectedChainStartsWhereItsScheduleStood) {
                 truth.support.middleRows(truth.irf_start[i], frames));
     recorded += frames;
   }
+  EXPECT_EQ(s.irf_continues[0], 0) << "the first recorded start counts as still";
   EXPECT_EQ(s.irf_continues[1], 1) << "the segment's IRF continues the one before it";
   EXPECT_EQ(s.irf_palette.size(), 6u);  // 3 IRFs a chain, the lead-in's two recorded ones counted
   // Stopped after its first IRF and resumed: the same orbits.
@@ -93,6 +94,22 @@ TEST_F(Sampler, ADirectedChainStartsWhereItsScheduleStood) {
   stopped.stop_after_irfs = 0;
   stopped.resume = true;
   expect_identical(sample_irfs(scene, rules, stopped), s);
+}
+
+// A directed chain too short to record its segment's IRF is refused.
+TEST_F(Sampler, ADirectedChainShorterThanItsRecordedLeadInIsRefused) {
+  SamplingOptions o = small_options(scratch_dir("sampler_directed_short"));
+  o.chains = 1;
+  o.irfs_per_chain = 1;
+  o.lead_ins = {parse_schedule("open 0.4; stop 0.3; close 0.2", scene)};
+  try {
+    sample_irfs(scene, rules, o);
+    FAIL() << "expected a SamplingError";
+  } catch (const SamplingError& e) {
+    EXPECT_STREQ(e.what(), "sampling: chain 0's lead-in records 2 IRFs, expected IRFs per chain >= 2, got 1");
+  }
+  o.lead_ins = {parse_schedule("open 0.4", scene)};  // a schedule's first segment: recorded alone
+  EXPECT_EQ(sample_irfs(scene, rules, o).irf_palette.size(), 1u);
 }
 
 // An adaptive round's chain k is aimed at the segment the options before the
