@@ -5,10 +5,10 @@
 // schedules both through the full simulation and through the synthesis
 // engine (validation), finds the segments where served motion departs from
 // the simulated one, and spends its next IRFs there: one directed chain per
-// segment, which plays the guide schedule from rest up to that segment
-// (simulated, not recorded), records the segment's entry as its first IRF
-// from the very state where the served playback went wrong, and then draws
-// on as any chain. Rounds stop when the guide figures meet the target
+// segment, which plays the guide schedule from rest up to the item before
+// that segment (simulated, not recorded), records that item and the
+// segment's entry from the very state where the served playback went wrong
+// (kRecordedLeadIns), and then draws on as any chain. Rounds stop when the guide figures meet the target
 // or the budget is spent. The guide schedules are drawn once, from their own
 // stream (never the sampler's, never the held-out schedules that measure the
 // result: measure_fidelity with another seed), and simulated once: every
