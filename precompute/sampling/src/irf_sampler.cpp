@@ -200,10 +200,11 @@ int lead_in_frames(const PaletteRules& rules, const ScheduleItem& item, double f
                   std::min(schedule_frames(item.duration, frame_dt), rules.reachable_frames(item.entry, at)));
 }
 
-// The index of chain `chain`'s first recorded lead-in item: the item before
-// the segment (its last item) is recorded too, so the segment's IRF continues
-// a stored one and its start keeps the velocity the impulse finds (eq. 8, and
-// the support velocity of the IRF cache); the items before it are simulated only.
+// The index of chain `chain`'s first recorded lead-in item. The segment is the
+// lead-in's last item; the item before it is recorded too, so the segment's
+// IRF continues a stored one and its start keeps the velocity the impulse
+// finds (eq. 8, and the IRF cache's support velocity). Earlier items are
+// simulated only.
 size_t first_recorded_lead_in(const SamplingOptions& o, int chain) {
   const auto k = static_cast<size_t>(chain);
   if (k >= o.lead_ins.size()) return 0;

@@ -8,8 +8,8 @@
 // segment, which plays the guide schedule from rest up to the item before
 // that segment (simulated, not recorded), records that item and the
 // segment's entry from the very state where the served playback went wrong
-// (kRecordedLeadIns), and then draws on as any chain. Rounds stop when the guide figures meet the target
-// or the budget is spent. The guide schedules are drawn once, from their own
+// (kRecordedLeadIns), and then draws on as any chain. Rounds stop when the
+// guide figures meet the target or the budget is spent. The guide schedules are drawn once, from their own
 // stream (never the sampler's, never the held-out schedules that measure the
 // result: measure_fidelity with another seed), and simulated once: every
 // round plays its package against the same truths, so a round is judged on
