@@ -10,7 +10,7 @@ held-out random schedules of their own seed, never the sampler's.
 `--reuse` measures packages already in DIR instead of sampling them again. `--adaptive N` adds, per seed, `--until-fidelity 0.001 --budget-irfs N` from a first round of half
 that (its whole budget: the target is never met), measured on the same schedules; `--target T` samples
 towards T instead (it may stop early: the row gives the IRFs it took), `--first-irfs F` sets the
-first round and `--directed-chains C` and `--guide-schedules G` pass run's options of those names (the rows of earlier rules:
+first round and `--directed-chains C`, `--guide-schedules G` and `--fresh-schedules S` pass run's options of those names (the rows of earlier rules:
 0 before 2026-12-05).
 Prints one markdown row per scene, IRF count and seed, then the fewest IRFs at which every seed meets
 median 0.15, 90th percentile 0.25 and 95 % of moving segments in range; writes every figure to
@@ -38,6 +38,8 @@ def sample(precompute, scene, out, seed, irfs, adaptive, args):
         kind += f"-dc{args.directed_chains}"
     if adaptive and args.guide_schedules is not None:
         kind += f"-g{args.guide_schedules}"
+    if adaptive and args.fresh_schedules is not None:
+        kind += f"-f{args.fresh_schedules}"
     package = os.path.join(out, f"{os.path.splitext(os.path.basename(scene))[0]}-{kind}-{irfs}-{seed}.h5")
     per_chain = ((args.first_irfs or irfs // 2) if adaptive else irfs) // CHAINS
     command = [precompute, "run", scene, "-o", package, "--seed", str(seed), "--chains", str(CHAINS),
@@ -48,6 +50,8 @@ def sample(precompute, scene, out, seed, irfs, adaptive, args):
             command += ["--directed-chains", str(args.directed_chains)]
         if args.guide_schedules is not None:
             command += ["--guide-schedules", str(args.guide_schedules)]
+        if args.fresh_schedules is not None:
+            command += ["--fresh-schedules", str(args.fresh_schedules)]
     log = package + ".log"
     if not (args.reuse and os.path.exists(package)):
         start = time.monotonic()
@@ -88,6 +92,7 @@ def main():
     parser.add_argument("--first-irfs", type=int, default=0, help=f"their first round (multiple of {CHAINS}; 0: half the budget)")
     parser.add_argument("--directed-chains", type=int, help="the adaptive packages' --directed-chains (default: run's)")
     parser.add_argument("--guide-schedules", type=int, help="the adaptive packages' --guide-schedules (default: run's)")
+    parser.add_argument("--fresh-schedules", type=int, help="the adaptive packages' --fresh-schedules (default: run's)")
     parser.add_argument("--held-out", type=int, default=20)
     parser.add_argument("--items", type=int, default=4)
     parser.add_argument("--fidelity-seed", type=int, default=99)

@@ -111,6 +111,13 @@ void add_fidelity_options(CLI::App* cmd, Options& o) {
       ->check(CLI::Range(1, 10000))
       ->capture_default_str();
   cmd->add_option(
+         "--fresh-schedules", o.adaptive.fresh_schedules,
+         "with --until-fidelity: random schedules drawn to join the guide ones each time those meet the "
+         "target, played by the same package (no chain was aimed at them); sampling stops when all "
+         "meet it (0: when the guide schedules do)")
+      ->check(CLI::Range(0, 10000))
+      ->capture_default_str();
+  cmd->add_option(
          "--directed-chains", o.adaptive.directed_chains,
          "with --until-fidelity: the most directed chains a round adds once every palette entry has "
          "IRFs, up to --chains (0: --chains; a round that mends entries without IRFs adds up to --chains)")

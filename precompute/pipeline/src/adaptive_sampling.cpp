@@ -152,19 +152,34 @@ FidelityFigures figures_of(const ValidationSummary& summary, std::uint64_t seed,
 class RandomSchedules {
  public:
   RandomSchedules(const Scene& scene, std::uint64_t seed, int schedules, int items, size_t kept_truth_bytes)
-      : scene_(scene), seed_(seed), items_(items), kept_truth_bytes_(kept_truth_bytes) {
-    const auto rules = make_palette_rules(scene);
-    for (int k = 0; k < schedules; ++k) {
-      auto drawn = random_schedule(rules, scene.simulation.frame_dt, seed, k, items);
-      if (!drawn.empty()) schedules_.push_back(std::move(drawn));
+      : scene_(scene),
+        rules_(make_palette_rules(scene)),
+        seed_(seed),
+        items_(items),
+        kept_truth_bytes_(kept_truth_bytes) {
+    draw(schedules);
+  }
+
+  // Draws `count` more schedules of the same stream (random_schedule's next
+  // indices); returns how many were not empty (an empty one is skipped).
+  int draw(int count) {
+    const size_t before = schedules_.size();
+    for (int k = 0; k < count; ++k, ++drawn_) {
+      auto drawn = random_schedule(rules_, scene_.simulation.frame_dt, seed_, drawn_, items_);
+      if (drawn.empty()) continue;
+      directed_.emplace_back(drawn.size(), false);
+      schedules_.push_back(std::move(drawn));
     }
     truths_.resize(schedules_.size());
-    for (const auto& drawn : schedules_) directed_.emplace_back(drawn.size(), false);
+    return static_cast<int>(schedules_.size() - before);
   }
 
   // Segments that had a directed chain: a second from the same state would sample the same IRF.
   std::vector<std::vector<bool>>& directed() { return directed_; }
 
+  // Plays the schedules `played` lacks (all of them into an empty one; the
+  // ones drawn since, where `package` played the others) and returns their
+  // figures.
   FidelityFigures play(const core::ScenePackage& package, std::vector<PlayedSchedule>& played,
                        const ProgressCallback& progress) {
     check_package_of(scene_, package);
@@ -172,13 +187,14 @@ class RandomSchedules {
     ValidationOptions options;
     options.intersections = false;
     ValidationSummary summary;
-    for (size_t k = 0; k < schedules_.size(); ++k) {
+    const size_t start = played.size();
+    for (size_t k = start; k < schedules_.size(); ++k) {
       SimulatedSchedule unkept;
       PlayedSchedule p{schedules_[k], compare_playback(scene_, shared, truth(k, unkept), options),
                        directed_[k]};
       summary.add(p.figures);
       played.push_back(std::move(p));
-      if (progress) progress(static_cast<int>(k + 1), static_cast<int>(schedules_.size()));
+      if (progress) progress(static_cast<int>(k + 1 - start), static_cast<int>(schedules_.size() - start));
     }
     return figures_of(summary, seed_, items_);
   }
@@ -197,14 +213,48 @@ class RandomSchedules {
   }
 
   const Scene& scene_;
+  PaletteRules rules_;
   std::uint64_t seed_;
   int items_;
+  int drawn_ = 0;  // random_schedule indices used
   size_t kept_truth_bytes_;
   std::vector<std::vector<ScheduleItem>> schedules_;
   std::vector<std::optional<SimulatedSchedule>> truths_;
   std::vector<std::vector<bool>> directed_;
   size_t kept_bytes_ = 0;
 };
+
+// Plays the guide schedules `played` lacks with a progress bar named `what`.
+FidelityFigures play_guides(RandomSchedules& guides, const core::ScenePackage& package,
+                            std::vector<PlayedSchedule>& played, const std::string& what) {
+  core::ProgressBar bar{what};
+  auto figures = guides.play(package, played, [&bar](int done, int total) { bar.update(done, total); });
+  bar.finish();
+  return figures;
+}
+
+// "adaptive round 2: 48 IRFs, 20 fresh guide schedules: median NRMSE ..."
+std::string round_line(int r, int irfs, const char* which, const FidelityFigures& f) {
+  return fmt::format(
+      "adaptive round {}: {} IRFs, {} {}guide schedules: median NRMSE {:.3f}, 90th {:.3f}, {:.0f} % of "
+      "moving segments in range\n",
+      r, irfs, f.schedules, which, f.median_nrmse, f.p90_nrmse, 100 * f.moving_in_range());
+}
+
+// Plays round r's package on the guide schedules into `played` and, when
+// they meet the target, draws fresh ones, which join the guides, and plays
+// those too: no chain was aimed at them, so their figures alone check the
+// guides' (judged together, the guides' optimism would pass them).
+void judge_round(RandomSchedules& guides, const core::ScenePackage& package, const AdaptiveOptions& o, int r,
+                 bool writer, AdaptiveRound& round, std::vector<PlayedSchedule>& played) {
+  round.guide = play_guides(guides, package, played, fmt::format("round {} guide schedules", r));
+  if (writer) fmt::print(stderr, "{}", round_line(r, round.irfs, "", round.guide));
+  if (!round.guide.meets(o.target) || o.fresh_schedules == 0) return;
+  round.fresh = guides.draw(o.fresh_schedules);
+  round.fresh_figures =
+      play_guides(guides, package, played, fmt::format("round {} fresh guide schedules", r));
+  if (writer) fmt::print(stderr, "{}", round_line(r, round.irfs, "fresh ", round.fresh_figures));
+}
 
 }  // namespace
 
@@ -291,6 +341,9 @@ std::string adaptive_report_text(const AdaptiveReport& a) {
                                                     round.directed == 1 ? "" : "s")
                                       : "");
     out += fidelity_text(round.guide, "guide");
+    if (round.fresh)
+      out += fmt::format("adaptive round {}, fresh guide schedules added: ", r) +
+             fidelity_text(round.fresh_figures, "fresh");
   }
   out += fmt::format("adaptive sampling: {} after {} rounds, {} IRFs\n", a.stopped, a.rounds.size(),
                      a.rounds.empty() ? 0 : a.rounds.back().irfs);
@@ -311,9 +364,12 @@ void check_adaptive_options(const AdaptiveOptions& o, const SampleStageOptions& 
     throw std::invalid_argument(fmt::format(
         "--budget-irfs {}: expected at least the first round's {} IRFs (--chains x --irfs-per-chain)",
         o.budget_irfs, irfs_of(first)));
-  if (o.guide_schedules < 1 || o.schedule_items < 1 || o.directed_chains < 0 || o.directed_extra_irfs < 0)
+  if (o.guide_schedules < 1 || o.schedule_items < 1 || o.fresh_schedules < 0 || o.directed_chains < 0 ||
+      o.directed_extra_irfs < 0)
     throw std::invalid_argument(
-        "adaptive sampling: expected guide schedules and items >= 1, directed chains and extra IRFs >= 0");
+        "adaptive sampling: expected guide schedules and items >= 1, fresh schedules, directed chains and "
+        "extra "
+        "IRFs >= 0");
   // A round aims at most --chains segments (directed_segments' count).
   if (o.directed_chains > first.sampling.chains)
     throw std::invalid_argument(
@@ -345,20 +401,13 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
     AdaptiveRound round;
     for (const auto& k : rounds) round.irfs += irfs_of(k);
     round.directed = r == 0 ? 0 : rounds.back().sampling.chains;
-    core::ProgressBar bar{fmt::format("round {} guide schedules", r)};
-    round.guide =
-        guides.play(reduced.package, played, [&bar](int done, int total) { bar.update(done, total); });
-    bar.finish();
+    judge_round(guides, reduced.package, o, r, report.writer, round, played);
     report.rounds.push_back(round);
-    if (report.writer)
-      fmt::print(stderr,
-                 "adaptive round {}: {} IRFs, guide schedules median NRMSE {:.3f}, 90th {:.3f}, {:.0f} % "
-                 "of moving segments in range\n",
-                 r, round.irfs, round.guide.median_nrmse, round.guide.p90_nrmse,
-                 100 * round.guide.moving_in_range());
-    if (round.guide.meets(o.target)) {
+    if ((round.fresh ? round.fresh_figures : round.guide).meets(o.target)) {
       report.met = true;
-      report.stopped = "target met on the guide schedules";
+      report.stopped =
+          round.fresh ? fmt::format("target met on the guide schedules and on {} fresh ones", round.fresh)
+                      : std::string{"target met on the guide schedules"};
       break;
     }
     if (o.budget_minutes > 0 && clock.seconds() >= 60 * o.budget_minutes) {

@@ -352,6 +352,77 @@ TEST(PipelineCli, UntilFidelityStopsWhenEveryBadGuideSegmentHadAChain) {
       << r.out;
 }
 
+// Guide figures that meet the target are checked on fresh schedules: on the
+// tiny toy (seed 5) with one guide schedule, round 1's 7 IRFs play it true,
+// but 4 fresh ones at a 90th percentile of 0.544. Those join the guides,
+// round 2 aims a chain at them, and its 11 IRFs play the held-out schedules
+// true, where the 7 that --fresh-schedules 0 stops at leave a fifth of their
+// moving segments out of range.
+std::vector<std::string> until_fidelity_with_fresh(const std::string& fresh) {
+  return {"--chains",
+          "3",
+          "--irfs-per-chain",
+          "1",
+          "--seed",
+          "5",
+          "-j",
+          "1",
+          "--no-appearance",
+          "--no-check",
+          "--allow-missing-entries",
+          "--until-fidelity",
+          "0.15",
+          "--budget-irfs",
+          "30",
+          "--guide-schedules",
+          "1",
+          "--fresh-schedules",
+          fresh,
+          "--held-out-schedules",
+          "10",
+          "--fidelity-seed",
+          "99"};
+}
+
+testing::ToolResult run_tiny_toy(const std::filesystem::path& pkg, const std::vector<std::string>& options) {
+  const auto toy = (testing::source_dir() / "scenes/tiny/toy_dashboard.toml").string();
+  return run_tool("phasecast-precompute", args({"run", toy, "-o", pkg.string()}, options));
+}
+
+core::PlaybackFidelity fidelity_of(const std::filesystem::path& pkg) {
+  const auto p = core::read_package(pkg);
+  EXPECT_TRUE(p.fidelity);
+  return p.fidelity.value_or(core::PlaybackFidelity{});
+}
+
+TEST(PipelineCli, UntilFidelityChecksMetGuideFiguresOnFreshSchedules) {
+  const auto dir = scratch_dir("cli_fresh");
+  const auto r = run_tiny_toy(dir / "checked.h5", until_fidelity_with_fresh("4"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("adaptive round 1: 7 IRFs, 4 fresh guide schedules: median NRMSE 0.279, 90th 0.544"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.out.find("adaptive round 2: 11 IRFs (1 directed chain added); fidelity (guide, 5 random "
+                       "schedules"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("adaptive sampling: target met on the guide schedules and on 4 fresh ones after 3 "
+                       "rounds, 11 IRFs"),
+            std::string::npos)
+      << r.out;
+  const auto u = run_tiny_toy(dir / "unchecked.h5", until_fidelity_with_fresh("0"));
+  ASSERT_EQ(u.exit_code, 0) << u.err;
+  EXPECT_NE(u.out.find("adaptive sampling: target met on the guide schedules after 2 rounds, 7 IRFs"),
+            std::string::npos)
+      << u.out;
+  const auto checked = fidelity_of(dir / "checked.h5"), unchecked = fidelity_of(dir / "unchecked.h5");
+  EXPECT_EQ(checked.moving, unchecked.moving);  // the same held-out schedules
+  EXPECT_EQ(checked.moving_within, checked.moving);
+  EXPECT_LT(unchecked.moving_within, unchecked.moving * 9 / 10);
+  EXPECT_LT(checked.p90_nrmse, 0.25);
+  EXPECT_GT(unchecked.p90_nrmse, 0.25);
+}
+
 // Adaptive sampling against random at one budget (docs/sampling.md, "At a
 // fixed budget"): 9 IRFs of the tiny toy, whose five jolts may follow one
 // another in any order. Nine blind draws leave one of the five without IRFs
@@ -441,7 +512,8 @@ std::string expect_resume_in_a_later_round(const std::string& name, const std::v
   const auto stopped =
       run_tool("phasecast-precompute", args({"run", tiny_scene_path().string(), "-o", resumed}, stopping));
   EXPECT_EQ(stopped.exit_code, 1);
-  EXPECT_NE(stopped.err.find("adaptive round 0: 4 IRFs, guide"), std::string::npos) << stopped.err;
+  EXPECT_NE(stopped.err.find("adaptive round 0: 4 IRFs, 3 guide schedules: "), std::string::npos)
+      << stopped.err;
   EXPECT_NE(stopped.err.find("sampling stopped after 5 new IRFs"), std::string::npos) << stopped.err;
   EXPECT_FALSE(std::filesystem::exists(resumed));
   auto resuming = options;

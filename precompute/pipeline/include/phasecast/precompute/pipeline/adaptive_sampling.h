@@ -8,13 +8,16 @@
 // segment, which plays the guide schedule from rest up to the item before
 // that segment (simulated, not recorded), records that item and the
 // segment's entry from the very state where the served playback went wrong
-// (kRecordedLeadIns), and then draws on as any chain. Rounds stop when the
-// guide figures meet the target or the budget is spent. The guide schedules are drawn once, from their own
-// stream (never the sampler's, never the held-out schedules that measure the
-// result: measure_fidelity with another seed), and simulated once: every
-// round plays its package against the same truths, so a round is judged on
-// the segments the previous one directed its chains at, and costs no
-// simulation beyond its chains.
+// (kRecordedLeadIns), and then draws on as any chain. The guide schedules are
+// drawn once, from their own stream (never the sampler's, never the held-out
+// schedules that measure the result: measure_fidelity with another seed),
+// and simulated once: every round plays its package against the same truths,
+// so a round is judged on the segments the previous one directed its chains
+// at, and costs no simulation beyond its chains. That makes the guide
+// figures optimistic, so when they meet the target, the same package plays
+// fresh schedules (no chain was aimed at them), which then join the guides:
+// rounds stop when the fresh ones meet the target too, or when the budget is
+// spent.
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/pipeline/stages.h"
@@ -74,6 +77,7 @@ struct AdaptiveOptions {
   int budget_irfs = 0;          // all IRFs sampled, the first round's included (0: no limit but the time)
   double budget_minutes = 0;    // wall time of the rounds (0: no limit but the IRFs)
   int guide_schedules = 20;     // random schedules, drawn once, every round is judged on (docs/sampling.md)
+  int fresh_schedules = 20;     // played, then guides, each time the guides meet the target (0: stop then)
   int schedule_items = 4;       // entries per guide schedule
   int directed_chains = 1;      // per round once every entry has IRFs, <= first's chains (0: as many)
   int directed_extra_irfs = 2;  // IRFs a directed chain draws after its kRecordedLeadIns
@@ -110,6 +114,10 @@ struct AdaptiveRound {
   int irfs = 0;           // sampled in all, this round's included
   int directed = 0;       // directed chains this round added (0 for the first)
   FidelityFigures guide;  // the package of all IRFs so far, on the guide schedules
+  // When `guide` met the target: the same package on `fresh` schedules drawn
+  // then (AdaptiveOptions::fresh_schedules; the guides from then on).
+  int fresh = 0;
+  FidelityFigures fresh_figures;
 };
 
 struct AdaptiveReport {
