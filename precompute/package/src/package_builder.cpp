@@ -158,9 +158,8 @@ std::string listed(const std::vector<std::string>& names) {
   return "[" + out + "]";
 }
 
-// The support's velocity at every kept node (the IRF cache's key beside eq. 9),
-// taken over the whole store first: a kept IRF's start moved at the velocity
-// of the IRF it continues, kept or not.
+}  // namespace
+
 std::vector<SupportVelocity> kept_support_velocities(const Scene& scene, const IrfList& irfs,
                                                      const std::vector<int>& kept) {
   std::vector<SupportVelocity> held;
@@ -176,8 +175,6 @@ std::vector<SupportVelocity> kept_support_velocities(const Scene& scene, const I
   }
   return out;
 }
-
-}  // namespace
 
 void check_orbit_store_matches(const Scene& scene, const OrbitIndex& o) {
   std::vector<std::string> names;

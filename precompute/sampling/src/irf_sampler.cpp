@@ -61,8 +61,11 @@ std::string lead_in_key(const SamplingOptions& o, int chain) {
   const auto k = static_cast<size_t>(chain);
   if (k >= o.lead_ins.size() || o.lead_ins[k].empty()) return {};
   std::string key = fmt::format("recorded {}: ", kRecordedLeadIns);
-  for (const ScheduleItem& item : o.lead_ins[k])
-    key += fmt::format("{}{} {:.17g}", &item == o.lead_ins[k].data() ? "" : "; ", item.entry, item.duration);
+  const char* separator = "";
+  for (const ScheduleItem& item : o.lead_ins[k]) {
+    key += fmt::format("{}{} {:.17g}", separator, item.entry, item.duration);
+    separator = "; ";
+  }
   return key;
 }
 

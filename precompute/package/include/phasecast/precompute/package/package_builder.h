@@ -6,6 +6,7 @@
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/reduction/displacement_reduction.h"
+#include "phasecast/precompute/reduction/phase_portrait.h"
 #include "phasecast/precompute/sampling/orbit_filter.h"
 #include "phasecast/precompute/sampling/palette_rules.h"
 #include "phasecast/precompute/simulation/embedding.h"
@@ -30,6 +31,13 @@ struct OrbitIndex {
 
 // Throws OrbitStoreError naming the file and dataset.
 OrbitIndex read_orbit_index(const std::filesystem::path& store);
+
+// The support's velocity at every node of the kept IRFs, in `kept` order
+// (the IRF cache's key beside eq. 9), taken over the whole store first: a
+// kept IRF's first node moves at the velocity of the IRF it continues, kept
+// or not (an entry's velocity is its alpha_forcing).
+std::vector<SupportVelocity> kept_support_velocities(const Scene& scene, const IrfList& irfs,
+                                                     const std::vector<int>& kept);
 
 // Throws std::invalid_argument if the orbit store does not belong to the
 // scene, naming each field that differs (vertex count, palette names and
@@ -79,6 +87,13 @@ void apply_view(const ViewSettings& view, core::PackageAttributes& attributes);
 
 // Throws std::invalid_argument naming --beta, --blend-lambda, --dead-end-fraction, --min-irf-frames.
 void check_package_options(const PackageOptions& options);
+
+// The support's velocity at every node of the kept IRFs, in `kept` order
+// (the IRF cache's key beside eq. 9), taken over the whole store first: a
+// kept IRF's first node moves at the velocity of the IRF it continues, kept
+// or not (an entry's velocity is its alpha_forcing).
+std::vector<SupportVelocity> kept_support_velocities(const Scene& scene, const IrfList& irfs,
+                                                     const std::vector<int>& kept);
 
 // Throws std::invalid_argument if the orbit store does not belong to the scene
 // (vertex count, palette names, dt), naming both.
