@@ -95,9 +95,10 @@ void add_fidelity_options(CLI::App* cmd, Options& o) {
       "check runs them on its own)");
   cmd->add_option(
          "--until-fidelity", o.until_fidelity,
-         "sample until random guide schedules play at this median NRMSE (90th percentile + 0.1, 95 % "
-         "of moving segments in range), spending new IRFs where playback departs from the "
-         "simulation (docs/sampling.md, \"Adaptive sampling\"); needs --budget-irfs or --budget-minutes")
+         "sample until random guide schedules, and fresh ones after them, play at this median NRMSE "
+         "(90th percentile + 0.1, 95 % of moving segments in range), spending new IRFs where playback "
+         "departs from the simulation (docs/sampling.md, \"Adaptive sampling\"); needs --budget-irfs or "
+         "--budget-minutes")
       ->check(CLI::Range(1e-6, 10.0));
   cmd->add_option("--budget-irfs", o.adaptive.budget_irfs,
                   "with --until-fidelity: IRFs to sample at most, all rounds")
@@ -112,9 +113,9 @@ void add_fidelity_options(CLI::App* cmd, Options& o) {
       ->capture_default_str();
   cmd->add_option(
          "--fresh-schedules", o.adaptive.fresh_schedules,
-         "with --until-fidelity: random schedules drawn to join the guide ones each time those meet the "
-         "target, played by the same package (no chain was aimed at them); sampling stops when all "
-         "meet it (0: when the guide schedules do)")
+         "with --until-fidelity: random schedules the package plays each time the guide ones meet the "
+         "target (no chain was aimed at them); sampling stops when these alone meet it too, else they "
+         "join the guide schedules (0: stop when the guide schedules meet it)")
       ->check(CLI::Range(0, 10000))
       ->capture_default_str();
   cmd->add_option(

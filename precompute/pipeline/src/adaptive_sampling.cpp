@@ -251,6 +251,7 @@ void judge_round(RandomSchedules& guides, const core::ScenePackage& package, con
   if (writer) fmt::print(stderr, "{}", round_line(r, round.irfs, "", round.guide));
   if (!round.guide.meets(o.target) || o.fresh_schedules == 0) return;
   round.fresh = guides.draw(o.fresh_schedules);
+  if (round.fresh == 0) return;  // the palette rules gave only empty schedules: the guides' figures stand
   round.fresh_figures =
       play_guides(guides, package, played, fmt::format("round {} fresh guide schedules", r));
   if (writer) fmt::print(stderr, "{}", round_line(r, round.irfs, "fresh ", round.fresh_figures));
@@ -342,7 +343,7 @@ std::string adaptive_report_text(const AdaptiveReport& a) {
                                       : "");
     out += fidelity_text(round.guide, "guide");
     if (round.fresh)
-      out += fmt::format("adaptive round {}, fresh guide schedules added: ", r) +
+      out += fmt::format("adaptive round {}, on fresh schedules: ", r) +
              fidelity_text(round.fresh_figures, "fresh");
   }
   out += fmt::format("adaptive sampling: {} after {} rounds, {} IRFs\n", a.stopped, a.rounds.size(),
@@ -367,9 +368,8 @@ void check_adaptive_options(const AdaptiveOptions& o, const SampleStageOptions& 
   if (o.guide_schedules < 1 || o.schedule_items < 1 || o.fresh_schedules < 0 || o.directed_chains < 0 ||
       o.directed_extra_irfs < 0)
     throw std::invalid_argument(
-        "adaptive sampling: expected guide schedules and items >= 1, fresh schedules, directed chains and "
-        "extra "
-        "IRFs >= 0");
+        "adaptive sampling: expected --guide-schedules and items >= 1, --fresh-schedules, --directed-chains "
+        "and --directed-extra-irfs >= 0");
   // A round aims at most --chains segments (directed_segments' count).
   if (o.directed_chains > first.sampling.chains)
     throw std::invalid_argument(

@@ -125,6 +125,49 @@ TEST(MpiRun, AdaptiveSamplingWritesTheSinglePackage) {
   EXPECT_TRUE(read_file(dir / "np2.h5") == read_file(dir / "np1.h5")) << "the files differ";
 }
 
+// Fresh schedules under mpirun: on the tiny toy (seed 5, one guide schedule)
+// round 1 meets the target on its guide, the fresh ones miss it and join the
+// guides, and round 2's chain is aimed at them (PipelineCli's
+// UntilFidelityChecksMetGuideFiguresOnFreshSchedules); two ranks draw and
+// judge alike, to the single process's bytes.
+TEST(MpiRun, FreshScheduleRoundsWriteTheSinglePackage) {
+  const auto dir = scratch_dir("mpi_fresh");
+  const auto run = [&dir](const std::string& name) {
+    return std::vector<std::string>{testing::tool_path("phasecast-precompute").string(),
+                                    "run",
+                                    (testing::scenes_dir() / "tiny" / "toy_dashboard.toml").string(),
+                                    "-o",
+                                    (dir / name).string(),
+                                    "--chains",
+                                    "3",
+                                    "--irfs-per-chain",
+                                    "1",
+                                    "--seed",
+                                    "5",
+                                    "-j",
+                                    "1",
+                                    "--no-appearance",
+                                    "--no-check",
+                                    "--allow-missing-entries",
+                                    "--until-fidelity",
+                                    "0.15",
+                                    "--budget-irfs",
+                                    "30",
+                                    "--guide-schedules",
+                                    "1",
+                                    "--fresh-schedules",
+                                    "4",
+                                    "--held-out-schedules",
+                                    "0"};
+  };
+  const auto single = run_command(run("np1.h5"));
+  ASSERT_EQ(single.exit_code, 0) << single.err;
+  ASSERT_NE(single.out.find("on 4 fresh ones after 3 rounds"), std::string::npos) << single.out;
+  const auto two = run_command(concat(mpirun_argv({"-np", "2"}), run("np2.h5")));
+  ASSERT_EQ(two.exit_code, 0) << two.err;
+  EXPECT_TRUE(read_file(dir / "np2.h5") == read_file(dir / "np1.h5")) << "the files differ";
+}
+
 // --save-transfers under mpirun: each rank casts its share of the transfers,
 // all of them hold every row after the exchange, and one writes the file,
 // which holds what the single process's does, bit for bit.

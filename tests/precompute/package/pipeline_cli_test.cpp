@@ -354,7 +354,7 @@ TEST(PipelineCli, UntilFidelityStopsWhenEveryBadGuideSegmentHadAChain) {
 
 // Guide figures that meet the target are checked on fresh schedules: on the
 // tiny toy (seed 5) with one guide schedule, round 1's 7 IRFs play it true,
-// but 4 fresh ones at a 90th percentile of 0.544. Those join the guides,
+// but 4 fresh ones at a 90th percentile of 0.54. Those join the guides,
 // round 2 aims a chain at them, and its 11 IRFs play the held-out schedules
 // true, where the 7 that --fresh-schedules 0 stops at leave a fifth of their
 // moving segments out of range.
@@ -399,9 +399,13 @@ TEST(PipelineCli, UntilFidelityChecksMetGuideFiguresOnFreshSchedules) {
   const auto dir = scratch_dir("cli_fresh");
   const auto r = run_tiny_toy(dir / "checked.h5", until_fidelity_with_fresh("4"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.err.find("adaptive round 1: 7 IRFs, 4 fresh guide schedules: median NRMSE 0.279, 90th 0.544"),
-            std::string::npos)
+  std::smatch fresh;
+  ASSERT_TRUE(std::regex_search(
+      r.err, fresh,
+      std::regex{
+          R"(adaptive round 1: 7 IRFs, 4 fresh guide schedules: median NRMSE [0-9.]+, 90th ([0-9.]+))"}))
       << r.err;
+  EXPECT_GT(std::stod(fresh[1].str()), 0.25) << "the fresh schedules miss the target the guide one meets";
   EXPECT_NE(r.out.find("adaptive round 2: 11 IRFs (1 directed chain added); fidelity (guide, 5 random "
                        "schedules"),
             std::string::npos)

@@ -88,13 +88,6 @@ void apply_view(const ViewSettings& view, core::PackageAttributes& attributes);
 // Throws std::invalid_argument naming --beta, --blend-lambda, --dead-end-fraction, --min-irf-frames.
 void check_package_options(const PackageOptions& options);
 
-// The support's velocity at every node of the kept IRFs, in `kept` order
-// (the IRF cache's key beside eq. 9), taken over the whole store first: a
-// kept IRF's first node moves at the velocity of the IRF it continues, kept
-// or not (an entry's velocity is its alpha_forcing).
-std::vector<SupportVelocity> kept_support_velocities(const Scene& scene, const IrfList& irfs,
-                                                     const std::vector<int>& kept);
-
 // Throws std::invalid_argument if the orbit store does not belong to the scene
 // (vertex count, palette names, dt), naming both.
 PackageBuild build_package(const Scene& scene, const PaletteRules& rules, const OrbitIndex& orbits,

@@ -13,7 +13,8 @@
 // schedules that measure the result: measure_fidelity with another seed),
 // and simulated once: every round plays its package against the same truths,
 // so a round is judged on the segments the previous one directed its chains
-// at, and costs no simulation beyond its chains. That makes the guide
+// at, and costs no simulation beyond its chains (and any fresh schedules,
+// below). That makes the guide
 // figures optimistic, so when they meet the target, the same package plays
 // fresh schedules (no chain was aimed at them), which then join the guides:
 // rounds stop when the fresh ones meet the target too, or when the budget is
@@ -138,7 +139,8 @@ AdaptiveReport run_adaptive_sampling(const Scene& scene, const SampleStageOption
 // "fidelity (held-out, 20 random schedules of 4 entries, seed S): median NRMSE ..., 90th ..., ..."
 std::string fidelity_text(const FidelityFigures& figures, const char* which);
 
-// One line per round (its IRFs and guide figures), then why the rounds ended.
+// One line per round (its IRFs and guide figures; a second with the fresh
+// schedules' where it played them), then why the rounds ended.
 std::string adaptive_report_text(const AdaptiveReport& report);
 
 // Throws std::invalid_argument naming the flag of an impossible option.
