@@ -4,6 +4,7 @@
 // no finished chain and --resume finishes the same package; a rank that fails ends every rank with one line
 // naming it.
 
+#include "fresh_schedule_run.h"
 #include "phasecast/core/hdf5_file.h"
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/appearance/transfer_file.h"
@@ -133,32 +134,11 @@ TEST(MpiRun, AdaptiveSamplingWritesTheSinglePackage) {
 TEST(MpiRun, FreshScheduleRoundsWriteTheSinglePackage) {
   const auto dir = scratch_dir("mpi_fresh");
   const auto run = [&dir](const std::string& name) {
-    return std::vector<std::string>{testing::tool_path("phasecast-precompute").string(),
-                                    "run",
-                                    (testing::scenes_dir() / "tiny" / "toy_dashboard.toml").string(),
-                                    "-o",
-                                    (dir / name).string(),
-                                    "--chains",
-                                    "3",
-                                    "--irfs-per-chain",
-                                    "1",
-                                    "--seed",
-                                    "5",
-                                    "-j",
-                                    "1",
-                                    "--no-appearance",
-                                    "--no-check",
-                                    "--allow-missing-entries",
-                                    "--until-fidelity",
-                                    "0.15",
-                                    "--budget-irfs",
-                                    "30",
-                                    "--guide-schedules",
-                                    "1",
-                                    "--fresh-schedules",
-                                    "4",
-                                    "--held-out-schedules",
-                                    "0"};
+    std::vector<std::string> argv{testing::tool_path("phasecast-precompute").string(), "run",
+                                  testing::fresh_schedule_scene(), "-o", (dir / name).string()};
+    const auto options = testing::fresh_schedule_options("4", "0");
+    argv.insert(argv.end(), options.begin(), options.end());
+    return argv;
   };
   const auto single = run_command(run("np1.h5"));
   ASSERT_EQ(single.exit_code, 0) << single.err;

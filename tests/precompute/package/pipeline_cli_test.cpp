@@ -2,6 +2,7 @@
 // scene end to end, inspect accepting the package, a stopped run resumed into
 // the same package bytes, and one-line errors.
 
+#include "fresh_schedule_run.h"
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/sampling/orbit_store.h"
 #include "phasecast/precompute/simulation/self_collision.h"
@@ -352,41 +353,9 @@ TEST(PipelineCli, UntilFidelityStopsWhenEveryBadGuideSegmentHadAChain) {
       << r.out;
 }
 
-// Guide figures that meet the target are checked on fresh schedules: on the
-// tiny toy (seed 5) with one guide schedule, round 1's 7 IRFs play it true,
-// but 4 fresh ones at a 90th percentile of 0.54. Those join the guides,
-// round 2 aims a chain at them, and its 11 IRFs play the held-out schedules
-// true, where the 7 that --fresh-schedules 0 stops at leave a fifth of their
-// moving segments out of range.
-std::vector<std::string> until_fidelity_with_fresh(const std::string& fresh) {
-  return {"--chains",
-          "3",
-          "--irfs-per-chain",
-          "1",
-          "--seed",
-          "5",
-          "-j",
-          "1",
-          "--no-appearance",
-          "--no-check",
-          "--allow-missing-entries",
-          "--until-fidelity",
-          "0.15",
-          "--budget-irfs",
-          "30",
-          "--guide-schedules",
-          "1",
-          "--fresh-schedules",
-          fresh,
-          "--held-out-schedules",
-          "10",
-          "--fidelity-seed",
-          "99"};
-}
-
 testing::ToolResult run_tiny_toy(const std::filesystem::path& pkg, const std::vector<std::string>& options) {
-  const auto toy = (testing::source_dir() / "scenes/tiny/toy_dashboard.toml").string();
-  return run_tool("phasecast-precompute", args({"run", toy, "-o", pkg.string()}, options));
+  return run_tool("phasecast-precompute",
+                  args({"run", testing::fresh_schedule_scene(), "-o", pkg.string()}, options));
 }
 
 core::PlaybackFidelity fidelity_of(const std::filesystem::path& pkg) {
@@ -395,9 +364,15 @@ core::PlaybackFidelity fidelity_of(const std::filesystem::path& pkg) {
   return p.fidelity.value_or(core::PlaybackFidelity{});
 }
 
+// Guide figures that meet the target are checked on fresh schedules: on the
+// tiny toy (seed 5) with one guide schedule, round 1's 7 IRFs play it true,
+// but 4 fresh ones at a 90th percentile of 0.54. Those join the guides,
+// round 2 aims a chain at them, and its 11 IRFs play the held-out schedules
+// true, where the 7 that --fresh-schedules 0 stops at leave a fifth of their
+// moving segments out of range.
 TEST(PipelineCli, UntilFidelityChecksMetGuideFiguresOnFreshSchedules) {
   const auto dir = scratch_dir("cli_fresh");
-  const auto r = run_tiny_toy(dir / "checked.h5", until_fidelity_with_fresh("4"));
+  const auto r = run_tiny_toy(dir / "checked.h5", testing::fresh_schedule_options("4", "10"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::smatch fresh;
   ASSERT_TRUE(std::regex_search(
@@ -414,7 +389,7 @@ TEST(PipelineCli, UntilFidelityChecksMetGuideFiguresOnFreshSchedules) {
                        "rounds, 11 IRFs"),
             std::string::npos)
       << r.out;
-  const auto u = run_tiny_toy(dir / "unchecked.h5", until_fidelity_with_fresh("0"));
+  const auto u = run_tiny_toy(dir / "unchecked.h5", testing::fresh_schedule_options("0", "10"));
   ASSERT_EQ(u.exit_code, 0) << u.err;
   EXPECT_NE(u.out.find("adaptive sampling: target met on the guide schedules after 2 rounds, 7 IRFs"),
             std::string::npos)

@@ -14,11 +14,10 @@
 // and simulated once: every round plays its package against the same truths,
 // so a round is judged on the segments the previous one directed its chains
 // at, and costs no simulation beyond its chains (and any fresh schedules,
-// below). That makes the guide
-// figures optimistic, so when they meet the target, the same package plays
-// fresh schedules (no chain was aimed at them), which then join the guides:
-// rounds stop when the fresh ones meet the target too, or when the budget is
-// spent.
+// below). That makes the guide figures optimistic, so when they meet the
+// target, the same package plays fresh schedules (no chain was aimed at
+// them), which then join the guides: rounds stop when the fresh ones meet
+// the target too, or when the budget is spent.
 
 #include "phasecast/core/package.h"
 #include "phasecast/precompute/pipeline/stages.h"
@@ -78,7 +77,7 @@ struct AdaptiveOptions {
   int budget_irfs = 0;          // all IRFs sampled, the first round's included (0: no limit but the time)
   double budget_minutes = 0;    // wall time of the rounds (0: no limit but the IRFs)
   int guide_schedules = 20;     // random schedules, drawn once, every round is judged on (docs/sampling.md)
-  int fresh_schedules = 20;     // played, then guides, each time the guides meet the target (0: stop then)
+  int fresh_schedules = 20;     // drawn to check the guides each time they meet the target (0: none)
   int schedule_items = 4;       // entries per guide schedule
   int directed_chains = 1;      // per round once every entry has IRFs, <= first's chains (0: as many)
   int directed_extra_irfs = 2;  // IRFs a directed chain draws after its kRecordedLeadIns
