@@ -43,7 +43,9 @@ void run_simulate(const SimulateOptions& o) {
   fmt::print("wrote {} ({} frames, {} IRFs)\n", o.output, store.frames(), store.irf_start.size());
   if (scene.model.self_collision) {
     const double close = close_distance(scene);
-    fmt::print("{}\n", contact_line(summarize_contact(store.positions, scene.model.surface, close), close));
+    fmt::print("{}\n", contact_line(summarize_contact(store.positions, scene.model.surface, close,
+                                                      scene.model.thickness),
+                                    close));
   }
   if (!scene.model.tets.empty()) {
     fmt::print("{}\n", tet_line(summarize_tets(scene.model, store.positions),

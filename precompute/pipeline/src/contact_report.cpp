@@ -22,6 +22,8 @@ ContactSummary combined(const ContactSummary& a, const ContactSummary& b) {
   c.worst_intersecting = std::max(a.worst_intersecting, b.worst_intersecting);
   c.frames_close = a.frames_close + b.frames_close;
   c.closest = std::min(a.closest, b.closest);
+  c.frames_in_contact = a.frames_in_contact + b.frames_in_contact;
+  c.closest_to_triangle = std::min(a.closest_to_triangle, b.closest_to_triangle);
   return c;
 }
 
@@ -30,13 +32,15 @@ ContactSummary store_contact(const Scene& scene, const std::vector<std::filesyst
   for (const auto& path : stores) irfs += static_cast<int>(OrbitStoreReader(path).irfs().start.size());
   ContactSummary total;
   total.closest = std::numeric_limits<double>::infinity();
+  total.closest_to_triangle = std::numeric_limits<double>::infinity();
   core::ProgressBar bar("contact check");
   IrfFrames irf;
   for (const auto& path : stores) {
     const OrbitStoreReader reader(path);
     for (int i = 0; i < static_cast<int>(reader.irfs().start.size()); ++i) {
       reader.read(i, irf);
-      total = combined(total, summarize_contact(irf.positions, scene.model.surface, close_distance(scene)));
+      total = combined(total, summarize_contact(irf.positions, scene.model.surface, close_distance(scene),
+                                                scene.model.thickness));
       bar.update(++done, irfs);
     }
   }
@@ -45,13 +49,17 @@ ContactSummary store_contact(const Scene& scene, const std::vector<std::filesyst
 }
 
 std::string contact_line(const ContactSummary& c, double close) {
-  const std::string closest =
-      std::isfinite(c.closest) ? fmt::format(", closest {:.2f} mm", 1e3 * c.closest) : std::string();
+  const auto closest = [](double d) {
+    return std::isfinite(d) ? fmt::format(", closest {:.2f} mm", 1e3 * d) : std::string();
+  };
+  const auto share = [&](int frames) { return 100.0 * frames / std::max(1, c.frames); };
   return fmt::format(
       "contact: {} of {} frames with intersecting triangle pairs (worst {}); {} frames ({:.0f} %) with "
-      "non-neighbour vertices closer than {:.1f} mm (2x thickness){}",
-      c.frames_intersecting, c.frames, c.worst_intersecting, c.frames_close,
-      100.0 * c.frames_close / std::max(1, c.frames), 1e3 * close, closest);
+      "non-neighbour vertices closer than {:.1f} mm (2x thickness){}; {} frames ({:.0f} %) in contact, "
+      "a vertex within {:.1f} mm ({:g}x thickness) of a triangle not its own{}",
+      c.frames_intersecting, c.frames, c.worst_intersecting, c.frames_close, share(c.frames_close),
+      1e3 * close, closest(c.closest), c.frames_in_contact, share(c.frames_in_contact),
+      1e3 * kHeldContact * close / 2, kHeldContact, closest(c.closest_to_triangle));
 }
 
 }  // namespace phasecast::precompute

@@ -40,13 +40,15 @@ ContactSummary sampled_contact(const Scene& scene, const std::vector<SamplingOpt
     for (int k = ranks.rank(); k < o.chains; k += ranks.size())
       mine.push_back(chain_store_path(o.work_dir, k));
   ContactSummary c = store_contact(scene, mine);
-  std::vector<long long> counts{c.frames, c.frames_intersecting, c.frames_close};
+  std::vector<long long> counts{c.frames, c.frames_intersecting, c.frames_close, c.frames_in_contact};
   ranks.sum(counts);
   c.frames = static_cast<int>(counts[0]);
   c.frames_intersecting = static_cast<int>(counts[1]);
   c.frames_close = static_cast<int>(counts[2]);
+  c.frames_in_contact = static_cast<int>(counts[3]);
   c.worst_intersecting = static_cast<int>(ranks.max(c.worst_intersecting));
   c.closest = ranks.min(c.closest);
+  c.closest_to_triangle = ranks.min(c.closest_to_triangle);
   return c;
 }
 

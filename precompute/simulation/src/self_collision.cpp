@@ -157,19 +157,46 @@ double closest_non_neighbours(const Eigen::VectorXd& x, const std::set<std::pair
   return closest;
 }
 
+// Smallest distance from a surface vertex to a triangle not incident to it,
+// as the self-collision measures it, if at most `reach` (else infinite).
+double closest_vertex_triangle(const Eigen::VectorXd& x, const Eigen::MatrixXi& triangles,
+                               const std::vector<int>& surface, double reach) {
+  std::vector<Eigen::AlignedBox3d> boxes;
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    Eigen::AlignedBox3d box(point(x, triangles(f, 0)));
+    box.extend(point(x, triangles(f, 1))).extend(point(x, triangles(f, 2)));
+    boxes.emplace_back(box.min().array() - reach, box.max().array() + reach);
+  }
+  const BoxHash hash(boxes);
+  double closest = std::numeric_limits<double>::infinity();  // beyond reach
+  for (int v : surface) {
+    const Vector3d p = point(x, v);
+    for (int f : hash.overlapping(Eigen::AlignedBox3d(p, p))) {
+      const std::array<int, 3> t = {triangles(f, 0), triangles(f, 1), triangles(f, 2)};
+      if (t[0] == v || t[1] == v || t[2] == v) continue;
+      const Vector3d w = closest_barycentric(p, point(x, t[0]), point(x, t[1]), point(x, t[2]));
+      const double d = (p - (w[0] * point(x, t[0]) + w[1] * point(x, t[1]) + w[2] * point(x, t[2]))).norm();
+      if (d <= reach) closest = std::min(closest, d);
+    }
+  }
+  return closest;
+}
+
 }  // namespace
 
 ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::MatrixXi& triangles,
-                                 double close_distance) {
+                                 double close_distance, double thickness) {
   std::set<std::pair<int, int>> neighbours;
   for (Eigen::Index f = 0; f < triangles.rows(); ++f)
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) neighbours.insert({triangles(f, a), triangles(f, b)});
   std::set<int> on_surface(triangles.data(), triangles.data() + triangles.size());
   const std::vector<int> surface(on_surface.begin(), on_surface.end());
+  const double held = kHeldContact * thickness;
   ContactSummary s;
   s.frames = static_cast<int>(positions.rows());
   s.closest = std::numeric_limits<double>::infinity();
+  s.closest_to_triangle = std::numeric_limits<double>::infinity();
   for (Eigen::Index f = 0; f < positions.rows(); ++f) {
     const Eigen::VectorXd x = positions.row(f).cast<double>().transpose();
     const int pairs = count_intersecting_pairs(x, triangles);
@@ -178,6 +205,9 @@ ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::Matrix
     const double closest = closest_non_neighbours(x, neighbours, surface, close_distance);
     s.frames_close += closest < close_distance;
     s.closest = std::min(s.closest, closest);
+    const double touching = closest_vertex_triangle(x, triangles, surface, std::max(held, close_distance));
+    s.frames_in_contact += touching < held;
+    s.closest_to_triangle = std::min(s.closest_to_triangle, touching);
   }
   return s;
 }

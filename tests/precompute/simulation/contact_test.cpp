@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -116,10 +117,39 @@ TEST(ContactSummary, OnlySurfaceVerticesCountAsClose) {
   for (std::size_t v = 0; v < points.size(); ++v)
     for (int c = 0; c < 3; ++c)
       frames(0, 3 * static_cast<Eigen::Index>(v) + c) = static_cast<float>(points[v][c]);
-  const ContactSummary wide = summarize_contact(frames, triangles, 0.02);
+  const ContactSummary wide = summarize_contact(frames, triangles, 0.02, 0.01);
   EXPECT_EQ(wide.frames_close, 1);
   EXPECT_NEAR(wide.closest, gap, 1e-6) << "vertex 3, 1 mm from vertex 0, does not count";
-  EXPECT_EQ(summarize_contact(frames, triangles, 0.005).frames_close, 0);
+  EXPECT_EQ(summarize_contact(frames, triangles, 0.005, 0.0025).frames_close, 0);
+}
+
+// Contact is where the self-collision acts: a vertex held at the thickness
+// from a triangle's face, however far from that triangle's vertices.
+TEST(ContactSummary, AVertexHeldAtTheThicknessOverAFaceIsInContact) {
+  Eigen::MatrixXi triangles(2, 3);
+  triangles << 0, 1, 2, 3, 4, 5;
+  const double thickness = 0.003;
+  const auto frame_at = [](double gap) {
+    // vertex 3 over the middle of triangle 0, 5 cm from its corners
+    const std::vector<Vector3d> points = {Vector3d(0, 0, 0),        Vector3d(0.15, 0, 0),
+                                          Vector3d(0, 0.15, 0),     Vector3d(0.05, 0.05, gap),
+                                          Vector3d(0.2, 0.05, gap), Vector3d(0.05, 0.2, gap)};
+    MatrixXfR frame(1, 18);
+    for (int v = 0; v < 6; ++v)
+      for (int c = 0; c < 3; ++c) frame(0, 3 * v + c) = static_cast<float>(points[static_cast<size_t>(v)][c]);
+    return frame;
+  };
+  const ContactSummary held = summarize_contact(frame_at(thickness), triangles, 2 * thickness, thickness);
+  EXPECT_EQ(held.frames_in_contact, 1);
+  EXPECT_NEAR(held.closest_to_triangle, thickness, 1e-6);
+  EXPECT_EQ(held.frames_close, 0) << "no two vertices are within twice the thickness";
+  const ContactSummary apart =
+      summarize_contact(frame_at(1.5 * thickness), triangles, 2 * thickness, thickness);
+  EXPECT_EQ(apart.frames_in_contact, 0);
+  EXPECT_NEAR(apart.closest_to_triangle, 1.5 * thickness, 1e-6);
+  EXPECT_FALSE(std::isfinite(
+      summarize_contact(frame_at(3 * thickness), triangles, 2 * thickness, thickness).closest_to_triangle))
+      << "nothing within twice the thickness";
 }
 
 TEST(SelfCollision, WithoutItASheetPassesThroughAnother) {

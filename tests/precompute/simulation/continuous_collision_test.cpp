@@ -200,9 +200,12 @@ TEST(ContinuousCollision, PressedLayersNeverIntersectWhileInContact) {
   const Scene scene = two_layer_towel();
   const OrbitStore orbit =
       simulate_schedule(scene, parse_schedule("open 0.6; stop 0.6; close 0.6; stop 0.6", scene));
-  const ContactSummary c = summarize_contact(orbit.positions, scene.model.surface, 2 * scene.model.thickness);
+  const ContactSummary c = summarize_contact(orbit.positions, scene.model.surface, 2 * scene.model.thickness,
+                                             scene.model.thickness);
   EXPECT_EQ(c.frames_intersecting, 0) << "worst frame: " << c.worst_intersecting << " pairs";
   EXPECT_GE(c.frames_close, 0.3 * c.frames) << "the layers must stay in contact range for the check to bite";
+  EXPECT_GE(c.frames_in_contact, 0.3 * c.frames)
+      << "the layers must press on each other for the check to bite";
 }
 
 }  // namespace

@@ -44,7 +44,8 @@ TEST(PaperScenes, PaperScaleClothHasThePapersSizeAndStartsInContactRange) {
   EXPECT_NEAR(scene.model.surface.rows(), 6365, 0.02 * 6365);
   EXPECT_TRUE(scene.model.self_collision);
   MatrixXfR rest = scene.model.rest.cast<float>().transpose();
-  const ContactSummary c = summarize_contact(rest, scene.model.surface, 2 * scene.model.thickness);
+  const ContactSummary c =
+      summarize_contact(rest, scene.model.surface, 2 * scene.model.thickness, scene.model.thickness);
   EXPECT_EQ(c.frames_intersecting, 0);
   EXPECT_EQ(c.frames_close, 1);  // the folded layers hang closer than twice the thickness
   EXPECT_GT(c.closest, scene.model.thickness);
@@ -65,7 +66,9 @@ TEST(PaperScenes, PaperScalePlantHasThePapersShellsAndLeaves) {
   EXPECT_NEAR(drawn, 6304, 0.02 * 6304);
   EXPECT_TRUE(scene.model.self_collision);
   MatrixXfR rest = scene.model.rest.cast<float>().transpose();
-  EXPECT_EQ(summarize_contact(rest, scene.model.surface, 2 * scene.model.thickness).frames_intersecting, 0);
+  EXPECT_EQ(summarize_contact(rest, scene.model.surface, 2 * scene.model.thickness, scene.model.thickness)
+                .frames_intersecting,
+            0);
 }
 
 // What the user sees of the plant: its stem, branches and petioles are drawn

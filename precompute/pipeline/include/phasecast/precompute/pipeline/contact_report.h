@@ -22,7 +22,8 @@ ContactSummary store_contact(const Scene& scene, const std::vector<std::filesyst
 // Of the frames of two disjoint sets of frames together.
 ContactSummary combined(const ContactSummary& a, const ContactSummary& b);
 
-// "contact: 0 of N frames with intersecting triangle pairs (worst 0); ..."
+// "contact: 0 of N frames with intersecting triangle pairs (worst 0); ...; K frames in contact ...";
+// close is close_distance(), twice the thickness.
 std::string contact_line(const ContactSummary& c, double close);
 
 }  // namespace phasecast::precompute

@@ -35,15 +35,21 @@ int count_intersecting_pairs(const Eigen::VectorXd& x, const Eigen::MatrixXi& tr
 // Self-contact over recorded frames (rows of 3V positions): the measure of
 // issue 15's guarantee, where it matters. Close pairs are vertices that share
 // no triangle yet lie nearer than `close_distance` (e.g. 2x the thickness).
+// A frame is in contact where a surface vertex lies within kHeldContact x the
+// thickness of a triangle not incident to it: the self-collision holds such a
+// pair at the thickness, so it rests there, not below it.
+constexpr double kHeldContact = 1.1;
 struct ContactSummary {
   int frames = 0;
-  int frames_intersecting = 0;  // frames with an intersecting triangle pair
-  int worst_intersecting = 0;   // most intersecting pairs in one frame
-  int frames_close = 0;         // frames with a close non-neighbour pair
-  double closest = 0;           // smallest of those distances over all frames, m (infinite: none)
+  int frames_intersecting = 0;     // frames with an intersecting triangle pair
+  int worst_intersecting = 0;      // most intersecting pairs in one frame
+  int frames_close = 0;            // frames with a close non-neighbour pair
+  double closest = 0;              // smallest of those distances over all frames, m (infinite: none)
+  int frames_in_contact = 0;       // frames with a vertex held against a triangle (above)
+  double closest_to_triangle = 0;  // least of those vertex-triangle distances up to close_distance, m
 };
 ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::MatrixXi& triangles,
-                                 double close_distance);
+                                 double close_distance, double thickness);
 
 // The unique edges (a < b) of a triangle mesh, sorted.
 std::vector<std::array<int, 2>> surface_edges(const Eigen::MatrixXi& triangles);
