@@ -49,17 +49,18 @@ ContactSummary store_contact(const Scene& scene, const std::vector<std::filesyst
 }
 
 std::string contact_line(const ContactSummary& c, double close) {
-  const auto closest = [](double d) {
-    return std::isfinite(d) ? fmt::format(", closest {:.2f} mm", 1e3 * d) : std::string();
+  const auto closest = [](double d, const char* what) {
+    return std::isfinite(d) ? fmt::format(", {} {:.2f} mm", what, 1e3 * d) : std::string();
   };
   const auto share = [&](int frames) { return 100.0 * frames / std::max(1, c.frames); };
   return fmt::format(
       "contact: {} of {} frames with intersecting triangle pairs (worst {}); {} frames ({:.0f} %) with "
-      "non-neighbour vertices closer than {:.1f} mm (2x thickness){}; {} frames ({:.0f} %) in contact, "
-      "a vertex within {:.1f} mm ({:g}x thickness) of a triangle not its own{}",
+      "non-neighbour vertices closer than {:.1f} mm (2x thickness){}; {} frames ({:.0f} %) in contact "
+      "(a vertex within {:.1f} mm, {:g}x thickness, of a triangle not its own){}",
       c.frames_intersecting, c.frames, c.worst_intersecting, c.frames_close, share(c.frames_close),
-      1e3 * close, closest(c.closest), c.frames_in_contact, share(c.frames_in_contact),
-      1e3 * kHeldContact * close / 2, kHeldContact, closest(c.closest_to_triangle));
+      1e3 * close, closest(c.closest, "closest"), c.frames_in_contact, share(c.frames_in_contact),
+      1e3 * kHeldContact * close / 2, kHeldContact,
+      closest(c.closest_to_triangle, "nearest vertex to a triangle"));
 }
 
 }  // namespace phasecast::precompute

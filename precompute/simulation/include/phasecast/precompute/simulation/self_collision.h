@@ -37,7 +37,8 @@ int count_intersecting_pairs(const Eigen::VectorXd& x, const Eigen::MatrixXi& tr
 // no triangle yet lie nearer than `close_distance` (e.g. 2x the thickness).
 // A frame is in contact where a surface vertex lies within kHeldContact x the
 // thickness of a triangle not incident to it: the self-collision holds such a
-// pair at the thickness, so it rests there, not below it.
+// pair at the thickness, so it rests there, not below it. Edge-edge pairs are
+// not counted.
 constexpr double kHeldContact = 1.1;
 struct ContactSummary {
   int frames = 0;
@@ -46,7 +47,7 @@ struct ContactSummary {
   int frames_close = 0;            // frames with a close non-neighbour pair
   double closest = 0;              // smallest of those distances over all frames, m (infinite: none)
   int frames_in_contact = 0;       // frames with a vertex held against a triangle (above)
-  double closest_to_triangle = 0;  // least of those vertex-triangle distances up to close_distance, m
+  double closest_to_triangle = 0;  // least vertex-triangle distance up to close_distance, m (infinite: none)
 };
 ContactSummary summarize_contact(const MatrixXfR& positions, const Eigen::MatrixXi& triangles,
                                  double close_distance, double thickness);
